@@ -1,0 +1,84 @@
+"""Input checks shared by every public constructor.
+
+Each check raises ``ValueError`` (or ``TypeError``) whose message names the
+argument and repeats the bad value, so a user sees *which* number was wrong.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def _show(value) -> str:
+    arr = np.asarray(value)
+    if arr.size > 12:
+        return f"array of shape {arr.shape}"
+    return repr(value.tolist() if isinstance(value, np.ndarray) else value)
+
+
+def vector(name: str, value, shape=(3,), *, allow_inf: bool = False) -> np.ndarray:
+    """Return ``value`` as a float64 array of ``shape``; reject NaN and (unless allowed) inf."""
+    try:
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be numbers of shape {shape}, got {_show(value)}") from None
+    if arr.shape != tuple(shape):
+        raise ValueError(f"{name} must have shape {tuple(shape)}, got shape {arr.shape}: {_show(value)}")
+    if np.isnan(arr).any():
+        raise ValueError(f"{name} must not contain NaN, got {_show(value)}")
+    if not allow_inf and np.isinf(arr).any():
+        raise ValueError(f"{name} must be finite, got {_show(value)}")
+    return arr
+
+
+def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False,
+           allow_inf: bool = False, lo: float | None = None, hi: float | None = None) -> float:
+    """Return ``value`` as a float after range checks that name the argument."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    x = float(value)
+    if math.isnan(x):
+        raise ValueError(f"{name} must not be NaN, got {x!r}")
+    if math.isinf(x) and not allow_inf:
+        raise ValueError(f"{name} must be finite, got {x!r}")
+    if positive and not x > 0:
+        raise ValueError(f"{name} must be > 0, got {x!r}")
+    if nonnegative and not x >= 0:
+        raise ValueError(f"{name} must be >= 0, got {x!r}")
+    if lo is not None and x < lo or hi is not None and x > hi:
+        raise ValueError(f"{name} must be in [{lo}, {hi}], got {x!r}")
+    return x
+
+
+def array(name: str, value, shape_tail=(3,), n: int | None = None, *, allow_inf: bool = False,
+          positive: bool = False, lo: float | None = None, hi: float | None = None) -> np.ndarray:
+    """Validate a column of values, shape ``(n, *shape_tail)``; the message gives the first bad row."""
+    try:
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be an array of numbers, got {type(value).__name__}") from None
+    if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != tuple(shape_tail):
+        raise ValueError(f"{name} must have shape (N, {', '.join(map(str, shape_tail))})"
+                         .replace(", )", ")") + f", got {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(f"{name} has {arr.shape[0]} rows, expected {n}")
+    flat = arr.reshape(arr.shape[0], -1)
+    bad = np.isnan(flat).any(axis=1)
+    if not allow_inf:
+        bad |= np.isinf(flat).any(axis=1)
+    if positive:
+        bad |= ~(flat > 0).all(axis=1)
+    if lo is not None:
+        bad |= (flat < lo).any(axis=1)
+    if hi is not None:
+        bad |= (flat > hi).any(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        need = "finite" if not allow_inf else "not NaN"
+        if positive:
+            need += " and > 0"
+        if lo is not None or hi is not None:
+            need += f" and in [{lo}, {hi}]"
+        raise ValueError(f"{name}[{i}] must be {need}, got {_show(arr[i])}")
+    return arr
