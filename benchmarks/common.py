@@ -1,0 +1,80 @@
+"""Shared helpers for benchmarks: median timing, tables, charts, the machine line."""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+IMG = ROOT / "docs" / "img"
+TABLES = ROOT / "docs" / "bench"
+
+
+def parser(description: str) -> argparse.ArgumentParser:
+    """An argument parser with the flags every benchmark takes."""
+    p = argparse.ArgumentParser(description=description)
+    p.add_argument("--quick", action="store_true", help="a fast smoke run (few sizes, few repeats)")
+    return p
+
+
+def median_time(fn, *, repeats: int = 7, number: int = 1, warmup: int = 1) -> float:
+    """Median over ``repeats`` of the mean seconds per call of ``fn`` over ``number`` calls."""
+    for _ in range(warmup):
+        fn()
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        samples.append((time.perf_counter() - t0) / number)
+    return statistics.median(samples)
+
+
+def machine() -> str:
+    """One line describing where the figures were measured."""
+    return (f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+            f"{platform.system()} {platform.release()}")
+
+
+def table(headers: list[str], rows: list[list]) -> str:
+    """A GitHub markdown table; floats are shown with 3 significant digits."""
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.3g}"
+        return str(v)
+    out = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    out += ["| " + " | ".join(fmt(v) for v in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def write_section(name: str, title: str, body: str) -> Path:
+    """Write ``docs/bench/<name>.md``: a titled section with the machine line and the chart link."""
+    TABLES.mkdir(parents=True, exist_ok=True)
+    chart = IMG / f"{name}.png"
+    text = f"## {title}\n\nMeasured on {machine()}; `python -m benchmarks.{name}`.\n\n{body.strip()}\n"
+    if chart.exists():
+        text += f"\n![{title}](img/{name}.png)\n"
+    path = TABLES / f"{name}.md"
+    path.write_text(text)
+    return path
+
+
+def figure(*args, **kwargs):
+    """A matplotlib figure on the Agg backend (no display needed)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt.subplots(*args, **kwargs)
+
+
+def save_chart(fig, name: str) -> Path:
+    IMG.mkdir(parents=True, exist_ok=True)
+    path = IMG / f"{name}.png"
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+    return path
