@@ -61,6 +61,18 @@ def quat_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
     return np.concatenate([rotvec * k, np.cos(half)], axis=-1)
 
 
+def quat_from_axis_angle(axis, angle) -> np.ndarray:
+    """Unit quaternion rotating by ``angle`` rad about ``axis`` (any non-zero length; right-hand rule)."""
+    from framework import validate
+
+    a = validate.vector("axis", axis)
+    angle = validate.scalar("angle", angle)
+    n = float(np.linalg.norm(a))
+    if not n > 0:
+        raise ValueError(f"axis must have non-zero length, got {a.tolist()}")
+    return quat_from_rotvec(a / n * angle)
+
+
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     """Unit quaternions ``(..., 4)`` -> rotation matrices ``(..., 3, 3)`` (columns right, up, forward)."""
     x, y, z, w = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)

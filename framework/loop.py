@@ -47,14 +47,15 @@ class FixedStepLoop:
             return 0
         dt = self.world.dt
         self.accumulator += elapsed
-        steps = int(self.accumulator // dt)
+        # acc / dt rounded, then floored with a hair of tolerance: 10.0 // 0.1 is 99 in floats
+        steps = int(self.accumulator / dt + 1e-9)
         if steps > self.max_steps:
             self.dropped_steps += steps - self.max_steps
             self.accumulator -= (steps - self.max_steps) * dt
             steps = self.max_steps
         if steps:
             self.world.step(steps)
-            self.accumulator -= steps * dt
+            self.accumulator = max(0.0, self.accumulator - steps * dt)
         return steps
 
     @property

@@ -33,7 +33,8 @@ class Field:
                  dtype=np.float64, check=None):
         self.shape = tuple(shape)
         self.doc = doc
-        self.default = default
+        # a scalar default for a vector field fills it (0.0 -> zeros(3))
+        self.default = np.full(self.shape, default, dtype) if self.shape and np.ndim(default) == 0 else default
         self.allow_inf = allow_inf
         self.dtype = np.dtype(dtype)
         self.check = check

@@ -1,0 +1,121 @@
+"""World: declared stage order, per-stage profile, bulk creation, and a state hash for determinism."""
+import esper
+import numpy as np
+import pytest
+
+from components.body import AngularVelocity, Mass, Transform, Velocity
+from framework.world import FRAME_STAGES, STEP_STAGES, World
+from systems.movement import MovementSystem
+from systems.spin import SpinSystem
+
+
+class Recorder(esper.Processor):
+    def __init__(self, name, log, stage):
+        self.name, self.log, self.stage = name, log, stage
+
+    def process(self, dt):
+        self.log.append(self.name)
+
+
+def test_stages_run_in_declared_order_whatever_the_adding_order(world):
+    log = []
+    for stage in reversed(STEP_STAGES + FRAME_STAGES):
+        world.add_system(Recorder(stage, log, stage))
+    world.step()
+    assert log == list(STEP_STAGES)
+    log.clear()
+    world.render()
+    assert log == list(FRAME_STAGES)
+
+
+def test_unknown_stage_is_rejected(world):
+    with pytest.raises(ValueError, match="'physics'"):
+        world.add_system(Recorder("x", [], "physics"))
+
+
+def test_profile_records_each_stage(world):
+    world.add_system(MovementSystem())
+    world.create_entity(Transform(), Velocity((1, 0, 0)))
+    world.step(3)
+    assert world.profile["movement"] > 0
+    assert world.profile["collision"] == 0.0
+    assert world.profile_total["movement"] >= world.profile["movement"]
+
+
+def test_time_is_steps_times_dt_never_the_wall_clock(world):
+    world.step(90)
+    assert world.step_count == 90
+    assert world.time == 90 * world.dt
+
+
+def _scene(seed, order=1):
+    w = World()
+    w.add_system(MovementSystem())
+    w.add_system(SpinSystem())
+    rng = np.random.default_rng(seed)
+    n = 200
+    w.create_entities(Transform.bulk(n, position=rng.normal(size=(n, 3))),
+                      Velocity.bulk(n, linear=rng.normal(size=(n, 3))),
+                      AngularVelocity.bulk(n, angular=rng.normal(size=(n, 3))))
+    w.step(120)
+    h = w.state_hash()
+    w.close()
+    return h
+
+
+def test_two_runs_of_the_same_scene_hash_the_same():
+    assert _scene(5) == _scene(5)
+
+
+def test_any_change_changes_the_hash(world):
+    e = world.create_entity(Transform(), Velocity((1.0, 0, 0)))
+    before = world.state_hash()
+    esper.component_for_entity(e, Velocity).linear[0] = np.nextafter(1.0, 2.0)   # one ulp
+    assert world.state_hash() != before
+    assert _scene(5) != _scene(6)
+
+
+def test_hash_ignores_where_rows_live_in_the_tables():
+    def build(pad):
+        w = World()
+        junk = [Velocity((9, 9, 9)) for _ in range(pad)]   # occupy rows first
+        w.create_entity(Transform((1, 2, 3)), Velocity((4, 5, 6)))
+        h = w.state_hash()
+        w.close()
+        return h
+    assert build(0) == build(37)
+
+
+def test_bulk_creation_of_100k_bodies(world):
+    n = 100_000
+    rng = np.random.default_rng(0)
+    ids = world.create_entities(Transform.bulk(n, position=rng.normal(size=(n, 3))),
+                                Velocity.bulk(n, linear=rng.normal(size=(n, 3))),
+                                AngularVelocity.bulk(n, angular=rng.normal(size=(n, 3))),
+                                Mass.bulk(n, kg=np.full(n, 2.0)))
+    assert len(ids) == n == len(esper.get_components(Transform, Velocity, AngularVelocity, Mass))
+
+
+def test_create_entities_rejects_lists_of_different_length(world):
+    with pytest.raises(ValueError, match="differ in length"):
+        world.create_entities(Transform.bulk(2), Velocity.bulk(3))
+
+
+def test_worlds_are_independent():
+    a, b = World(), World()
+    try:
+        a.create_entity(Transform())
+        b.activate()
+        assert esper.get_component(Transform) == []
+        a.activate()
+        assert len(esper.get_component(Transform)) == 1
+    finally:
+        a.close()
+        b.close()
+
+
+def test_bad_dt_is_rejected():
+    with pytest.raises(ValueError, match="dt must be > 0"):
+        World(dt=0.0)
+    with pytest.raises(ValueError, match="dt"):
+        World(dt=float("nan"))
