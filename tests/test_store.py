@@ -19,13 +19,17 @@ def test_component_fields_are_views_into_the_table():
 
 
 def test_rows_are_recycled_when_components_die():
+    gc.collect()
+    table = Velocity._table
     v = Velocity((1.0, 0, 0))
-    row = v._row
+    row, size = v._row, table.size
     del v
     gc.collect()
-    w = Velocity((7.0, 0, 0))
-    assert w._row == row
-    np.testing.assert_array_equal(w.linear, [7.0, 0, 0])
+    assert row in table.free
+    reused = [Velocity((7.0, 0, 0)) for _ in range(len(table.free))]
+    assert table.size == size                      # no new rows while recycled ones were free
+    assert row in [r._row for r in reused]
+    np.testing.assert_array_equal(reused[-1].linear, [7.0, 0, 0])
 
 
 def test_table_growth_keeps_values():
