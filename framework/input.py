@@ -1,0 +1,146 @@
+"""Input mapping: keys -> actions -> the pilot's intent, for a keyboard or a script.
+
+Actions are named once here. *Held* actions set a :class:`FlightInput`
+channel while held; *pressed* actions fire once (switch camera, pause, ...).
+The window layer translates physical keys to action names with
+:data:`KEYMAP`; recordings replay a :class:`Track` of the same actions, so a
+scripted flight and a flown one go through the same code.
+
+Sign conventions follow ``framework.frame``: positive pitch is nose *down*
+(right-hand rule about right), positive yaw turns the nose towards right,
+positive roll lifts the right wing. So "pitch up" is ``pitch = -1``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from framework import validate
+
+#: Held actions: (FlightInput field, value while held).
+HELD = {
+    "thrust_forward": ("throttle", +1.0),
+    "thrust_back": ("throttle", -1.0),
+    "pitch_up": ("pitch", -1.0),
+    "pitch_down": ("pitch", +1.0),
+    "yaw_left": ("yaw", -1.0),
+    "yaw_right": ("yaw", +1.0),
+    "roll_left": ("roll", +1.0),
+    "roll_right": ("roll", -1.0),
+    "kill_rotation": ("kill_rotation", True),
+}
+#: Pressed actions, fired once per press.
+PRESSED = ("switch_camera", "pause", "screenshot", "quit")
+
+#: Default keyboard layout: action -> key names (GLFW key names without the GLFW_KEY_ prefix).
+KEYMAP = {
+    "thrust_forward": ("W",),
+    "thrust_back": ("S",),
+    "pitch_up": ("DOWN",),
+    "pitch_down": ("UP",),
+    "yaw_left": ("A", "LEFT"),
+    "yaw_right": ("D", "RIGHT"),
+    "roll_left": ("Q",),
+    "roll_right": ("E",),
+    "kill_rotation": ("X",),
+    "switch_camera": ("C",),
+    "pause": ("P",),
+    "screenshot": ("F12",),
+    "quit": ("ESCAPE",),
+}
+
+
+def keys_help() -> str:
+    """The key table as text, for ``--help`` and the README."""
+    names = {
+        "thrust_forward": "thrust forward", "thrust_back": "thrust backward",
+        "pitch_up": "pitch up (nose up)", "pitch_down": "pitch down", "yaw_left": "yaw left",
+        "yaw_right": "yaw right", "roll_left": "roll left", "roll_right": "roll right",
+        "kill_rotation": "kill rotation (hold)", "switch_camera": "switch cockpit / chase camera",
+        "pause": "pause / resume", "screenshot": "screenshot (PNG)", "quit": "quit",
+    }
+    width = max(len(" / ".join(k)) for k in KEYMAP.values())
+    return "\n".join(f"  {' / '.join(keys):<{width}}  {names[a]}" for a, keys in KEYMAP.items())
+
+
+def intent_from_held(held) -> dict:
+    """FlightInput field values for a set of held action names (opposite keys cancel)."""
+    out = {"throttle": 0.0, "roll": 0.0, "pitch": 0.0, "yaw": 0.0, "kill_rotation": False}
+    for action in held:
+        if action not in HELD:
+            raise ValueError(f"unknown held action {action!r}; known: {', '.join(HELD)}")
+        name, value = HELD[action]
+        if name == "kill_rotation":
+            out[name] = True
+        else:
+            out[name] += value
+    return out
+
+
+@dataclass(frozen=True)
+class Hold:
+    """From ``start`` to ``end`` seconds (simulated time), hold these FlightInput values."""
+
+    start: float
+    end: float
+    throttle: float = 0.0
+    roll: float = 0.0
+    pitch: float = 0.0
+    yaw: float = 0.0
+    kill_rotation: bool = False
+
+    def __post_init__(self):
+        s = validate.scalar("Hold.start", self.start, nonnegative=True)
+        e = validate.scalar("Hold.end", self.end, nonnegative=True)
+        if not e > s:
+            raise ValueError(f"Hold.end must be after Hold.start, got start={s!r}, end={e!r}")
+        for name in ("throttle", "roll", "pitch", "yaw"):
+            validate.scalar(f"Hold.{name}", getattr(self, name), lo=-1.0, hi=1.0)
+
+
+@dataclass(frozen=True)
+class Press:
+    """At ``time`` seconds (simulated), fire a pressed action once (e.g. ``"switch_camera"``)."""
+
+    time: float
+    action: str
+
+    def __post_init__(self):
+        validate.scalar("Press.time", self.time, nonnegative=True)
+        if self.action not in PRESSED:
+            raise ValueError(f"Press.action must be one of {PRESSED}, got {self.action!r}")
+
+
+@dataclass(frozen=True)
+class Track:
+    """A scripted input track: holds (may overlap; values add, then clamp to [-1, 1]) and presses."""
+
+    events: tuple = field(default_factory=tuple)
+
+    def __post_init__(self):
+        for ev in self.events:
+            if not isinstance(ev, (Hold, Press)):
+                raise TypeError(f"Track events must be Hold or Press, got {ev!r}")
+
+    def intent_at(self, t: float) -> dict:
+        """FlightInput values at simulated time ``t`` (holds are half-open: start <= t < end)."""
+        out = {"throttle": 0.0, "roll": 0.0, "pitch": 0.0, "yaw": 0.0, "kill_rotation": False}
+        for ev in self.events:
+            if isinstance(ev, Hold) and ev.start <= t < ev.end:
+                for name in ("throttle", "roll", "pitch", "yaw"):
+                    out[name] = max(-1.0, min(1.0, out[name] + getattr(ev, name)))
+                out["kill_rotation"] |= ev.kill_rotation
+        return out
+
+    def presses_at_step(self, step: int, dt: float) -> list[str]:
+        """Pressed actions that fire in step ``step``: the first step whose start time
+        ``step * dt`` reaches the press time. Computed on step indices, so every press
+        fires exactly once whatever the rounding of ``step * dt``."""
+        hits = [ev for ev in self.events
+                if isinstance(ev, Press) and max(0, math.ceil(ev.time / dt - 1e-9)) == step]
+        return [ev.action for ev in sorted(hits, key=lambda e: e.time)]
+
+    @property
+    def duration(self) -> float:
+        ends = [ev.end if isinstance(ev, Hold) else ev.time for ev in self.events]
+        return max(ends, default=0.0)

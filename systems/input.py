@@ -1,0 +1,63 @@
+"""Input: the keyboard's held keys, or a scripted track, become the pilot's intent."""
+from __future__ import annotations
+
+import esper
+
+from components.control import FlightInput, Player
+from framework.input import PRESSED, Track, intent_from_held
+
+
+def _switch_camera(world) -> None:
+    from systems.camera import switch_camera
+    switch_camera(world)
+
+
+class InputSystem(esper.Processor):
+    """Reads a Track (or held keys); writes FlightInput of Player entities; fires pressed actions.
+
+    * With a ``track`` (recordings, tests) the intent is ``track.intent_at(time)``
+      and presses fire in the step the track says — the same every run.
+    * Without one (a window) the intent comes from ``held`` (action names the
+      window keeps up to date) and presses queued in ``pressed`` fire at the
+      next step, so key timing is quantised to steps, never to frames.
+
+    Pressed actions go to ``handlers[action](world)``; ``switch_camera`` is
+    handled by default, the window adds ``pause``, ``screenshot``, ``quit``.
+    """
+
+    stage = "input"
+
+    def __init__(self, track: Track | None = None):
+        if track is not None and not isinstance(track, Track):
+            raise TypeError(f"track must be a framework.input.Track, got {track!r}")
+        self.track = track
+        self.held: set[str] = set()
+        self.pressed: list[str] = []
+        self.handlers = {"switch_camera": _switch_camera}
+
+    def press(self, action: str) -> None:
+        """Queue a pressed action for the next step."""
+        if action not in PRESSED:
+            raise ValueError(f"unknown pressed action {action!r}; known: {', '.join(PRESSED)}")
+        self.pressed.append(action)
+
+    def process(self, dt: float) -> None:
+        world = self.world
+        if self.track is not None:
+            intent = self.track.intent_at(world.time)
+            presses = self.track.presses_at_step(world.step_count, dt)
+        else:
+            intent = intent_from_held(self.held)
+            presses = []
+        presses += self.pressed
+        self.pressed.clear()
+        for _, (inp, _) in esper.get_components(FlightInput, Player):
+            inp.throttle = max(-1.0, min(1.0, intent["throttle"]))
+            inp.roll = max(-1.0, min(1.0, intent["roll"]))
+            inp.pitch = max(-1.0, min(1.0, intent["pitch"]))
+            inp.yaw = max(-1.0, min(1.0, intent["yaw"]))
+            inp.kill_rotation = intent["kill_rotation"]
+        for action in presses:
+            handler = self.handlers.get(action)
+            if handler is not None:
+                handler(world)
