@@ -1,0 +1,90 @@
+"""Camera settings (cold data): which body a camera follows, how, and its lens.
+
+The camera entity carries a ``Camera`` and, once the camera system has run,
+its own ``Transform`` (the eye: position and frame, +z = viewing direction).
+The render system draws from the first *active* camera (lowest entity id).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from framework import validate
+
+#: "cockpit": the target's own frame. "chase": behind and above, looking along the velocity.
+MODES = ("cockpit", "chase")
+
+
+@dataclass
+class Camera:
+    """A cockpit or chase camera on a target body.
+
+    ``target``: entity id of the followed body; it must have a Transform (a
+    Velocity, when present, steers the chase camera).
+
+    * ``cockpit``: the eye takes the target's frame exactly, at
+      ``cockpit_offset`` (local axes, m) from its centre of mass. The target's
+      own model is not drawn (the eye is inside it).
+    * ``chase``: the eye looks along the target's direction of *travel*
+      (its velocity) when faster than ``rest_speed``, along its nose
+      otherwise, and sits ``chase_distance`` m behind and ``chase_height`` m
+      above the target in its own (smoothed) frame. The viewing direction
+      follows with time constant ``smoothing`` s (0 = no lag), so it does not
+      jitter and is the same at any frame rate.
+
+    ``fov``: vertical field of view, degrees; ``near``/``far``: clip planes, m.
+    The aspect ratio comes from the render target's size.
+    """
+
+    target: int | None = None
+    mode: str = "chase"
+    #: Vertical field of view, degrees, in (0, 180).
+    fov: float = 60.0
+    #: Near and far clip distances, m (0 < near < far).
+    near: float = 0.1
+    far: float = 5000.0
+    #: Chase: distance behind the target along the viewing direction, m.
+    chase_distance: float = 10.0
+    #: Chase: height above the target along the camera's up, m.
+    chase_height: float = 2.5
+    #: Chase: time constant of the direction smoothing, s (0 = follow exactly).
+    smoothing: float = 0.25
+    #: Chase: below this speed (m/s) look along the nose, not the velocity.
+    rest_speed: float = 0.5
+    #: Cockpit: eye position in the target's local axes, m.
+    cockpit_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: The render system draws from the first active camera.
+    active: bool = True
+
+    def __post_init__(self):
+        if self.target is None:
+            raise ValueError("Camera.target is None: a camera without a target; give the entity id of the "
+                             "body to follow (it needs a Transform)")
+        if isinstance(self.target, bool) or not isinstance(self.target, (int, np.integer)) or self.target < 0:
+            raise TypeError(f"Camera.target must be an entity id (int >= 0), got {self.target!r}")
+        self.target = int(self.target)
+        check_mode(self.mode)
+        self.fov = validate.scalar("Camera.fov", self.fov, lo=1e-3, hi=179.0)
+        self.near = validate.scalar("Camera.near", self.near, positive=True)
+        self.far = validate.scalar("Camera.far", self.far, positive=True)
+        if not self.far > self.near:
+            raise ValueError(f"Camera.far must be > Camera.near, got near={self.near!r}, far={self.far!r}")
+        self.chase_distance = validate.scalar("Camera.chase_distance", self.chase_distance, nonnegative=True)
+        self.chase_height = validate.scalar("Camera.chase_height", self.chase_height)
+        self.smoothing = validate.scalar("Camera.smoothing", self.smoothing, nonnegative=True)
+        self.rest_speed = validate.scalar("Camera.rest_speed", self.rest_speed, nonnegative=True)
+        self.cockpit_offset = tuple(validate.vector("Camera.cockpit_offset", self.cockpit_offset).tolist())
+        self.active = bool(self.active)
+
+    @property
+    def tan_half_fov(self) -> float:
+        """tan(fov / 2): half the view's height at 1 m distance."""
+        return math.tan(math.radians(self.fov) / 2.0)
+
+
+def check_mode(mode) -> str:
+    if mode not in MODES:
+        raise ValueError(f"Camera.mode must be one of {MODES}, got {mode!r}")
+    return mode

@@ -1,0 +1,259 @@
+"""The one place that creates an OpenGL context, and the render target frames are drawn into.
+
+Two ways to get a context, both returning a ``moderngl.Context``:
+
+* :func:`create_context` — off-screen, through moderngl's standalone EGL
+  backend. No display and no GPU needed: on Mesa it runs on the llvmpipe
+  software renderer (OpenGL 4.5 core). This is what tests, benchmarks and the
+  recorder use.
+* :func:`wrap_current_context` — the context of a window that is already
+  current in this thread (e.g. after ``glfw.make_context_current(win)``).
+
+With no usable driver both raise :class:`GLUnavailableError`, whose message
+names what is missing and the Debian/Ubuntu packages that provide it, instead
+of a traceback from inside the EGL loader.
+
+A context works only in the thread that created it, and a process must not
+``fork`` once a context exists (the child hangs): use the ``spawn`` start
+method for worker processes. Starting a program that ``exec``s (ffmpeg) is fine.
+
+:class:`RenderTarget` is where a frame goes: an off-screen framebuffer
+(RGBA8 colour + 24-bit depth renderbuffers) or a window's default
+framebuffer. :meth:`RenderTarget.read_rgba` returns the frame as an
+``(H, W, 4)`` uint8 array, top row first (GL reads bottom-up; it is flipped
+here). :class:`ContextHandle` is what :func:`systems.render.attach` stores in
+``world.resources["gl"]``: it releases the context with the world only when
+the world owns it.
+"""
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+
+import numpy as np
+
+#: What to install on Debian/Ubuntu for off-screen GL (Mesa's EGL and its software rasteriser).
+APT_PACKAGES = ("libegl1", "libgl1", "libegl-mesa0", "libgl1-mesa-dri")
+APT_HINT = "apt-get install -y --no-install-recommends " + " ".join(APT_PACKAGES)
+#: Oldest OpenGL the shaders need (GLSL 3.30: instanced attributes, layout-free ins/outs).
+REQUIRE = 330
+#: Largest side of an off-screen target we accept (GL_MAX_RENDERBUFFER_SIZE is >= 16384 on Mesa).
+MAX_SIDE = 16384
+
+# (what, shared library, package) checked when context creation fails
+_LIBRARIES = (
+    ("the EGL loader", "libEGL.so.1", "libegl1"),
+    ("the GL dispatch library", "libGL.so.1", "libgl1"),
+    ("Mesa's EGL driver", "libEGL_mesa.so.0", "libegl-mesa0"),
+)
+
+
+class GLUnavailableError(RuntimeError):
+    """No OpenGL context could be made; the message says what is missing and how to install it."""
+
+
+def _can_load(soname: str) -> bool:
+    try:
+        ctypes.CDLL(soname)
+        return True
+    except OSError:
+        return False
+
+
+def _find_dri_driver() -> bool:
+    pattern_dirs = ["/usr/lib/*/dri", "/usr/lib/dri", "/usr/lib64/dri", "/usr/local/lib/*/dri"]
+    extra = os.environ.get("LIBGL_DRIVERS_PATH", "")
+    pattern_dirs += [d for d in extra.split(":") if d]
+    return any(glob.glob(os.path.join(d, name)) for d in pattern_dirs
+               for name in ("swrast_dri.so", "kms_swrast_dri.so", "libgallium*.so"))
+
+
+def missing_pieces(can_load=_can_load, find_dri=_find_dri_driver) -> list[tuple[str, str]]:
+    """``(what, package)`` for each part of an off-screen GL stack that cannot be found."""
+    missing = [(f"{what} ({so})", pkg) for what, so, pkg in _LIBRARIES if not can_load(so)]
+    if not find_dri():
+        missing.append(("Mesa's software rasteriser (swrast_dri.so)", "libgl1-mesa-dri"))
+    return missing
+
+
+def explain_failure(error: BaseException, missing: list[tuple[str, str]]) -> str:
+    """The message of :class:`GLUnavailableError` for a failed context creation."""
+    lines = ["Could not create an off-screen OpenGL context (moderngl, EGL backend)."]
+    if missing:
+        lines.append("Missing: " + "; ".join(what for what, _ in missing) + ".")
+        pkgs = sorted({pkg for _, pkg in missing})
+        lines.append(f"Install them with: apt-get install -y --no-install-recommends {' '.join(pkgs)}")
+    else:
+        lines.append("The EGL and Mesa libraries were found but the driver refused to start.")
+        lines.append(f"Check the driver packages ({APT_HINT}) and that OpenGL {REQUIRE // 100}."
+                     f"{REQUIRE % 100 // 10} is available.")
+    lines.append(f"Underlying error: {type(error).__name__}: {error}")
+    return "\n".join(lines)
+
+
+def create_context(*, require: int = REQUIRE, backend: str = "egl"):
+    """A new standalone (off-screen) ``moderngl.Context``; the caller releases it.
+
+    ``backend="egl"`` needs no display. Raises :class:`GLUnavailableError`
+    naming the missing libraries and the apt packages to install when no
+    driver can be used.
+    """
+    try:
+        import moderngl
+    except ImportError as e:   # pragma: no cover - moderngl is a hard dependency
+        raise GLUnavailableError(f"moderngl is not installed ({e}); pip install 'moderngl>=5.10,<6'") from e
+    try:
+        return moderngl.create_standalone_context(backend=backend, require=require)
+    except Exception as e:  # glcontext raises bare Exception / OSError from deep inside the loader
+        raise GLUnavailableError(explain_failure(e, missing_pieces())) from None
+
+
+def wrap_current_context(*, require: int = REQUIRE):
+    """The ``moderngl.Context`` of the window whose GL context is current in this thread.
+
+    Call it after the window library made its context current (glfw:
+    ``glfw.make_context_current(window)``). The window owns the context: do
+    not release it before closing the window.
+    """
+    import moderngl
+    try:
+        return moderngl.create_context(require=require)
+    except Exception as e:
+        raise GLUnavailableError(
+            "Could not use the current window's OpenGL context: make a window's context current first "
+            f"(glfw.make_context_current(window)) and check it offers OpenGL >= {REQUIRE / 100:.1f}.\n"
+            f"Underlying error: {type(e).__name__}: {e}") from None
+
+
+def renderer(ctx) -> str:
+    """The driver's renderer string, e.g. ``'llvmpipe (LLVM 15.0.6, 256 bits)'``."""
+    return str(ctx.info.get("GL_RENDERER", "unknown"))
+
+
+def is_software(ctx) -> bool:
+    """True on Mesa's llvmpipe (where golden-image comparisons are exact across runs)."""
+    return renderer(ctx).startswith("llvmpipe")
+
+
+class ContextHandle:
+    """A context stored in ``world.resources``; releases it with the world only if ``owned``.
+
+    ``world.close()`` calls ``release()`` on every resource; a context shared
+    by several worlds (tests) or owned by a window must survive that.
+    """
+
+    def __init__(self, ctx, *, owned: bool):
+        self.ctx = ctx
+        self.owned = bool(owned)
+        self._on_release: list = []
+
+    def on_release(self, fn) -> None:
+        """Call ``fn()`` when this handle is released (systems free their GL objects here)."""
+        self._on_release.append(fn)
+
+    def release(self) -> None:
+        callbacks, self._on_release = self._on_release, []
+        for fn in reversed(callbacks):
+            fn()
+        if self.owned and self.ctx is not None:
+            self.ctx.release()
+        self.ctx = None
+
+
+def _check_size(size) -> tuple[int, int]:
+    try:
+        w, h = size
+    except (TypeError, ValueError):
+        raise ValueError(f"size must be (width, height) in pixels, got {size!r}") from None
+    for name, v in (("width", w), ("height", h)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= MAX_SIDE:
+            raise ValueError(f"render target {name} must be an int in [1, {MAX_SIDE}], got {v!r}")
+    return int(w), int(h)
+
+
+class RenderTarget:
+    """Where frames are drawn: an off-screen RGBA8 + depth framebuffer, or a window's screen.
+
+    ``fbo`` is the ``moderngl.Framebuffer``; ``size`` is ``(width, height)``
+    in pixels; ``use()`` binds it and sets the viewport. A later system (a
+    HUD) draws into the same frame by calling ``target.use()`` and drawing.
+    """
+
+    def __init__(self, ctx, size=(1280, 720)):
+        self.ctx = ctx
+        self.size = _check_size(size)
+        self.is_screen = False
+        self._colour = ctx.renderbuffer(self.size, components=4)
+        self._depth = ctx.depth_renderbuffer(self.size)
+        self.fbo = ctx.framebuffer(color_attachments=[self._colour], depth_attachment=self._depth)
+
+    @classmethod
+    def screen(cls, ctx, size) -> "RenderTarget":
+        """The default framebuffer of a window (``ctx`` from :func:`wrap_current_context`)."""
+        self = cls.__new__(cls)
+        self.ctx = ctx
+        self.size = _check_size(size)
+        self.is_screen = True
+        self._colour = self._depth = None
+        self.fbo = ctx.screen
+        return self
+
+    @property
+    def width(self) -> int:
+        return self.size[0]
+
+    @property
+    def height(self) -> int:
+        return self.size[1]
+
+    @property
+    def viewport(self) -> tuple[int, int, int, int]:
+        """``(x, y, width, height)`` in pixels, GL's bottom-left origin."""
+        return (0, 0, *self.size)
+
+    @property
+    def aspect(self) -> float:
+        """width / height."""
+        return self.size[0] / self.size[1]
+
+    def use(self) -> None:
+        """Bind the framebuffer and set the viewport to the whole target."""
+        self.fbo.use()
+        self.ctx.viewport = self.viewport
+
+    def resize(self, size) -> None:
+        """New size (a window was resized); an off-screen target reallocates its buffers."""
+        size = _check_size(size)
+        if size == self.size:
+            return
+        if not self.is_screen:
+            self._release_buffers()
+            self._colour = self.ctx.renderbuffer(size, components=4)
+            self._depth = self.ctx.depth_renderbuffer(size)
+            self.fbo = self.ctx.framebuffer(color_attachments=[self._colour], depth_attachment=self._depth)
+        self.size = size
+
+    def read_raw(self) -> bytes:
+        """The frame as RGBA bytes, *bottom row first* (GL order). RGBA reads fastest (no conversion)."""
+        data = self.fbo.read(viewport=self.viewport, components=4, alignment=1)
+        if self.is_screen:
+            _ = self.ctx.error   # reading a window's screen leaves a pending GL_INVALID_OPERATION: clear it
+        return data
+
+    def read_rgba(self) -> np.ndarray:
+        """The frame as an ``(H, W, 4)`` uint8 array, top row first (ready for PNG / video)."""
+        w, h = self.size
+        return np.frombuffer(self.read_raw(), np.uint8).reshape(h, w, 4)[::-1].copy()
+
+    def _release_buffers(self) -> None:
+        for obj in (self.fbo, self._colour, self._depth):
+            if obj is not None:
+                obj.release()
+        self.fbo = self._colour = self._depth = None
+
+    def release(self) -> None:
+        """Free the off-screen buffers (a window's screen is left alone). Safe to call twice."""
+        if not self.is_screen and self.fbo is not None:
+            self._release_buffers()
+        self.fbo = None

@@ -1,0 +1,226 @@
+"""Meshes built from vertex lists and indices (never triangle strips), with normals.
+
+A :class:`Mesh` is CPU data only: ``vertices`` and ``normals`` (N, 3) float32
+in the model's local frame (metres; +x right, +y up, +z forward), ``indices``
+(M,) uint32 into them, and a ``mode``: ``"triangles"`` (M = 3 per triangle,
+wound counter-clockwise seen from outside, so ``(b - a) x (c - a)`` points
+out) or ``"lines"`` (M = 2 per segment). :mod:`framework.model_cache` turns
+them into GPU buffers once.
+
+The three meshes the framework needs:
+
+* :func:`icosphere` — a unit sphere at several levels of detail. Level ``L``
+  subdivides an icosahedron ``L`` times: ``20 * 4**L`` triangles, every vertex
+  on the sphere, normal = position. :func:`sphere_lods` returns levels
+  ``0..4`` (20 .. 5,120 triangles) with each level's geometric error.
+* :func:`pyramid` — the player ship: a four-sided pyramid whose apex (the
+  nose) points along local +z (the body's forward vector), centred on its
+  centre of mass (a solid pyramid's centroid is 1/4 of the way from base to
+  apex), flat-shaded.
+* :func:`line_cube` — the skybox: the edges of a unit cube (side 1, centred),
+  optionally with a grid of lines on each face.
+
+Level of detail: a flat triangle lies inside the sphere; its largest gap to
+the true surface, relative to the radius, is ``eps = 1 - min over faces of the
+distance from the centre to the face's plane``. A sphere of projected radius
+``r_px`` pixels drawn at a level with error ``eps`` misses the true outline by
+at most ``eps * r_px`` pixels; and because a sphere's vertex normal equals its
+position, the interpolated per-pixel normal points exactly along the drawn
+point's direction, so the shading error is bounded by the same gap. The render
+system picks the coarsest level whose ``eps * r_px`` is under its tolerance.
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MODES = ("triangles", "lines")
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """Vertex and index lists of one model, in local coordinates (m).
+
+    ``vertices``/``normals``: (N, 3) float32; ``indices``: (M,) uint32;
+    ``mode``: ``"triangles"`` (CCW from outside) or ``"lines"``. ``lod_error``
+    is the largest gap between this mesh and the smooth shape it stands for,
+    relative to ``radius`` (0 for exact shapes such as the pyramid).
+    """
+
+    name: str
+    vertices: np.ndarray
+    normals: np.ndarray
+    indices: np.ndarray
+    mode: str = "triangles"
+    lod_error: float = 0.0
+    #: Bounding radius about the local origin, m (the largest |vertex|).
+    radius: float = field(init=False)
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ValueError(f"Mesh {self.name!r}: mode must be one of {MODES}, got {self.mode!r}")
+        v = np.array(self.vertices, dtype=np.float32)      # private copies, made read-only below
+        n = np.array(self.normals, dtype=np.float32)
+        i = np.array(self.indices)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+            raise ValueError(f"Mesh {self.name!r}: vertices must have shape (N, 3), N >= 1, got {v.shape}")
+        if n.shape != v.shape:
+            raise ValueError(f"Mesh {self.name!r}: normals must have the vertices' shape {v.shape}, got {n.shape}")
+        if not (np.isfinite(v).all() and np.isfinite(n).all()):
+            raise ValueError(f"Mesh {self.name!r}: vertices and normals must be finite")
+        if i.ndim != 1 or i.dtype.kind not in "iu":
+            raise ValueError(f"Mesh {self.name!r}: indices must be a 1-D integer array, got {i.dtype} {i.shape}")
+        per = 3 if self.mode == "triangles" else 2
+        if len(i) == 0 or len(i) % per:
+            raise ValueError(f"Mesh {self.name!r}: {self.mode} need a non-zero multiple of {per} indices, "
+                             f"got {len(i)}")
+        if i.min() < 0 or i.max() >= len(v):
+            raise ValueError(f"Mesh {self.name!r}: indices must be in [0, {len(v) - 1}], "
+                             f"got [{int(i.min())}, {int(i.max())}]")
+        i = i.astype(np.uint32)
+        for arr in (v, n, i):
+            arr.flags.writeable = False
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "normals", n)
+        object.__setattr__(self, "indices", i)
+        object.__setattr__(self, "radius", float(np.linalg.norm(v, axis=1).max()))
+
+    @property
+    def primitive_count(self) -> int:
+        """Triangles (or line segments)."""
+        return len(self.indices) // (3 if self.mode == "triangles" else 2)
+
+    def interleaved(self) -> np.ndarray:
+        """(N, 6) float32 rows ``x y z nx ny nz``: the vertex buffer's layout."""
+        return np.ascontiguousarray(np.hstack([self.vertices, self.normals]), dtype=np.float32)
+
+    def face_normals(self) -> np.ndarray:
+        """Unnormalised ``(b - a) x (c - a)`` of each triangle (points out for CCW winding)."""
+        if self.mode != "triangles":
+            raise ValueError(f"Mesh {self.name!r} has no faces (mode {self.mode!r})")
+        t = self.vertices.astype(np.float64)[self.indices.reshape(-1, 3)]
+        return np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+
+
+def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
+    p = (1.0 + 5.0 ** 0.5) / 2.0   # golden ratio: the 12 vertices are (0, +-1, +-p) cycled
+    v = np.array([[-1, p, 0], [1, p, 0], [-1, -p, 0], [1, -p, 0],
+                  [0, -1, p], [0, 1, p], [0, -1, -p], [0, 1, -p],
+                  [p, 0, -1], [p, 0, 1], [-p, 0, -1], [-p, 0, 1]], dtype=np.float64)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+                  [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+                  [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+                  [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]], dtype=np.int64)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    # orient every face counter-clockwise seen from outside: (b - a) x (c - a) along the outward direction
+    t = v[f]
+    outward = np.einsum("ij,ij->i", np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), t.sum(axis=1)) > 0
+    f[~outward] = f[~outward][:, ::-1]
+    return v, f
+
+
+def _subdivide(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split each triangle into 4 through its edge midpoints (pushed onto the sphere); shared edges share midpoints."""
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])          # (3F, 2), face-major per edge slot
+    key = np.sort(edges, axis=1)
+    uniq, inverse = np.unique(key, axis=0, return_inverse=True)
+    mid = v[uniq[:, 0]] + v[uniq[:, 1]]
+    mid /= np.linalg.norm(mid, axis=1, keepdims=True)
+    m = (len(v) + inverse.reshape(3, -1)).T                                       # (F, 3): mid of edges 01, 12, 20
+    a, b, c = f.T
+    ab, bc, ca = m.T
+    faces = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
+                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
+    return np.concatenate([v, mid]), faces
+
+
+def sphere_error(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Largest gap between a unit-sphere triangulation and the sphere: ``1 - min plane distance``."""
+    t = vertices[faces]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return float(1.0 - np.abs(np.einsum("ij,ij->i", n, t[:, 0])).min())
+
+
+@functools.lru_cache(maxsize=None)
+def icosphere(level: int) -> Mesh:
+    """Unit sphere: an icosahedron subdivided ``level`` times (``20 * 4**level`` triangles)."""
+    if isinstance(level, bool) or not isinstance(level, (int, np.integer)) or not 0 <= level <= 7:
+        raise ValueError(f"icosphere level must be an int in [0, 7], got {level!r}")
+    v, f = _icosahedron()
+    for _ in range(int(level)):
+        v, f = _subdivide(v, f)
+    return Mesh(f"icosphere{level}", v, v, f.ravel(), "triangles", lod_error=sphere_error(v, f))
+
+
+#: Levels of detail of the shared sphere mesh: 20, 80, 320, 1,280, 5,120 triangles.
+SPHERE_LEVELS = (0, 1, 2, 3, 4)
+
+
+def sphere_lods(levels=SPHERE_LEVELS) -> tuple[Mesh, ...]:
+    """The sphere at each level, coarsest first (their ``lod_error`` decreases)."""
+    return tuple(icosphere(level) for level in levels)
+
+
+@functools.lru_cache(maxsize=None)
+def pyramid(length: float = 2.0, width: float = 1.2, height: float = 0.5) -> Mesh:
+    """The player ship: apex (nose) on local +z, rectangular base ``width`` x ``height`` (m) behind it.
+
+    ``length`` is base-to-apex. The origin is the solid's centre of mass, a
+    quarter of the way from the base to the apex: base at ``z = -length/4``,
+    nose at ``z = 3 length/4``. Flat-shaded: each face has its own vertices.
+    """
+    for name, val in (("length", length), ("width", width), ("height", height)):
+        if not (np.isfinite(val) and val > 0):
+            raise ValueError(f"pyramid {name} must be a finite number > 0, got {val!r}")
+    zb, za = -0.25 * length, 0.75 * length
+    w, h = 0.5 * width, 0.5 * height
+    apex = np.array([0.0, 0.0, za])
+    # base corners seen from behind (looking along +z): right-up, left-up, left-down, right-down
+    ru, lu, ld, rd = (np.array(p) for p in ([w, h, zb], [-w, h, zb], [-w, -h, zb], [w, -h, zb]))
+    tris = [(apex, lu, ru), (apex, ru, rd), (apex, rd, ld), (apex, ld, lu),   # sides
+            (ru, lu, ld), (ru, ld, rd)]                                         # base, facing -z
+    verts, norms = [], []
+    for a, b, c in tris:
+        n = np.cross(b - a, c - a)
+        if np.dot(n, (a + b + c) / 3.0) < 0:      # keep CCW-from-outside whatever the corner order above
+            b, c = c, b
+            n = -n
+        verts += [a, b, c]
+        norms += [n / np.linalg.norm(n)] * 3
+    return Mesh("pyramid", np.array(verts), np.array(norms), np.arange(len(verts)), "triangles")
+
+
+@functools.lru_cache(maxsize=None)
+def line_cube(divisions: int = 1) -> Mesh:
+    """A cube of side 1 centred on the origin, as line segments.
+
+    ``divisions = 1``: its 12 edges. ``divisions = d > 1``: each face also
+    carries a ``d`` x ``d`` grid, so some lines are in view whichever way a
+    camera inside it looks. Shared edges appear once. Normals are zero (lines
+    are not lit).
+    """
+    if isinstance(divisions, bool) or not isinstance(divisions, (int, np.integer)) or not 1 <= divisions <= 64:
+        raise ValueError(f"line_cube divisions must be an int in [1, 64], got {divisions!r}")
+    d = int(divisions)
+    ticks = np.arange(d + 1)                        # grid coordinates 0..d map to -1/2 .. +1/2
+    segs = set()
+    for axis in range(3):                           # the segment runs along `axis`
+        o1, o2 = [a for a in range(3) if a != axis]
+        for i in ticks:
+            for j in ticks:
+                if i not in (0, d) and j not in (0, d):
+                    continue                         # inside the cube, not on a face
+                a = [0, 0, 0]
+                b = [0, 0, 0]
+                a[o1] = b[o1] = i
+                a[o2] = b[o2] = j
+                a[axis], b[axis] = 0, d
+                segs.add((tuple(a), tuple(b)))
+    points = sorted({p for s in segs for p in s})
+    index = {p: k for k, p in enumerate(points)}
+    idx = np.array([[index[a], index[b]] for a, b in sorted(segs)], dtype=np.uint32).ravel()
+    v = np.array(points, dtype=np.float64) / d - 0.5
+    return Mesh(f"line_cube{d}", v, np.zeros_like(v), idx, "lines")

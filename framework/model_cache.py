@@ -1,0 +1,217 @@
+"""The model cache: every mesh's GPU buffers built once; variants share them and add a scale.
+
+A *model* is what :class:`components.render.ModelRef` names. There are two kinds:
+
+* a **base model** (:meth:`ModelCache.define`) owns a :class:`MeshSet`: one
+  mesh, or the same shape at several levels of detail (coarsest first);
+* a **variant** (:meth:`ModelCache.variant`) points at a base's
+  :class:`MeshSet` — the *same* vertex and index buffers — and adds a scale
+  ``S = diag(sx, sy, sz)`` (and optionally its own colour). Fifty asteroid
+  sizes are fifty variants of ``"sphere"`` and still one vertex buffer per
+  level of detail.
+
+GPU buffers are made lazily, the first time :meth:`ModelCache.buffers` is
+asked for a mesh set, and never again: each level gets one vertex buffer
+(interleaved ``x y z nx ny nz`` float32) and one index buffer (uint32).
+:attr:`ModelCache.buffers_created` counts them.
+
+Built-in models (defined by every cache unless ``builtins=False``):
+
+* ``"sphere"`` — unit-radius icosphere, levels 0..4 (20 .. 5,120 triangles), grey;
+* ``"ship"`` — the pyramid ship, nose along +z (forward), light blue;
+* ``"skybox"`` — the unit line cube with a 4 x 4 grid on each face, green.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from framework import meshes, validate
+
+GREY = (0.62, 0.60, 0.58)
+SHIP_BLUE = (0.55, 0.75, 1.0)
+SKY_GREEN = (0.15, 0.85, 0.25)
+
+
+def check_colour(name: str, colour) -> np.ndarray:
+    """An RGB colour, three numbers in [0, 1]."""
+    c = validate.vector(name, colour, (3,))
+    if ((c < 0) | (c > 1)).any():
+        raise ValueError(f"{name} must be RGB numbers in [0, 1], got {c.tolist()}")
+    return c
+
+
+def check_scale(name: str, scale) -> np.ndarray:
+    """A positive finite scale: one number (uniform) or three (x, y, z)."""
+    if np.ndim(scale) == 0:
+        return np.full(3, validate.scalar(name, scale, positive=True))
+    s = validate.vector(name, scale, (3,))
+    if not (s > 0).all():
+        raise ValueError(f"{name} must be > 0 on every axis, got {s.tolist()}")
+    return s
+
+
+class MeshSet:
+    """One shape at one or more levels of detail, coarsest first, and its GPU buffers once built."""
+
+    def __init__(self, name: str, lods):
+        if isinstance(lods, meshes.Mesh):
+            lods = (lods,)
+        lods = tuple(lods)
+        if not lods or not all(isinstance(m, meshes.Mesh) for m in lods):
+            raise TypeError(f"model {name!r}: give a Mesh or a sequence of Mesh (coarsest first), got {lods!r}")
+        modes = {m.mode for m in lods}
+        if len(modes) != 1:
+            raise ValueError(f"model {name!r}: all levels must share one mode, got {sorted(modes)}")
+        errors = np.array([m.lod_error for m in lods])
+        if np.any(np.diff(errors) > 0):
+            raise ValueError(f"model {name!r}: levels must go from coarse to fine "
+                             f"(lod_error non-increasing), got {errors.tolist()}")
+        self.name = name
+        self.lods = lods
+        self.mode = lods[0].mode
+        #: Relative geometric error of each level (see framework.meshes).
+        self.lod_errors = errors
+        #: Bounding radius of the finest level, m (all levels lie inside it).
+        self.radius = max(m.radius for m in lods)
+        #: One (vertex buffer, index buffer) per level, once built.
+        self.gpu: tuple | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """A cache entry: the shared :class:`MeshSet` plus this entry's scale and colour.
+
+    The model matrix of an entity drawn with it is ``T R S``: ``S`` is
+    ``diag(scale)``, ``R`` the entity's orientation, ``T`` its position.
+    """
+
+    name: str
+    meshes: MeshSet
+    #: Per-axis scale, local frame (dimensionless; the mesh is in metres).
+    scale: np.ndarray
+    #: RGB in [0, 1] (a ModelRef may override it per entity).
+    colour: np.ndarray
+    #: The base model this variant points at (its own name for a base model).
+    base: str
+
+    @property
+    def radius(self) -> float:
+        """Bounding radius after scaling, m."""
+        return float(self.meshes.radius * self.scale.max())
+
+    @property
+    def scale_matrix(self) -> np.ndarray:
+        """4x4 ``S``."""
+        return np.diag([*self.scale, 1.0])
+
+
+class ModelCache:
+    """Named models over shared GPU meshes, for one GL context.
+
+    ``define(name, mesh_or_levels, colour=...)`` adds a base model;
+    ``variant(name, base, scale=..., colour=...)`` adds an entry that shares
+    the base's buffers; ``get(name)`` looks one up (a clear error lists the
+    known names); ``buffers(model)`` returns its per-level ``(vbo, ibo)``
+    pairs, building them on first use only. ``release()`` frees every buffer.
+    """
+
+    def __init__(self, ctx, *, builtins: bool = True):
+        self.ctx = ctx
+        self._models: dict[str, Model] = {}
+        self._sets: list[MeshSet] = []
+        #: GL buffers this cache has created (vertex + index), over its lifetime.
+        self.buffers_created = 0
+        if builtins:
+            self.define("sphere", meshes.sphere_lods(), colour=GREY)
+            self.define("ship", meshes.pyramid(), colour=SHIP_BLUE)
+            self.define("skybox", meshes.line_cube(4), colour=SKY_GREEN)
+
+    # -- entries -----------------------------------------------------------------
+    def _check_name(self, name) -> str:
+        if not isinstance(name, str) or not name:
+            raise TypeError(f"a model name must be a non-empty str, got {name!r}")
+        return name
+
+    def define(self, name: str, lods, *, colour=GREY) -> Model:
+        """Add a base model from one :class:`~framework.meshes.Mesh` or several levels (coarsest first)."""
+        name = self._check_name(name)
+        if name in self._models:
+            raise ValueError(f"model {name!r} is defined already")
+        mesh_set = MeshSet(name, lods)
+        model = Model(name, mesh_set, np.ones(3), check_colour(f"model {name!r} colour", colour), name)
+        self._sets.append(mesh_set)
+        self._models[name] = model
+        return model
+
+    def variant(self, name: str, base: str, *, scale=1.0, colour=None) -> Model:
+        """An entry sharing ``base``'s vertex and index buffers, scaled by ``scale`` (one or three numbers).
+
+        A variant of a variant multiplies the scales. Asking again for the
+        same name with the same base, scale and colour returns the existing
+        entry; different parameters under an existing name are an error.
+        """
+        name = self._check_name(name)
+        parent = self.get(base)
+        s = parent.scale * check_scale(f"variant {name!r} scale", scale)
+        c = parent.colour if colour is None else check_colour(f"variant {name!r} colour", colour)
+        old = self._models.get(name)
+        if old is not None:
+            if old.meshes is parent.meshes and np.array_equal(old.scale, s) and np.array_equal(old.colour, c):
+                return old
+            raise ValueError(f"model {name!r} exists already with another base, scale or colour")
+        model = Model(name, parent.meshes, s, c, parent.base)
+        self._models[name] = model
+        return model
+
+    def get(self, name: str) -> Model:
+        """The model called ``name``; an unknown name is an error that lists the known ones."""
+        try:
+            return self._models[name]
+        except (KeyError, TypeError):
+            known = ", ".join(sorted(self._models)[:20]) + (", ..." if len(self._models) > 20 else "")
+            raise KeyError(f"unknown model {name!r}; known models: {known}") from None
+
+    def __contains__(self, name) -> bool:
+        return name in self._models
+
+    @property
+    def names(self) -> list[str]:
+        return sorted(self._models)
+
+    @property
+    def mesh_sets(self) -> tuple[MeshSet, ...]:
+        """Every base model's mesh set, in definition order (the render system's draw order)."""
+        return tuple(self._sets)
+
+    # -- GPU buffers ---------------------------------------------------------------
+    def buffers(self, model) -> tuple:
+        """``((vbo, ibo), ...)`` per level of a :class:`Model`'s (or a :class:`MeshSet`'s) meshes.
+
+        Built on the first call for that mesh set, then the same buffers every time.
+        """
+        ms = model if isinstance(model, MeshSet) else model.meshes
+        if ms.gpu is None:
+            built = []
+            for mesh in ms.lods:
+                vbo = self.ctx.buffer(mesh.interleaved().tobytes())
+                ibo = self.ctx.buffer(mesh.indices.tobytes())
+                self.buffers_created += 2
+                built.append((vbo, ibo))
+            ms.gpu = tuple(built)
+        return ms.gpu
+
+    @property
+    def buffers_alive(self) -> int:
+        """GL buffers held now."""
+        return sum(2 * len(ms.gpu) for ms in self._sets if ms.gpu is not None)
+
+    def release(self) -> None:
+        """Free every GPU buffer (entries stay; buffers are rebuilt on next use). Safe to call twice."""
+        for ms in self._sets:
+            if ms.gpu is not None:
+                for vbo, ibo in ms.gpu:
+                    vbo.release()
+                    ibo.release()
+                ms.gpu = None

@@ -1,0 +1,497 @@
+"""Drawing every Transform + ModelRef entity: instanced, level of detail, view culling, lit.
+
+Setting up rendering for a world is one call::
+
+    from systems.render import attach
+    render = attach(world, ctx=None, size=(1280, 720))   # ctx=None: a new off-screen EGL context
+    world.step(); world.render()
+    rgba = render.read_rgba()        # (720, 1280, 4) uint8, top row first
+
+:func:`attach` adds the :class:`~systems.camera.CameraSystem` (stage
+``"camera"``, every fixed step), this :class:`RenderSystem` and the
+:class:`~systems.skybox.SkyboxSystem` (stage ``"render"``, in that order),
+and fills ``world.resources``: ``"model_cache"`` (:class:`ModelCache`),
+``"render_target"`` (:class:`RenderTarget`) and ``"gl"``
+(:class:`ContextHandle`, ``.ctx`` is the ``moderngl.Context``;
+``world.close()`` releases the context only if attach created it).
+
+A later system in stage ``"render"`` (a HUD) draws on top of the same frame:
+it reads ``render.ctx``, ``render.target`` (``.fbo``, ``.size``,
+``.use()``), ``render.view``, ``render.projection``,
+``render.view_projection`` and ``render.viewport`` — all set for the frame
+being drawn — and sets the GL state it needs (this system leaves depth test
+on, face culling off). The recorder reads the frame after every render-stage
+system has run.
+
+What the system does each frame, with numpy over whole columns (the per-entity
+Python work happens only when esper's query result changes: then entities are
+grouped by mesh):
+
+* model matrix ``T R S``: ``S`` from the model (variant) scale, ``R`` from the
+  orientation quaternion, ``T`` the position *relative to the eye* (computed
+  in float64, so float32 on the GPU keeps its precision far from the origin;
+  the view matrix on the GPU is then the rotation only);
+* view culling: a bounding sphere outside any of the six frustum planes is
+  not drawn;
+* level of detail: projected radius ``r_px = r f_px / (z - r)`` (``f_px`` =
+  pixels per unit at 1 m, ``z`` the depth along the view); the coarsest level
+  whose relative error ``eps`` keeps ``eps r_px <= lod_tolerance_px`` is used
+  (see :mod:`framework.meshes`);
+* one instanced draw call per (mesh, level) for all its entities; per-instance
+  data (mat4 model + RGB) is one float32 array uploaded at once;
+* light: ``colour (ambient + (1 - ambient) max(n . l, 0))``, with ``l`` the
+  unit direction *towards* a distant light (world frame).
+"""
+from __future__ import annotations
+
+import math
+
+import esper
+import moderngl
+import numpy as np
+
+from components.body import Transform
+from components.camera import Camera
+from components.render import ModelRef
+from framework import frame as fr
+from framework import validate
+from framework.gl import ContextHandle, RenderTarget, create_context
+from framework.model_cache import ModelCache, check_colour
+from framework.store import RowCache, to_indices
+from systems import camera as camera_sys
+
+VERTEX_SHADER = """
+#version 330
+uniform mat4 u_view_proj;          // projection * view rotation: positions are eye-relative
+#ifdef PER_DRAW
+uniform mat4 u_model;
+uniform vec3 u_colour;
+#define MODEL u_model
+#define COLOUR u_colour
+#else
+in mat4 in_model;                  // per instance: T R S, translation relative to the eye
+in vec3 in_colour;                 // per instance: RGB
+#define MODEL in_model
+#define COLOUR in_colour
+#endif
+in vec3 in_position;
+in vec3 in_normal;
+out vec3 v_normal;
+out vec3 v_colour;
+void main() {
+    gl_Position = u_view_proj * (MODEL * vec4(in_position, 1.0));
+    // normals transform by (R S)^-T = R S^-1 = (R S) S^-2; |column i| of R S is s_i
+    mat3 m = mat3(MODEL);
+    vec3 s2 = vec3(dot(m[0], m[0]), dot(m[1], m[1]), dot(m[2], m[2]));
+    v_normal = m * (in_normal / s2);
+    v_colour = COLOUR;
+}
+"""
+
+FRAGMENT_SHADER = """
+#version 330
+uniform vec3 u_to_light;           // unit vector towards the light, world frame
+uniform float u_ambient;           // fraction of light everywhere
+uniform int u_lit;                 // 0 for lines: flat colour
+in vec3 v_normal;
+in vec3 v_colour;
+out vec4 f_colour;
+void main() {
+    float shade = 1.0;
+    if (u_lit != 0) {
+        vec3 n = normalize(v_normal);
+        shade = u_ambient + (1.0 - u_ambient) * max(dot(n, u_to_light), 0.0);
+    }
+    f_colour = vec4(v_colour * shade, 1.0);
+}
+"""
+
+#: Floats per instance: a column-major mat4 and an RGB colour.
+INSTANCE_FLOATS = 19
+
+
+def _with_define(src: str, define: str | None) -> str:
+    if not define:
+        return src
+    head, rest = src.split("\n", 2)[1], src.split("\n", 2)[2]
+    return f"{head}\n#define {define}\n{rest}"
+
+
+class _Group:
+    """Entities sharing one mesh set: their table rows and per-entity constants."""
+
+    __slots__ = ("mesh_set", "entities", "t_rows", "scale", "colour", "radius")
+
+    def __init__(self, mesh_set, entities, t_rows, scale, colour):
+        self.mesh_set = mesh_set
+        self.entities = entities                    # (n,) int64
+        self.t_rows = t_rows                        # (n,) rows into Transform's table
+        self.scale = scale                          # (n, 3) float64
+        self.colour = colour.astype(np.float32)     # (n, 3)
+        self.radius = mesh_set.radius * scale.max(axis=1)   # (n,) bounding radius, m
+
+
+class RenderSystem(esper.Processor):
+    """Reads Transform, ModelRef, the active Camera; writes the render target's pixels.
+
+    ``ctx``: moderngl context; ``cache``: the :class:`ModelCache`; ``target``:
+    the :class:`RenderTarget`. Options: ``lod`` / ``cull`` (level of detail
+    and view culling, on by default), ``instanced`` (False: one draw call per
+    entity — the baseline the benchmark compares with), ``lod_tolerance_px``
+    (largest allowed outline error of a level, pixels), ``light_direction``
+    (towards the light, world frame), ``ambient`` (0..1), ``clear_colour``
+    (RGB). ``camera``: a camera entity to use instead of the first active one.
+
+    After each frame: ``view``, ``projection``, ``view_projection`` (4x4
+    float64, world -> clip), ``view_rotation_only`` (the same without the
+    eye's translation), ``eye_position``, ``camera_entity``, ``viewport``,
+    ``size`` and ``stats`` (draw calls, instances drawn, culled, per-level
+    counts) describe it.
+    """
+
+    stage = "render"
+
+    def __init__(self, ctx, cache: ModelCache, target: RenderTarget, *, lod: bool = True, cull: bool = True,
+                 instanced: bool = True, lod_tolerance_px: float = 0.5,
+                 light_direction=(-0.45, 0.65, -0.6), ambient: float = 0.12,
+                 clear_colour=(0.0, 0.0, 0.0), camera: int | None = None):
+        self.ctx = ctx
+        self.cache = cache
+        self.target = target
+        self.lod = bool(lod)
+        self.cull = bool(cull)
+        self.instanced = bool(instanced)
+        self.lod_tolerance_px = validate.scalar("lod_tolerance_px", lod_tolerance_px, positive=True)
+        light = validate.vector("light_direction", light_direction)
+        if not np.linalg.norm(light) > 0:
+            raise ValueError(f"light_direction must be a non-zero vector, got {light.tolist()}")
+        self.light_direction = light / np.linalg.norm(light)
+        self.ambient = validate.scalar("ambient", ambient, lo=0.0, hi=1.0)
+        self.clear_colour = tuple(check_colour("clear_colour", clear_colour).tolist())
+        self.camera = camera
+        self._prog = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
+        self._prog_draw = ctx.program(vertex_shader=_with_define(VERTEX_SHADER, "PER_DRAW"),
+                                      fragment_shader=FRAGMENT_SHADER)
+        self._rows = RowCache()
+        self._groups: list[_Group] = []
+        # (id(mesh_set), level) -> [instance buffer, capacity in instances, vao]; per-draw vaos apart
+        self._inst: dict = {}
+        self._draw_vaos: dict = {}
+        #: Frames drawn so far.
+        self.frame = 0
+        self.view = np.eye(4)
+        self.projection = np.eye(4)
+        self.view_projection = np.eye(4)
+        self.view_rotation_only = np.eye(4)
+        self.eye_position = np.zeros(3)
+        self.camera_entity: int | None = None
+        self.stats: dict = {}
+
+    # -- frame description ------------------------------------------------------------
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.target.size
+
+    @property
+    def viewport(self) -> tuple[int, int, int, int]:
+        return self.target.viewport
+
+    def read_rgba(self) -> np.ndarray:
+        """The current frame, ``(H, W, 4)`` uint8, top row first."""
+        return self.target.read_rgba()
+
+    # -- per-entity constants, rebuilt only when esper's query changes ---------------------
+    def _regroup(self) -> None:
+        ents = self._rows.entities
+        if not len(ents):
+            self._groups = []
+            return
+        t_rows, refs = self._rows.rows
+        t_rows = to_indices(t_rows)
+        models = {}
+        for ent, ref in zip(ents.tolist(), refs):
+            if ref.name not in models:
+                try:
+                    models[ref.name] = self.cache.get(ref.name)
+                except KeyError as e:
+                    raise ValueError(f"ModelRef on entity {ent}: {e.args[0]}") from None
+        names = list(models)                                      # distinct models, first-seen order
+        name_index = {n: i for i, n in enumerate(names)}
+        m_idx = np.fromiter((name_index[r.name] for r in refs), np.intp, len(refs))
+        scales = np.array([models[n].scale for n in names])[m_idx]
+        colours = np.array([models[n].colour for n in names])[m_idx]
+        override = [i for i, r in enumerate(refs) if r.colour is not None]
+        if override:
+            colours[override] = np.array([refs[i].colour for i in override])
+        # variants share their base's mesh set: one group (one instanced draw per level) per set
+        sets: list = []
+        set_of_name = []
+        for n in names:
+            ms = models[n].meshes
+            k = next((i for i, s in enumerate(sets) if s is ms), None)
+            if k is None:
+                sets.append(ms)
+                k = len(sets) - 1
+            set_of_name.append(k)
+        e_set = np.array(set_of_name, np.intp)[m_idx]
+        groups = []
+        for k, ms in enumerate(sets):
+            members = np.flatnonzero(e_set == k)
+            groups.append(_Group(ms, ents[members], t_rows[members], scales[members], colours[members]))
+        # a fixed draw order: the order the mesh sets were defined in the cache
+        order = {id(ms): k for k, ms in enumerate(self.cache.mesh_sets)}
+        groups.sort(key=lambda g: order.get(id(g.mesh_set), len(order)))
+        self._groups = groups
+
+    # -- GL objects ----------------------------------------------------------------------
+    def _vao(self, group: _Group, level: int, n: int):
+        key = (id(group.mesh_set), level)
+        slot = self._inst.get(key)
+        if slot is None or slot[1] < n:
+            if slot is not None:
+                slot[0].release()
+                slot[2].release()
+            cap = max(64, 1 << (max(n, 1) - 1).bit_length())
+            buf = self.ctx.buffer(reserve=cap * INSTANCE_FLOATS * 4, dynamic=True)
+            vbo, ibo = self.cache.buffers(group.mesh_set)[level]
+            vao = self.ctx.vertex_array(
+                self._prog,
+                [(vbo, "3f 3f", "in_position", "in_normal"), (buf, "16f 3f/i", "in_model", "in_colour")],
+                index_buffer=ibo, index_element_size=4)
+            slot = [buf, cap, vao]
+            self._inst[key] = slot
+        return slot
+
+    def _draw_vao(self, group: _Group, level: int):
+        key = (id(group.mesh_set), level)
+        vao = self._draw_vaos.get(key)
+        if vao is None:
+            vbo, ibo = self.cache.buffers(group.mesh_set)[level]
+            vao = self.ctx.vertex_array(self._prog_draw, [(vbo, "3f 3f", "in_position", "in_normal")],
+                                        index_buffer=ibo, index_element_size=4)
+            self._draw_vaos[key] = vao
+        return vao
+
+    def release(self) -> None:
+        """Free programs, vertex arrays and instance buffers. Safe to call twice."""
+        for buf, _, vao in self._inst.values():
+            vao.release()
+            buf.release()
+        for vao in self._draw_vaos.values():
+            vao.release()
+        self._inst.clear()
+        self._draw_vaos.clear()
+        for prog in (self._prog, self._prog_draw):
+            if prog is not None:
+                prog.release()
+        self._prog = self._prog_draw = None
+
+    # -- the frame -------------------------------------------------------------------------
+    def _camera(self) -> tuple[int, Camera, Transform]:
+        if self.camera is not None:
+            ent = self.camera
+            cam = esper.try_component(ent, Camera) if esper.entity_exists(ent) else None
+            if cam is None:
+                raise ValueError(f"RenderSystem.camera: entity {ent!r} has no Camera")
+        else:
+            ent, cam = camera_sys.active_camera(self.world)
+        tf = esper.try_component(ent, Transform)
+        if tf is None:                      # the camera system has not run yet: place it now
+            tf = camera_sys.update_camera(ent, cam, self.world.dt, snap=True)
+        return ent, cam, tf
+
+    def process(self, dt: float) -> None:
+        if self._prog is None:
+            raise RuntimeError("RenderSystem was released (world closed)")
+        ent_cam, cam, tf = self._camera()
+        eye = tf.position.copy()
+        q_eye = tf.orientation.copy()
+        w, h = self.target.size
+        aspect = w / h
+        rot = np.eye(4)
+        rot[:3, :3] = camera_sys.view_rotation(q_eye)
+        proj = camera_sys.perspective(cam.fov, aspect, cam.near, cam.far)
+        self.camera_entity = ent_cam
+        self.eye_position = eye
+        self.view = camera_sys.view_matrix(eye, q_eye)
+        self.projection = proj
+        self.view_projection = proj @ self.view
+        self.view_rotation_only = rot
+        self.frame += 1
+
+        ctx = self.ctx
+        self.target.use()
+        ctx.clear(*self.clear_colour, 1.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        ctx.depth_func = "<"
+        ctx.front_face = "cw"          # the view flips z: outward CCW triangles appear clockwise
+        ctx.cull_face = "back"
+
+        vp_rot = (proj @ rot).astype(np.float32)
+        for prog in (self._prog, self._prog_draw):
+            prog["u_view_proj"].write(vp_rot.T.tobytes())          # GL wants column-major
+            prog["u_to_light"].value = tuple(self.light_direction)
+            prog["u_ambient"].value = self.ambient
+
+        if self._rows.update(esper.get_components(Transform, ModelRef)):
+            self._regroup()
+        skip = cam.target if cam.mode == "cockpit" else None   # do not draw the ship we sit in
+        r_eye = fr.quat_to_matrix(q_eye)                          # columns right, up, forward
+        f_px = 0.5 * h / cam.tan_half_fov                         # pixels per metre at 1 m depth
+        stats = {"draw_calls": 0, "instances": 0, "culled": 0, "levels": {}}
+        pos_all = Transform._table.data["position"]
+        q_all = Transform._table.data["orientation"]
+        for g in self._groups:
+            rel = pos_all[g.t_rows] - eye                         # eye-relative, float64, m
+            keep = np.ones(len(rel), bool) if skip is None else g.entities != skip
+            c = rel @ r_eye                                       # (right, up, forward) coords, m
+            r = g.radius
+            if self.cull:
+                keep &= self._in_frustum(c, r, cam, aspect)
+            stats["culled"] += int(len(rel) - keep.sum())
+            idx = np.flatnonzero(keep)
+            if not len(idx):
+                continue
+            n_levels = len(g.mesh_set.lods)
+            if self.lod and n_levels > 1:
+                depth = np.maximum(c[idx, 2] - r[idx], cam.near)  # nearest point's depth, >= near
+                r_px = r[idx] * f_px / depth
+                err = g.mesh_set.lod_errors
+                with np.errstate(divide="ignore"):
+                    limit = np.where(err > 0, self.lod_tolerance_px / err, np.inf)   # largest r_px per level
+                level = np.minimum(np.searchsorted(limit, r_px, side="left"), n_levels - 1)
+            else:
+                level = np.full(len(idx), n_levels - 1)
+            inst = self._instance_data(g, idx, rel, q_all)
+            order = np.argsort(level, kind="stable")
+            counts = np.bincount(level, minlength=n_levels)
+            inst = inst[order]
+            start = 0
+            mode = moderngl.LINES if g.mesh_set.mode == "lines" else moderngl.TRIANGLES
+            lit = 0 if g.mesh_set.mode == "lines" else 1
+            self._prog["u_lit"].value = lit
+            self._prog_draw["u_lit"].value = lit
+            for lv in range(n_levels):
+                n = int(counts[lv])
+                if not n:
+                    continue
+                block = inst[start:start + n]
+                start += n
+                if self.instanced:
+                    buf, _, vao = self._vao(g, lv, n)
+                    buf.write(block.tobytes())
+                    vao.render(mode, instances=n)
+                    stats["draw_calls"] += 1
+                else:
+                    vao = self._draw_vao(g, lv)
+                    u_model, u_colour = self._prog_draw["u_model"], self._prog_draw["u_colour"]
+                    for row in block:
+                        u_model.write(row[:16].tobytes())
+                        u_colour.write(row[16:19].tobytes())
+                        vao.render(mode)
+                    stats["draw_calls"] += n
+                stats["instances"] += n
+                key = f"{g.mesh_set.name}[{lv}]"
+                stats["levels"][key] = stats["levels"].get(key, 0) + n
+        ctx.disable(moderngl.CULL_FACE)
+        ctx.front_face = "ccw"
+        self.stats = stats
+
+    @staticmethod
+    def _in_frustum(c: np.ndarray, r: np.ndarray, cam: Camera, aspect: float) -> np.ndarray:
+        """Bounding spheres (centre ``c`` in right/up/forward eye coords, radius ``r``) touching the view.
+
+        Each side plane passes through the eye; for half-angle ``a`` its
+        outward normal is ``(cos a, 0, -sin a)`` (right side; likewise left,
+        top, bottom). A sphere is outside when its signed distance to any
+        plane exceeds ``r``, or it lies wholly nearer than ``near`` or
+        farther than ``far``.
+        """
+        ty = cam.tan_half_fov
+        tx = ty * aspect
+        # unit normals of the side planes: (1, 0, -t) / sqrt(1 + t^2)
+        kx = 1.0 / math.sqrt(1.0 + tx * tx)
+        ky = 1.0 / math.sqrt(1.0 + ty * ty)
+        x, y, z = c[:, 0], c[:, 1], c[:, 2]
+        zx = z * tx
+        zy = z * ty
+        return ((z + r > cam.near) & (z - r < cam.far)
+                & ((x - zx) * kx < r) & ((-x - zx) * kx < r)
+                & ((y - zy) * ky < r) & ((-y - zy) * ky < r))
+
+    @staticmethod
+    def _instance_data(g: _Group, idx: np.ndarray, rel: np.ndarray, q_all: np.ndarray) -> np.ndarray:
+        """(n, 19) float32: column-major ``T R S`` (eye-relative T) and RGB, for entities ``idx`` of ``g``."""
+        m = fr.quat_to_matrix(q_all[g.t_rows[idx]]) * g.scale[idx][:, None, :]   # R S: column j scaled by s_j
+        n = len(idx)
+        out = np.empty((n, INSTANCE_FLOATS), np.float32)
+        out[:, 0:3] = m[:, :, 0]
+        out[:, 4:7] = m[:, :, 1]
+        out[:, 8:11] = m[:, :, 2]
+        out[:, 12:15] = rel[idx]
+        out[:, [3, 7, 11]] = 0.0
+        out[:, 15] = 1.0
+        out[:, 16:19] = g.colour[idx]
+        return out
+
+
+def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = None, skybox: bool = True,
+           own_context: bool | None = None, **options) -> RenderSystem:
+    """Set up rendering for ``world`` in one call; returns the :class:`RenderSystem`.
+
+    ``ctx``: a ``moderngl.Context`` (None: reuse ``world.resources["gl"]`` or
+    create an off-screen one with :func:`framework.gl.create_context`).
+    ``size``: (width, height) of a new off-screen target; ``target``: an
+    existing :class:`RenderTarget` instead (a window: ``RenderTarget.screen``).
+    ``skybox``: add the green line-cube skybox. ``own_context``: release the
+    context with the world (default: only if created here). Other keyword
+    arguments go to :class:`RenderSystem` (``lod``, ``cull``, ``instanced``,
+    ``light_direction``, ...).
+
+    Adds :class:`~systems.camera.CameraSystem` (if the world has none),
+    :class:`RenderSystem` and :class:`~systems.skybox.SkyboxSystem`, places
+    the cameras, and sets ``world.resources["model_cache"]``,
+    ``["render_target"]`` and ``["gl"]``.
+    """
+    from systems.skybox import SkyboxSystem
+
+    if "render_target" in world.resources:
+        raise ValueError("rendering is attached to this world already")
+    handle = world.resources.pop("gl", None)
+    if ctx is None:
+        if handle is not None:
+            ctx = handle.ctx
+        else:
+            ctx = create_context()
+            own_context = True if own_context is None else own_context
+    if handle is None or handle.ctx is not ctx:
+        handle = ContextHandle(ctx, owned=bool(own_context))
+    cache = world.resources.get("model_cache")
+    if cache is None:
+        cache = ModelCache(ctx)
+    if target is None:
+        target = RenderTarget(ctx, size)
+    # release order on world.close(): cache, target, then systems and (if owned) the context
+    world.resources["model_cache"] = cache
+    world.resources["render_target"] = target
+    world.resources["gl"] = handle
+    if world.get_system(camera_sys.CameraSystem) is None:
+        world.add_system(camera_sys.CameraSystem())
+    render = world.add_system(RenderSystem(ctx, cache, target, **options))
+    handle.on_release(render.release)
+    if skybox:
+        sky = world.add_system(SkyboxSystem(ctx, cache, render))
+        handle.on_release(sky.release)
+    world.activate()
+    if any(True for _ in esper.get_component(Camera)):
+        camera_sys.update_cameras(world, snap=True)
+    return render
+
+
+def read_rgba(world) -> np.ndarray:
+    """The world's current frame (``world.resources["render_target"]``), (H, W, 4) uint8, top row first."""
+    try:
+        target = world.resources["render_target"]
+    except KeyError:
+        raise LookupError("no render target: call systems.render.attach(world, ...) first") from None
+    return target.read_rgba()
