@@ -1,19 +1,170 @@
-"""The ``driftframe`` command line."""
+"""The ``driftframe`` command line: list the demos, record one off-screen, or fly one in a window.
+
+Every error a user can cause (an unknown demo, a bad size, an unwritable
+path, no display) ends in one line on stderr and exit status 2, never a
+traceback.
+"""
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
+import time
 
 from framework import __version__
 
+CAMERAS = ("cockpit", "chase")
+
+
+class UsageError(Exception):
+    """A problem with what the user asked for: printed as one line, exit status 2."""
+
+
+def _positive_float(name):
+    def parse(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(v) or v <= 0:
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number > 0, got {text!r}")
+        return v
+    return parse
+
+
+def _seed(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seed must be an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"seed must be an integer >= 0, got {text!r}")
+    return v
+
+
+def _size(text):
+    from framework.app import parse_size
+    try:
+        return parse_size(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def _keys_epilog() -> str:
+    from framework.input import keys_help
+    return "keys while playing:\n" + keys_help()
+
 
 def build_parser() -> argparse.ArgumentParser:
+    import demos
+
     p = argparse.ArgumentParser(
         prog="driftframe",
-        description="driftframe: Newtonian space-flight scenes with esper, numpy and moderngl.")
+        description="driftframe: Newtonian space-flight scenes built from esper components. "
+                    "Record a demo off-screen to video, or fly it in a window.",
+        epilog=_keys_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"driftframe {__version__}")
-    p.add_subparsers(dest="command", metavar="COMMAND")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    sub.add_parser("list", help="list the demos, one line each")
+
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("demo", metavar="DEMO", help=f"one of: {', '.join(demos.NAMES)}")
+    common.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH",
+                        help="frame size in pixels (default 1280x720)")
+    common.add_argument("--seed", type=_seed, default=0, metavar="N", help="random seed of the scene (default 0)")
+    common.add_argument("--camera", choices=CAMERAS, default=None,
+                        help="camera to start with (default: the demo's own)")
+
+    rec = sub.add_parser("record", parents=[common], help="record a demo off-screen to MP4, GIF or PNG frames",
+                         description="Render DEMO off-screen, one frame per simulated frame, following the "
+                                     "demo's scripted input. The same demo, seed and options give identical "
+                                     "output on every run.")
+    rec.add_argument("--seconds", type=_positive_float("seconds"), default=None, metavar="S",
+                     help="simulated seconds to record (default: the demo's own length)")
+    rec.add_argument("--fps", type=_positive_float("fps"), default=60.0, metavar="F",
+                     help="frames per second; must divide the 60 Hz simulation rate (60, 30, 20, 15, ...)")
+    rec.add_argument("-o", "--output", default=None, metavar="FILE",
+                     help="FILE.mp4, FILE.gif, or a directory for numbered PNGs (default out/DEMO.mp4)")
+    rec.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    play = sub.add_parser("play", parents=[common], help="fly a demo in a window with the keyboard",
+                          description="Open a window and fly DEMO with the keyboard. The physics runs in "
+                                      "fixed 1/60 s steps whatever the frame rate.",
+                          epilog=_keys_epilog(), formatter_class=argparse.RawDescriptionHelpFormatter)
+    play.add_argument("--screenshots", default=".", metavar="DIR", help="where F12 saves PNGs (default: here)")
+    play.add_argument("--state-out", default=None, metavar="FILE",
+                      help="on quit, write the player's state and the camera mode to FILE as JSON")
     return p
+
+
+def cmd_list(args) -> int:
+    import demos
+    width = max(map(len, demos.NAMES))
+    for name in demos.NAMES:
+        print(f"{name:<{width}}  {demos.load(name).DESCRIPTION}")
+    return 0
+
+
+def _load_demo(name):
+    import demos
+    try:
+        return demos.load(name)
+    except LookupError as e:
+        raise UsageError(str(e)) from None
+
+
+def steps_per_frame(fps: float, dt: float) -> int:
+    """Whole simulation steps per recorded frame; a UsageError if ``fps`` does not divide 1/dt."""
+    ratio = 1.0 / (fps * dt)
+    k = round(ratio)
+    if k < 1 or abs(ratio - k) > 1e-9:
+        rate = 1.0 / dt
+        ok = ", ".join(f"{rate / n:g}" for n in range(1, 7) if abs(rate / n - round(rate / n)) < 1e-9)
+        raise UsageError(f"--fps must divide the {rate:g} Hz simulation rate ({ok}, ...), got {fps:g}")
+    return k
+
+
+def cmd_record(args) -> int:
+    from framework.app import attach_rendering, make_world
+    from framework.recorder import output_format, record
+
+    demo = _load_demo(args.demo)
+    seconds = args.seconds if args.seconds is not None else demo.SECONDS
+    out = args.output or os.path.join("out", f"{args.demo}.mp4")
+    try:
+        output_format(out)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    world, demo = make_world(args.demo, seed=args.seed)
+    try:
+        k = steps_per_frame(args.fps, world.dt)
+        frames = max(1, round(seconds * args.fps))
+        attach_rendering(world, size=args.size, camera=args.camera)
+        t0 = time.perf_counter()
+        result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet)
+        took = time.perf_counter() - t0
+    finally:
+        world.close()
+    if result.path is None:
+        print("nothing written (interrupted before the first frame)", file=sys.stderr)
+        return 130
+    print(f"wrote {result.path} ({result.frames} frames, {result.frames / args.fps:.2f} s of {args.demo} "
+          f"at {args.fps:g} fps, {args.size[0]}x{args.size[1]}) in {took:.1f} s")
+    return 130 if result.interrupted else 0
+
+
+def cmd_play(args) -> int:
+    from framework.window import PlayError, play
+    _load_demo(args.demo)
+    if not os.path.isdir(args.screenshots):
+        raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
+    try:
+        return play(args.demo, size=args.size, seed=args.seed, camera=args.camera, state_out=args.state_out,
+                    screenshot_dir=args.screenshots)
+    except PlayError as e:
+        raise UsageError(str(e)) from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -22,7 +173,24 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    return 0
+    from framework.gl import GLUnavailableError
+
+    handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play}
+    try:
+        return handlers[args.command](args)
+    except UsageError as e:
+        print(f"driftframe: error: {e}", file=sys.stderr)
+        return 2
+    except GLUnavailableError as e:
+        print(f"driftframe: error: {e}", file=sys.stderr)
+        return 2
+    except (ValueError, LookupError, PermissionError, FileNotFoundError, NotADirectoryError, IsADirectoryError) as e:
+        # raised by the library's own input checks: they name the bad value; no traceback needed
+        print(f"driftframe: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("driftframe: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -1,0 +1,85 @@
+"""Reusable compositions shared by the demos: the player ship, a camera, a fixed viewpoint.
+
+Each returns an entity id; each is only components put together.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from components.body import Acceleration, AngularVelocity, Mass, Transform, Velocity
+from components.camera import Camera
+from components.collision import SphereCollider
+from components.control import FlightControl, FlightInput, Player, RotationAssist
+from components.render import ModelRef
+from framework import frame as fr
+
+
+def ship(world, *, mode: str = "momentum", position=(0.0, 0.0, 0.0), forward=(0.0, 0.0, 1.0),
+         velocity=(0.0, 0.0, 0.0), thrust: float = 6.0, assist: str = "all", collides: bool = True) -> int:
+    """The player's pyramid ship: flight controls, kill-rotation assist, 1 m collision sphere, 10 t."""
+    parts = [Player(), Transform(position, fr.look_rotation(forward)), Velocity(velocity), AngularVelocity(),
+             Acceleration(), Mass(10_000.0), ModelRef("ship"), FlightInput(),
+             FlightControl(mode=mode, thrust=thrust, turn_rate=1.2, angular_accel=1.5),
+             RotationAssist(max_decel=2.0, axes=assist)]
+    if collides:
+        parts.append(SphereCollider(radius=1.0))
+    return world.create_entity(*parts)
+
+
+def chase_camera(world, target: int, mode: str = "chase", **settings) -> int:
+    """A camera entity following ``target`` (cockpit or chase; switchable at run time)."""
+    return world.create_entity(Camera(target=target, mode=mode, **settings))
+
+
+def viewpoint(world, position, look_at, up=(0.0, 1.0, 0.0), **settings) -> int:
+    """A fixed eye (a body with no velocity) and a cockpit camera on it: for table-top scenes."""
+    pos = np.asarray(position, dtype=float)
+    eye = world.create_entity(Transform(pos, fr.look_rotation(np.asarray(look_at, float) - pos, up)))
+    world.create_entity(Camera(target=eye, mode="cockpit", **settings))
+    return eye
+
+
+def balls(world, positions, velocities, radius: float, *, mass: float = 1.0, colour=None,
+          model: str = "sphere") -> list[int]:
+    """Equal elastic balls (``model`` scaled to ``radius`` by a declared variant) at ``positions``."""
+    from framework.app import declare_variant
+
+    n = len(positions)
+    name = declare_variant(world, f"{model}_r{radius:g}", model, scale=radius)
+    return world.create_entities(
+        Transform.bulk(n, position=np.asarray(positions, float)),
+        Velocity.bulk(n, linear=np.asarray(velocities, float)),
+        Mass.bulk(n, kg=np.full(n, float(mass))),
+        SphereCollider.bulk(n, radius=np.full(n, float(radius))),
+        [ModelRef(name, colour=colour)] * n)
+
+
+def asteroid_field(world, rng, n: int, *, inner: float, outer: float, radii=(0.5, 3.0),
+                   speed: float = 1.0, spin: float = 0.4, variants: int = 50, density: float = 2000.0) -> list[int]:
+    """``n`` asteroids in a spherical shell, random sizes drawn from ``variants`` scaled spheres.
+
+    Mass = density * 4/3 pi r^3 (kg); random drift velocity (~``speed`` m/s)
+    and spin (~``spin`` rad/s). Asteroids never overlap each other at spawn.
+    """
+    from framework.app import declare_variant
+
+    sizes = np.sort(rng.uniform(*radii, variants))
+    names = [declare_variant(world, f"asteroid_{i}", "sphere", scale=float(r),
+                             colour=tuple(np.clip(rng.uniform(0.4, 0.6) * (1 + rng.normal(0, 0.04, 3)), 0, 1))) for i, r in enumerate(sizes)]
+    kind = rng.integers(0, variants, n)
+    r = sizes[kind]
+    pos = np.empty((n, 3))
+    placed = 0
+    while placed < n:                            # rejection sampling: no overlaps at spawn
+        d = rng.normal(size=3)
+        p = d / np.linalg.norm(d) * rng.uniform(inner, outer)
+        if placed == 0 or np.all(np.linalg.norm(pos[:placed] - p, axis=1) > r[:placed] + r[placed] + 0.1):
+            pos[placed] = p
+            placed += 1
+    vel = rng.normal(0.0, speed / np.sqrt(3), (n, 3))
+    w = rng.normal(0.0, spin / np.sqrt(3), (n, 3))
+    q = fr.quat_from_rotvec(rng.normal(size=(n, 3)))
+    return world.create_entities(
+        Transform.bulk(n, position=pos, orientation=q), Velocity.bulk(n, linear=vel),
+        AngularVelocity.bulk(n, angular=w), Mass.bulk(n, kg=density * 4 / 3 * np.pi * r ** 3),
+        SphereCollider.bulk(n, radius=r), [ModelRef(names[k]) for k in kind])

@@ -1,0 +1,25 @@
+"""rotation — the ship turns only while a key is held and thrusts along its nose (Framework 0.0.2)."""
+from demos.parts import balls, chase_camera, ship
+from framework.input import Hold, Track
+
+TITLE = "Rotation"
+DESCRIPTION = "direct control: the ship turns only while a key is held; velocity persists"
+SECONDS = 12.0
+
+# yaw right, burn, pitch up while drifting, burn again, roll, brake by thrusting backwards
+SCRIPT = Track((
+    Hold(0.5, 1.8, yaw=1.0),
+    Hold(2.0, 4.0, throttle=1.0),
+    Hold(4.5, 5.5, pitch=-1.0),
+    Hold(6.0, 7.5, throttle=1.0),
+    Hold(8.0, 9.5, roll=1.0),
+    Hold(10.0, 11.5, throttle=-1.0),
+))
+
+
+def build(world, rng):
+    me = ship(world, mode="direct", collides=False)
+    chase_camera(world, me, mode="chase", chase_distance=9.0, chase_height=2.5)
+    # a lattice of beacons, so turning and drifting show against something
+    grid = [(x, y, z) for x in (-40, 0, 40) for y in (-20, 20) for z in (20, 60, 100)]
+    balls(world, grid, [(0, 0, 0)] * len(grid), 1.5, mass=float("inf"), colour=(0.9, 0.55, 0.2))

@@ -1,0 +1,21 @@
+"""swarm — thousands of colliding asteroids around the ship: the scale the framework holds."""
+from demos.parts import asteroid_field, chase_camera, ship
+from framework.input import Hold, Press, Track
+
+TITLE = "Swarm"
+DESCRIPTION = "3,000 colliding asteroids (one sphere mesh, level of detail and culling) around the ship"
+SECONDS = 12.0
+COUNT = 3000
+
+SCRIPT = Track((
+    Hold(0.5, 3.0, throttle=1.0),
+    Hold(3.0, 4.0, yaw=1.0),
+    Press(6.0, "switch_camera"),
+    Hold(6.5, 9.0, throttle=1.0),
+))
+
+
+def build(world, rng):
+    me = ship(world, mode="momentum")
+    chase_camera(world, me, mode="chase")
+    asteroid_field(world, rng, COUNT, inner=10.0, outer=160.0, radii=(0.4, 2.5), speed=2.0)

@@ -1,0 +1,129 @@
+"""Assembling a runnable scene: the standard systems, a demo's entities, rendering.
+
+A demo only composes components (``demos/<name>.py``: ``build(world, rng)``
+plus metadata). This module gives it a world with the standard systems in
+their stages, and attaches rendering when a picture is wanted::
+
+    world, demo = make_world("asteroids", seed=1)      # headless: physics only
+    render = attach_rendering(world, size=(1280, 720)) # off-screen EGL, or a window's context
+
+Models: a demo declares asteroid variants with :func:`declare_variant`
+(no GL needed), and :func:`attach_rendering` puts them into the model cache,
+where each is an entry sharing the base mesh's buffers plus a scale.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from framework import validate
+from framework.world import World
+
+
+def simulation_systems(track=None, *, collision: str = "continuous") -> list:
+    """The standard per-step systems, one per job, for every stage up to collision."""
+    from systems.assist import RotationAssistSystem
+    from systems.collision import CollisionSystem
+    from systems.control import ControlSystem
+    from systems.input import InputSystem
+    from systems.movement import MovementSystem
+    from systems.spin import SpinSystem
+
+    return [InputSystem(track), ControlSystem(), RotationAssistSystem(), MovementSystem(), SpinSystem(),
+            CollisionSystem(method=collision)]
+
+
+def declare_variant(world, name: str, base: str = "sphere", *, scale=1.0, colour=None) -> str:
+    """Declare a model variant (a scaled entry sharing ``base``'s buffers); returns ``name``.
+
+    Stored in ``world.resources["model_variants"]`` until rendering is attached.
+    """
+    from framework.model_cache import check_colour, check_scale
+
+    if not isinstance(name, str) or not name:
+        raise TypeError(f"variant name must be a non-empty str, got {name!r}")
+    check_scale(f"variant {name!r} scale", scale)
+    if colour is not None:
+        check_colour(f"variant {name!r} colour", colour)
+    world.resources.setdefault("model_variants", {})[name] = (base, scale, colour)
+    return name
+
+
+def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous"):
+    """A world with the standard systems and demo ``name``'s entities; returns ``(world, demo)``.
+
+    ``scripted``: drive the player with the demo's input track (recordings,
+    tests); False leaves input to the keyboard.
+    """
+    import demos
+
+    demo = demos.load(name)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+    world = World(dt=getattr(demo, "DT", 1.0 / 60.0))
+    try:
+        for system in simulation_systems(demo.SCRIPT if scripted else None, collision=collision):
+            world.add_system(system)
+        demo.build(world, np.random.default_rng(int(seed)))
+    except BaseException:
+        world.close()
+        raise
+    world.resources["demo"] = demo
+    return world, demo
+
+
+def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = None, hud: bool = True, **options):
+    """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.
+
+    ``camera``: start in ``"cockpit"`` or ``"chase"`` (default: as the demo
+    built it). Returns the :class:`~systems.render.RenderSystem`.
+    """
+    from systems import camera as camera_sys
+    from systems.render import attach
+
+    size = parse_size(size) if isinstance(size, str) else size
+    render = attach(world, ctx, size, **options)
+    cache = world.resources["model_cache"]
+    for vname, (base, scale, colour) in world.resources.get("model_variants", {}).items():
+        if vname not in cache:
+            cache.variant(vname, base, scale=scale, colour=colour)
+    if hud:
+        from systems.hud import HudSystem
+        world.add_system(HudSystem(render))
+    if camera is not None:
+        camera_sys.switch_camera(world, camera)
+    return render
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"1280x720"`` -> (1280, 720); a clear error for anything else."""
+    parts = str(text).lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"size must look like WIDTHxHEIGHT (e.g. 1280x720), got {text!r}")
+    w, h = (int(p) for p in parts)
+    for label, v in (("width", w), ("height", h)):
+        if not 16 <= v <= 7680:
+            raise ValueError(f"size {label} must be between 16 and 7680 pixels, got {v} in {text!r}")
+    if w % 2 or h % 2:
+        raise ValueError(f"size must have even width and height (H.264 needs it), got {text!r}")
+    return w, h
+
+
+def player(world) -> int | None:
+    """Entity id of the (lowest-numbered) Player, or None."""
+    import esper
+
+    from components.control import Player
+
+    world.activate()
+    ents = sorted(e for e, _ in esper.get_component(Player))
+    return ents[0] if ents else None
+
+
+def body_count(world) -> int:
+    import esper
+
+    from components.body import Transform
+
+    world.activate()
+    return len(esper.get_component(Transform))
+

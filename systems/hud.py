@@ -1,0 +1,221 @@
+"""The heads-up display: prograde / retrograde markers, speed, spin rate, camera and assist state."""
+from __future__ import annotations
+
+import esper
+import moderngl
+import numpy as np
+
+from components.body import AngularVelocity, Velocity
+from components.camera import Camera
+from components.control import FlightInput, Player, RotationAssist
+
+TEXT_COLOUR = (0.80, 1.00, 0.80, 1.0)
+PROGRADE_COLOUR = (0.85, 1.00, 0.30, 1.0)
+RETROGRADE_COLOUR = (1.00, 0.55, 0.20, 1.0)
+#: Below this speed (m/s) there is no direction of travel to mark.
+MIN_SPEED = 1e-3
+
+_VS = """
+#version 330
+uniform vec2 size;                // viewport, pixels
+in vec2 in_pos;                   // pixels, origin top-left, y down
+in vec2 in_uv;
+out vec2 uv;
+void main() {
+    uv = in_uv;
+    gl_Position = vec4(in_pos.x / size.x * 2.0 - 1.0, 1.0 - in_pos.y / size.y * 2.0, 0.0, 1.0);
+}
+"""
+_FS = """
+#version 330
+uniform sampler2D atlas;
+uniform vec4 colour;
+uniform bool textured;
+in vec2 uv;
+out vec4 frag;
+void main() {
+    float a = textured ? texture(atlas, uv).r : 1.0;
+    frag = vec4(colour.rgb, colour.a * a);
+}
+"""
+
+
+class FontAtlas:
+    """Printable ASCII rasterised once (Pillow's bundled FreeType font) into one texture."""
+
+    FIRST, LAST, COLUMNS = 32, 126, 16
+
+    def __init__(self, ctx, pixel_size: int):
+        from PIL import Image, ImageDraw, ImageFont
+
+        font = ImageFont.load_default(size=pixel_size)
+        ascent, descent = font.getmetrics()
+        chars = [chr(c) for c in range(self.FIRST, self.LAST + 1)]
+        self.advance = {ch: float(font.getlength(ch)) for ch in chars}
+        self.cell = (int(np.ceil(max(self.advance.values()))) + 2, ascent + descent + 2)
+        rows = -(-len(chars) // self.COLUMNS)
+        cw, ch_ = self.cell
+        img = Image.new("L", (cw * self.COLUMNS, ch_ * rows), 0)
+        draw = ImageDraw.Draw(img)
+        for i, c in enumerate(chars):
+            draw.text(((i % self.COLUMNS) * cw + 1, (i // self.COLUMNS) * ch_ + 1), c, fill=255, font=font)
+        self.image_size = img.size
+        self.line_height = ch_
+        self.texture = ctx.texture(img.size, 1, img.tobytes())
+        self.texture.filter = (moderngl.NEAREST, moderngl.NEAREST)
+
+    def quads(self, text: str, x: float, y: float) -> np.ndarray:
+        """Two triangles per character, rows of (x, y, u, v) in pixels, top-left at (x, y)."""
+        cw, ch = self.cell
+        iw, ih = self.image_size
+        out = []
+        pen = x
+        for c in text:
+            if not self.FIRST <= ord(c) <= self.LAST:
+                c = "?"
+            i = ord(c) - self.FIRST
+            u0, v0 = (i % self.COLUMNS) * cw / iw, (i // self.COLUMNS) * ch / ih
+            u1, v1 = u0 + cw / iw, v0 + ch / ih
+            x0, y0, x1, y1 = pen - 1, y - 1, pen - 1 + cw, y - 1 + ch
+            out += [(x0, y0, u0, v0), (x1, y0, u1, v0), (x1, y1, u1, v1),
+                    (x0, y0, u0, v0), (x1, y1, u1, v1), (x0, y1, u0, v1)]
+            pen += self.advance[c]
+        return np.array(out, dtype="f4").reshape(-1, 4)
+
+    def release(self):
+        self.texture.release()
+
+
+def project_direction(direction, view_rotation_only: np.ndarray, projection: np.ndarray, size) -> np.ndarray | None:
+    """Pixel (x right, y down) where a world *direction* (a point at infinity) appears, or None if behind.
+
+    ``clip = P @ R_view @ (d, 0)``: translation does not matter for a point
+    at infinity, so the marker is the same in cockpit and chase views for the
+    same viewing direction.
+    """
+    d = np.append(np.asarray(direction, dtype=float), 0.0)
+    clip = projection @ (view_rotation_only @ d)
+    if clip[3] <= 1e-12:
+        return None
+    ndc = clip[:2] / clip[3]
+    w, h = size
+    return np.array([(ndc[0] + 1.0) * 0.5 * w, (1.0 - ndc[1]) * 0.5 * h])
+
+
+def _segments_to_triangles(segments: np.ndarray, width: float) -> np.ndarray:
+    """Thick lines: each segment (x0, y0, x1, y1) becomes a quad ``width`` px wide, as (x, y, 0, 0) rows."""
+    p0, p1 = segments[:, :2], segments[:, 2:]
+    d = p1 - p0
+    n = np.stack([-d[:, 1], d[:, 0]], 1) / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+    off = n * (width / 2)
+    a, b, c, e = p0 + off, p1 + off, p1 - off, p0 - off
+    tri = np.stack([a, b, c, a, c, e], 1).reshape(-1, 2)
+    return np.hstack([tri, np.zeros_like(tri)]).astype("f4")
+
+
+def marker_segments(centre, radius: float, kind: str) -> np.ndarray:
+    """Line segments of a marker at ``centre``: prograde = circle with three ticks, retrograde = circle with an X."""
+    cx, cy = centre
+    t = np.linspace(0, 2 * np.pi, 25)
+    circle = np.stack([cx + radius * np.cos(t), cy + radius * np.sin(t)], 1)
+    segs = [np.hstack([circle[:-1], circle[1:]])]
+    if kind == "prograde":
+        for ang in (0.0, np.pi, -np.pi / 2):       # left, right, up ticks
+            u = np.array([np.cos(ang), np.sin(ang)])
+            segs.append(np.hstack([centre + u * radius, centre + u * radius * 1.8])[None])
+    else:
+        k = radius * 0.7
+        segs.append(np.array([[cx - k, cy - k, cx + k, cy + k], [cx - k, cy + k, cx + k, cy - k]]))
+    return np.vstack(segs)
+
+
+class HudSystem(esper.Processor):
+    """Reads the Player's (or camera target's) Velocity and AngularVelocity, the active Camera,
+    the render system's matrices; writes HUD pixels over the frame.
+
+    Draws the prograde marker where the velocity direction projects, the
+    retrograde marker opposite, and text: camera, speed (m/s), spin rate
+    (rad/s), assist state. Runs in stage "render" after the scene (and
+    skybox) so it is in the window and in recordings alike.
+    """
+
+    stage = "render"
+
+    def __init__(self, render, *, font_px: int | None = None):
+        self.render = render
+        ctx = render.ctx
+        self.ctx = ctx
+        h = render.size[1]
+        self.font = FontAtlas(ctx, font_px or max(12, round(h / 36)))
+        self.prog = ctx.program(vertex_shader=_VS, fragment_shader=_FS)
+        self.vbo = ctx.buffer(reserve=4 * 4 * 6 * 512, dynamic=True)
+        self.vao = ctx.vertex_array(self.prog, [(self.vbo, "2f 2f", "in_pos", "in_uv")])
+        #: What the last frame showed (for tests and tools): marker pixels and the text lines.
+        self.last: dict = {}
+
+    def _subject(self):
+        players = sorted(e for e, _ in esper.get_component(Player))
+        if players:
+            return players[0]
+        return self.render.camera_entity and esper.component_for_entity(self.render.camera_entity, Camera).target
+
+    def lines(self) -> list[str]:
+        ent = self._subject()
+        cam = esper.try_component(self.render.camera_entity, Camera) if self.render.camera_entity else None
+        vel = esper.try_component(ent, Velocity) if ent is not None else None
+        spin = esper.try_component(ent, AngularVelocity) if ent is not None else None
+        out = [f"CAMERA  {cam.mode if cam else '-'}",
+               f"SPEED   {np.linalg.norm(vel.linear) if vel is not None else 0.0:7.2f} m/s",
+               f"SPIN    {np.linalg.norm(spin.angular) if spin is not None else 0.0:7.3f} rad/s"]
+        assist = esper.try_component(ent, RotationAssist) if ent is not None else None
+        if assist is not None:
+            inp = esper.try_component(ent, FlightInput)
+            on = assist.engaged or (inp is not None and inp.kill_rotation)
+            out.append(f"ASSIST  {'ON' if on else 'off'} ({assist.axes})")
+        return out
+
+    def _draw(self, data: np.ndarray, colour, textured: bool) -> None:
+        if not len(data):
+            return
+        raw = data.astype("f4").tobytes()
+        if len(raw) > self.vbo.size:
+            self.vbo.orphan(len(raw))
+        self.vbo.write(raw)
+        self.prog["colour"].value = colour
+        self.prog["textured"].value = textured
+        self.vao.render(moderngl.TRIANGLES, vertices=len(data))
+
+    def process(self, dt: float) -> None:
+        r = self.render
+        w, h = r.size
+        r.target.use()
+        ctx = self.ctx
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+        self.prog["size"].value = (float(w), float(h))
+        self.font.texture.use(0)
+        self.prog["atlas"].value = 0
+
+        ent = self._subject()
+        vel = esper.try_component(ent, Velocity) if ent is not None else None
+        markers = {}
+        radius = max(6.0, h / 60)
+        if vel is not None and np.linalg.norm(vel.linear) > MIN_SPEED:
+            d = vel.linear / np.linalg.norm(vel.linear)
+            for kind, sign, colour in (("prograde", 1.0, PROGRADE_COLOUR), ("retrograde", -1.0, RETROGRADE_COLOUR)):
+                px = project_direction(sign * d, r.view_rotation_only, r.projection, (w, h))
+                if px is not None and -radius <= px[0] <= w + radius and -radius <= px[1] <= h + radius:
+                    markers[kind] = px
+                    self._draw(_segments_to_triangles(marker_segments(px, radius, kind), 2.0), colour, False)
+        text = self.lines()
+        pad = self.font.line_height // 2
+        quads = [self.font.quads(line, pad, pad + i * self.font.line_height) for i, line in enumerate(text)]
+        self._draw(np.vstack(quads), TEXT_COLOUR, True)
+        ctx.disable(moderngl.BLEND)
+        self.last = {"markers": markers, "text": text}
+
+    def release(self) -> None:
+        for obj in (self.vao, self.vbo, self.prog):
+            obj.release()
+        self.font.release()
