@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     except GLUnavailableError as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2
-    except (ValueError, LookupError, PermissionError, FileNotFoundError, NotADirectoryError, IsADirectoryError) as e:
+    except (ValueError, LookupError, OSError) as e:
         # raised by the library's own input checks: they name the bad value; no traceback needed
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2
