@@ -69,8 +69,10 @@ def _find_dri_driver() -> bool:
                for name in ("swrast_dri.so", "kms_swrast_dri.so", "libgallium*.so"))
 
 
-def missing_pieces(can_load=_can_load, find_dri=_find_dri_driver) -> list[tuple[str, str]]:
+def missing_pieces(can_load=None, find_dri=None) -> list[tuple[str, str]]:
     """``(what, package)`` for each part of an off-screen GL stack that cannot be found."""
+    can_load = can_load or _can_load
+    find_dri = find_dri or _find_dri_driver
     missing = [(f"{what} ({so})", pkg) for what, so, pkg in _LIBRARIES if not can_load(so)]
     if not find_dri():
         missing.append(("Mesa's software rasteriser (swrast_dri.so)", "libgl1-mesa-dri"))
@@ -247,6 +249,10 @@ class RenderTarget:
         return np.frombuffer(self.read_raw(), np.uint8).reshape(h, w, 4)[::-1].copy()
 
     def _release_buffers(self) -> None:
+        bound = getattr(self.ctx, "fbo", None)
+        if bound is not None and self.fbo is not None and bound.glo == self.fbo.glo:
+            # moderngl re-binds "the bound framebuffer" after creating others: never leave it a deleted one
+            self.ctx.detect_framebuffer(0).use()
         for obj in (self.fbo, self._colour, self._depth):
             if obj is not None:
                 obj.release()

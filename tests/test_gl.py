@@ -1,0 +1,104 @@
+"""The one place a GL context is made; the render target and its read-back."""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+import pytest
+
+from framework import gl
+
+
+def test_missing_driver_error_names_what_is_missing_and_the_packages():
+    missing = gl.missing_pieces(can_load=lambda so: so != "libEGL_mesa.so.0", find_dri=lambda: False)
+    msg = gl.explain_failure(Exception("eglGetDisplay failed"), missing)
+    assert "Mesa's EGL driver (libEGL_mesa.so.0)" in msg
+    assert "swrast_dri.so" in msg
+    assert "apt-get install -y --no-install-recommends libegl-mesa0 libgl1-mesa-dri" in msg
+    assert "eglGetDisplay failed" in msg
+
+
+def test_create_context_turns_a_loader_failure_into_a_clear_error(monkeypatch):
+    def fail(**kwargs):
+        raise Exception("libEGL.so: cannot open shared object file")
+
+    monkeypatch.setattr(moderngl, "create_standalone_context", fail)
+    monkeypatch.setattr(gl, "_can_load", lambda so: so not in ("libEGL.so.1", "libGL.so.1"))
+    monkeypatch.setattr(gl, "_find_dri_driver", lambda: True)
+    with pytest.raises(gl.GLUnavailableError) as info:
+        gl.create_context()
+    msg = str(info.value)
+    assert "the EGL loader (libEGL.so.1)" in msg and "the GL dispatch library (libGL.so.1)" in msg
+    assert "apt-get install -y --no-install-recommends libegl1 libgl1" in msg
+    assert info.value.__cause__ is None          # no traceback from inside the loader
+
+
+def test_create_context_with_all_libraries_present_still_names_the_packages(monkeypatch):
+    monkeypatch.setattr(moderngl, "create_standalone_context",
+                        lambda **kw: (_ for _ in ()).throw(Exception("no EGL display")))
+    monkeypatch.setattr(gl, "_can_load", lambda so: True)
+    monkeypatch.setattr(gl, "_find_dri_driver", lambda: True)
+    with pytest.raises(gl.GLUnavailableError, match="libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri"):
+        gl.create_context()
+
+
+def test_wrap_current_context_failure_says_to_make_a_window_current(monkeypatch):
+    monkeypatch.setattr(moderngl, "create_context",
+                        lambda **kw: (_ for _ in ()).throw(Exception("cannot detect OpenGL context")))
+    with pytest.raises(gl.GLUnavailableError, match="make_context_current"):
+        gl.wrap_current_context()
+
+
+@pytest.mark.gl
+def test_off_screen_context_offers_opengl_330_or_newer(ctx):
+    assert ctx.version_code >= gl.REQUIRE
+    assert gl.renderer(ctx) != "unknown"
+
+
+@pytest.mark.gl
+def test_read_rgba_returns_the_top_row_first(ctx):
+    target = gl.RenderTarget(ctx, (8, 6))
+    try:
+        target.use()
+        ctx.clear(0.0, 0.0, 1.0, 1.0)
+        ctx.scissor = (0, 3, 8, 3)                 # GL's y is from the bottom: this is the top half
+        ctx.clear(1.0, 0.0, 0.0, 1.0)
+        ctx.scissor = None
+        img = target.read_rgba()
+        assert img.shape == (6, 8, 4) and img.dtype == np.uint8
+        np.testing.assert_array_equal(img[:3].reshape(-1, 4), [[255, 0, 0, 255]] * 24)
+        np.testing.assert_array_equal(img[3:].reshape(-1, 4), [[0, 0, 255, 255]] * 24)
+        raw = np.frombuffer(target.read_raw(), np.uint8).reshape(6, 8, 4)
+        np.testing.assert_array_equal(raw, img[::-1])   # raw is GL order, bottom row first
+    finally:
+        target.release()
+
+
+@pytest.mark.gl
+def test_render_target_resizes_and_rejects_bad_sizes(ctx):
+    target = gl.RenderTarget(ctx, (16, 8))
+    try:
+        target.resize((10, 4))
+        target.use()
+        ctx.clear(0.0, 1.0, 0.0, 1.0)
+        assert target.read_rgba().shape == (4, 10, 4)
+        assert target.aspect == 2.5
+    finally:
+        target.release()
+        target.release()                           # twice is fine
+    for bad in [(0, 10), (10, -1), (1.5, 10), "big", (gl.MAX_SIDE + 1, 1)]:
+        with pytest.raises(ValueError, match="render target|size must be"):
+            gl.RenderTarget(ctx, bad)
+
+
+@pytest.mark.gl
+def test_context_handle_releases_the_context_only_when_it_owns_it(ctx):
+    calls = []
+    shared = gl.ContextHandle(ctx, owned=False)
+    shared.on_release(lambda: calls.append("system"))
+    shared.release()
+    assert calls == ["system"]
+    assert ctx.version_code >= gl.REQUIRE            # still usable
+    own = gl.create_context()
+    handle = gl.ContextHandle(own, owned=True)
+    handle.release()
+    assert handle.ctx is None

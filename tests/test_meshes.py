@@ -1,0 +1,112 @@
+"""Meshes: vertex lists + indices with normals; sphere levels of detail, the pyramid ship, the line cube."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from framework import meshes
+
+
+@pytest.mark.parametrize("level", [0, 1, 2, 3, 4])
+def test_icosphere_vertices_lie_on_the_unit_sphere_with_normals_along_them(level):
+    m = meshes.icosphere(level)
+    np.testing.assert_allclose(np.linalg.norm(m.vertices, axis=1), 1.0, atol=1e-6)
+    np.testing.assert_allclose(m.normals, m.vertices, atol=1e-6)
+    assert m.mode == "triangles"
+    assert m.primitive_count == 20 * 4 ** level
+
+
+@pytest.mark.parametrize("level", [0, 2, 4])
+def test_icosphere_is_a_closed_surface_wound_counter_clockwise_from_outside(level):
+    m = meshes.icosphere(level)
+    tris = m.indices.reshape(-1, 3)
+    centroids = m.vertices[tris].mean(axis=1)
+    assert (np.einsum("ij,ij->i", m.face_normals(), centroids) > 0).all()
+    # closed and shared: Euler characteristic V - E + F = 2, every edge used by exactly two faces
+    edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    _, uses = np.unique(edges, axis=0, return_counts=True)
+    assert (uses == 2).all()
+    assert len(m.vertices) - len(uses) + len(tris) == 2
+
+
+def test_sphere_lod_error_is_the_largest_gap_to_the_true_sphere():
+    rng = np.random.default_rng(0)
+    errors = []
+    for m in meshes.sphere_lods():
+        t = m.vertices.astype(np.float64)[m.indices.reshape(-1, 3)]
+        # sample each face densely (barycentric), the gap is 1 - |p|
+        w = rng.dirichlet([1, 1, 1], size=64)
+        w = np.vstack([w, [[1 / 3, 1 / 3, 1 / 3]]])
+        pts = np.einsum("sk,fkd->fsd", w, t)
+        gap = 1.0 - np.linalg.norm(pts, axis=2).min()
+        assert gap <= m.lod_error + 1e-7
+        assert gap >= 0.97 * m.lod_error          # the face centre attains (almost) the bound
+        errors.append(m.lod_error)
+    # each level halves the edge length: the gap shrinks about 4x
+    ratios = np.array(errors[:-1]) / np.array(errors[1:])
+    assert ((ratios > 3.0) & (ratios < 4.5)).all(), ratios
+
+
+def test_pyramid_nose_points_along_local_forward_and_its_centre_of_mass_is_the_origin():
+    m = meshes.pyramid(length=2.0, width=1.2, height=0.5)
+    v = m.vertices.astype(np.float64)
+    nose = v[np.argmax(v[:, 2])]
+    np.testing.assert_allclose(nose, [0.0, 0.0, 1.5], atol=1e-6)        # 3/4 of the length ahead
+    np.testing.assert_allclose(v[:, 2].min(), -0.5, atol=1e-6)           # base 1/4 behind
+    assert np.isclose(v[:, 0].max(), 0.6) and np.isclose(v[:, 1].max(), 0.25)
+    tris = v[m.indices.reshape(-1, 3)]
+    # volume centroid from signed tetrahedra (origin, a, b, c): zero for the centre of mass
+    vol = np.einsum("ij,ij->i", tris[:, 0], np.cross(tris[:, 1], tris[:, 2])) / 6.0
+    centroid = (vol[:, None] * tris.sum(axis=1) / 4.0).sum(axis=0) / vol.sum()
+    np.testing.assert_allclose(centroid, 0.0, atol=1e-7)
+    assert vol.sum() > 0                                                  # outward (CCW) winding
+    # flat shading: every vertex normal is its face's unit normal
+    fn = m.face_normals()
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    np.testing.assert_allclose(m.normals.reshape(-1, 3, 3), np.repeat(fn[:, None], 3, 1), atol=1e-6)
+
+
+def test_line_cube_is_the_twelve_edges_of_a_unit_cube():
+    m = meshes.line_cube(1)
+    assert m.mode == "lines" and m.primitive_count == 12
+    np.testing.assert_allclose(np.abs(m.vertices), 0.5)
+    seg = m.vertices[m.indices.reshape(-1, 2)]
+    d = seg[:, 1] - seg[:, 0]
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)          # side 1
+    assert ((np.abs(d) > 0.5).sum(axis=1) == 1).all()                    # each along one axis
+    assert len({tuple(sorted(map(tuple, s))) for s in seg}) == 12        # no duplicates
+
+
+def test_line_cube_grid_stays_on_the_faces():
+    m = meshes.line_cube(4)
+    assert m.primitive_count == 12 + 6 * 2 * 3
+    seg = m.vertices[m.indices.reshape(-1, 2)]
+    on_face = (np.isclose(np.abs(seg), 0.5)).sum(axis=2) >= 1           # every end point on a face
+    assert on_face.all()
+    mid = seg.mean(axis=1)
+    assert (np.isclose(np.abs(mid), 0.5).any(axis=1)).all()             # and the whole segment too
+
+
+def test_mesh_rejects_bad_vertex_and_index_lists():
+    v = np.eye(3)
+    with pytest.raises(ValueError, match=r"indices must be in \[0, 2\], got \[0, 3\]"):
+        meshes.Mesh("bad", v, v, [0, 1, 3])
+    with pytest.raises(ValueError, match="multiple of 3"):
+        meshes.Mesh("bad", v, v, [0, 1])
+    with pytest.raises(ValueError, match="finite"):
+        meshes.Mesh("bad", [[np.nan, 0, 0], [0, 1, 0], [0, 0, 1]], v, [0, 1, 2])
+    with pytest.raises(ValueError, match="mode must be one of"):
+        meshes.Mesh("bad", v, v, [0, 1, 2], mode="strip")
+    with pytest.raises(ValueError, match="level must be an int"):
+        meshes.icosphere(-1)
+    with pytest.raises(ValueError, match="width must be a finite number > 0"):
+        meshes.pyramid(width=0.0)
+
+
+def test_mesh_arrays_are_read_only_copies():
+    v = np.eye(3, dtype=np.float32)
+    m = meshes.Mesh("tri", v, v, [0, 1, 2])
+    v[0, 0] = 5.0
+    assert m.vertices[0, 0] == 1.0
+    with pytest.raises(ValueError):
+        m.vertices[0, 0] = 2.0
