@@ -109,12 +109,13 @@ def _grid_regular(lo, hi):
     if not h > 0:
         h = 1.0
     base = lo.min(axis=1)
+    span = (lo.max(axis=1) - base) / h
+    if float(np.log2(span + 3.0).sum()) > 62.0:     # a scene too sparse for int64 keys: sort and sweep
+        return _sweep(lo, hi)
     # cell of the low corner, shifted by 1 so that a neighbour at -1 never wraps into another column
     cx, cy, cz = (np.floor((lo[k] - base[k]) / h).astype(np.int64) + 1 for k in range(3))
     nx, ny, nz = int(cx.max()) + 2, int(cy.max()) + 2, int(cz.max()) + 2
     cells = float(nx) * ny * nz
-    if cells > 2.0 ** 62:                    # a scene too sparse for int64 keys: sort and sweep instead
-        return _sweep(lo, hi)
     key = (cx * ny + cy) * nz + cz
     order = np.argsort(key, kind="stable")
     sk = key[order]

@@ -78,6 +78,8 @@ METHODS = ("continuous", "articles")
 TOUCH = 1e-9
 #: Normal approach speeds below this fraction of the fastest body's speed are rounding noise.
 APPROACH = 1e-12
+#: Centres closer than this fraction of r_a + r_b define no contact normal: such a pair is left to pass.
+CENTRED = 1e-9
 #: Guard against a jam (e.g. a sphere squeezed between two immovable bodies): waves per instant.
 MAX_WAVES = 10_000
 
@@ -323,11 +325,12 @@ class CollisionSystem(esper.Processor):
         b = dx * wx + dy * wy + dz * wz                      # |d| times the normal relative velocity
         c = dd - R * R
         dist = np.sqrt(dd)
-        approach = b < -self._eps_v * dist
+        # approaching; centres closer than CENTRED * R have no normal to push along: left alone
+        approach = (b < -self._eps_v * dist) & (dist > CENTRED * R)
         touching = c <= (2.0 * TOUCH) * R * R                # gap <= TOUCH * R
         a = wx * wx + wy * wy + wz * wz
         disc = b * b - a * c
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             toi = t + c / (np.sqrt(np.maximum(disc, 0.0)) - b)
             slack = (TOUCH * R) * dist / -b
         toi[touching] = t

@@ -1,0 +1,146 @@
+"""Broad phase: every method finds exactly the overlapping pairs; the neighbour list misses none."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from framework import broadphase as bp
+
+METHODS = ["all", "sweep", "grid", "kdtree", "auto"]
+
+
+def brute(lo, hi):
+    lo, hi = np.asarray(lo), np.asarray(hi)
+    n = len(lo)
+    out = set()
+    for i in range(n):
+        for j in range(i + 1, n):
+            if np.all(lo[i] <= hi[j]) and np.all(lo[j] <= hi[i]):
+                out.add((i, j))
+    return out
+
+
+def as_set(i, j):
+    assert np.all(i < j), "pairs come as i < j"
+    pairs = list(zip(i.tolist(), j.tolist()))
+    assert len(pairs) == len(set(pairs)), "each pair once"
+    return set(pairs)
+
+
+@st.composite
+def boxes(draw):
+    n = draw(st.integers(0, 70))
+    seed = draw(st.integers(0, 2 ** 32 - 1))
+    rng = np.random.default_rng(seed)
+    side = draw(st.sampled_from([1.0, 10.0, 100.0]))
+    c = rng.uniform(0, side, (n, 3))
+    half = rng.uniform(0.0, 1.0, (n, 3))
+    if n and draw(st.booleans()):                     # a few huge boxes (fast bodies' sweeps)
+        big = rng.choice(n, size=min(n, 3), replace=False)
+        half[big] *= 40.0
+    if n > 1 and draw(st.booleans()):                 # exactly touching faces count as overlap
+        c[1] = c[0] + [half[0, 0] + half[1, 0], 0, 0]
+    return c - half, c + half
+
+
+@pytest.mark.parametrize("method", METHODS)
+@settings(max_examples=60, deadline=None)
+@given(b=boxes())
+def test_box_pairs_finds_exactly_the_overlapping_boxes(method, b):
+    lo, hi = b
+    assert as_set(*bp.box_pairs(lo, hi, method)) == brute(lo, hi)
+
+
+@pytest.mark.parametrize("method", ["grid", "sweep", "kdtree"])
+def test_box_pairs_on_a_large_field_matches_all_pairs(method):
+    rng = np.random.default_rng(3)
+    c = rng.uniform(0, 30, (2000, 3))
+    r = rng.uniform(0.25, 0.75, (2000, 1))
+    ref = as_set(*bp.box_pairs(c - r, c + r, "all"))
+    assert len(ref) > 100
+    assert as_set(*bp.box_pairs(c - r, c + r, method)) == ref
+
+
+def test_grid_copes_with_a_scene_too_sparse_for_its_keys():
+    c = np.array([[0, 0, 0], [1e300, 0, 0], [1e300, 1e300, 1e300], [0.5, 0, 0]], float)
+    lo, hi = c - 1.0, c + 1.0
+    assert as_set(*bp.box_pairs(lo, hi, "grid")) == {(0, 3)}
+
+
+def test_sphere_pairs_uses_the_distance_not_the_box():
+    c = np.array([[0, 0, 0], [1.5, 1.5, 0], [2.0, 0, 0], [0, 0, 2.1]], float)
+    r = np.ones(4)
+    # (0,1): boxes overlap but |d| = 2.12 > 2; (0,2): touching exactly; (0,3): apart
+    assert as_set(*bp.sphere_pairs(c, r)) == {(0, 2), (1, 2)}
+
+
+def test_boxes_against_all_tests_only_the_given_boxes_each_pair_once():
+    rng = np.random.default_rng(5)
+    c = rng.uniform(0, 5, (40, 3))
+    lo, hi = c - 0.8, c + 0.8
+    which = [3, 17, 20]
+    ref = {p for p in brute(lo, hi) if p[0] in which or p[1] in which}
+    got = as_set(*bp.boxes_against_all(lo.T.copy(), hi.T.copy(), which))
+    assert got == ref
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), steps=st.floats(1.0, 20.0))
+def test_neighbour_list_holds_every_pair_that_can_touch_inside_the_skins(seed, steps):
+    rng = np.random.default_rng(seed)
+    n = 300
+    c = rng.uniform(0, 15, (n, 3))
+    r = rng.uniform(0.2, 0.6, n)
+    disp = rng.uniform(0, 0.05, n)
+    nl = bp.NeighbourList(skin_steps=steps)
+    nl.build(c.T, r, disp)
+    listed = set(zip(nl.i.tolist(), nl.j.tolist()))
+    # move every listed body anywhere inside its skin: all touching pairs must be listed
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    moved = c + u * (nl.skin * rng.uniform(0, 0.999, n))[:, None]
+    assert not nl.strays(moved.T).any()
+    i, j = bp.sphere_pairs(moved, r)
+    slow = ~nl.swept
+    touching = {(a, b) for a, b in zip(i.tolist(), j.tolist()) if slow[a] and slow[b]}
+    assert touching <= listed
+    # and a body pushed out of its skin is reported
+    moved[7] = c[7] + nl.skin[7] * 1.01 * u[7]
+    assert nl.strays(moved.T)[7] or nl.swept[7]
+
+
+def test_neighbour_list_sweeps_a_body_far_faster_than_the_rest():
+    rng = np.random.default_rng(1)
+    n = 400
+    c = rng.uniform(0, 20, (n, 3))
+    r = np.full(n, 0.5)
+    disp = np.full(n, 0.02)
+    disp[9] = 50.0                                    # a bullet
+    nl = bp.NeighbourList()
+    nl.build(c.T, r, disp)
+    assert nl.swept[9] and nl.swept.sum() == 1
+    assert 9 not in nl.i and 9 not in nl.j
+
+
+def test_territories_finds_every_listed_body_whose_territory_box_meets_the_query():
+    rng = np.random.default_rng(2)
+    n = 500
+    c = rng.uniform(0, 20, (n, 3))
+    r = rng.uniform(0.2, 0.7, n)
+    nl = bp.NeighbourList()
+    nl.build(c.T, r, rng.uniform(0, 0.03, n))
+    lo, hi = np.array([4.0, 5.0, 6.0]), np.array([9.0, 6.0, 8.0])
+    reach = nl.reach[:, None]
+    ref = np.flatnonzero(np.all((c - reach <= hi) & (c + reach >= lo), axis=1) & ~nl.swept)
+    np.testing.assert_array_equal(np.sort(nl.territories(lo, hi)), ref)
+
+
+def test_unknown_method_is_rejected_with_its_name():
+    with pytest.raises(ValueError, match="'octree'"):
+        bp.box_pairs(np.zeros((2, 3)), np.ones((2, 3)), "octree")
+    with pytest.raises(ValueError, match="'octree'"):
+        bp.NeighbourList(method="octree")
+    with pytest.raises(ValueError, match=r"\(n, 3\)"):
+        bp.box_pairs(np.zeros((2, 3)), np.ones((3, 3)))
