@@ -185,6 +185,8 @@ def test_bad_paths_and_formats_fail_before_anything_is_rendered(scene, tmp_path)
         record(w, tmp_path / "ok.mp4", frames=0)
     with pytest.raises(ValueError, match="fps must be a finite number > 0"):
         record(w, tmp_path / "ok.mp4", frames=3, fps=float("nan"))
+    with pytest.raises(ValueError, match="preset must be one of .*got 'quick'"):
+        record(w, tmp_path / "ok.mp4", frames=3, preset="quick")
     assert w.step_count == 0                                       # nothing was stepped or rendered
     assert w.get_system(RenderSystem).frame == 0
     assert sorted(p for p in listing(tmp_path) if p != "locked") == ["a_file"]
