@@ -94,19 +94,20 @@ def explain_failure(error: BaseException, missing: list[tuple[str, str]]) -> str
     return "\n".join(lines)
 
 
-def create_context(*, require: int = REQUIRE, backend: str = "egl"):
+def create_context(*, require: int = REQUIRE, backend: str = "egl", **settings):
     """A new standalone (off-screen) ``moderngl.Context``; the caller releases it.
 
-    ``backend="egl"`` needs no display. Raises :class:`GLUnavailableError`
-    naming the missing libraries and the apt packages to install when no
-    driver can be used.
+    ``backend="egl"`` needs no display. ``settings`` go to
+    ``moderngl.create_standalone_context`` (e.g. ``libegl=``,
+    ``device_index=``). Raises :class:`GLUnavailableError` naming the missing
+    libraries and the apt packages to install when no driver can be used.
     """
     try:
         import moderngl
     except ImportError as e:   # pragma: no cover - moderngl is a hard dependency
         raise GLUnavailableError(f"moderngl is not installed ({e}); pip install 'moderngl>=5.10,<6'") from e
     try:
-        return moderngl.create_standalone_context(backend=backend, require=require)
+        return moderngl.create_standalone_context(backend=backend, require=require, **settings)
     except Exception as e:  # glcontext raises bare Exception / OSError from deep inside the loader
         raise GLUnavailableError(explain_failure(e, missing_pieces())) from None
 

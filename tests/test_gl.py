@@ -32,6 +32,14 @@ def test_create_context_turns_a_loader_failure_into_a_clear_error(monkeypatch):
     assert info.value.__cause__ is None          # no traceback from inside the loader
 
 
+def test_a_real_loader_failure_becomes_a_clear_error():
+    with pytest.raises(gl.GLUnavailableError) as info:
+        gl.create_context(libegl="libEGL_driftframe_missing.so.1")
+    msg = str(info.value)
+    assert msg.startswith("Could not create an off-screen OpenGL context")
+    assert "libEGL_driftframe_missing.so.1" in msg and "libgl1-mesa-dri" in msg
+
+
 def test_create_context_with_all_libraries_present_still_names_the_packages(monkeypatch):
     monkeypatch.setattr(moderngl, "create_standalone_context",
                         lambda **kw: (_ for _ in ()).throw(Exception("no EGL display")))
