@@ -229,27 +229,28 @@ class CollisionSystem(esper.Processor):
         self._xr, self._us, self._r, self._inv, self._dt = xr, us, r, inv, dt
         self._eps_v = APPROACH * vmax
         self._static = not inv.all()
-        self._keys = None
+        self._e = SphereCollider._table.data["restitution"][lay.c_rows]
+        self._extra: dict[int, list[int]] = {}               # body -> pairs added this step
 
         # -- broad phase: candidate pairs --
         if self.broadphase == "all" or (self.broadphase == "auto" and n <= bp.ALL_PAIRS_MAX):
-            I, J = bp._triu(n)
-            R = r[I] + r[J]
             self._listed = False                             # every pair is a candidate already
+            I, J = bp._triu(n)
+            self._adj = _triu_adjacency(n)
+            self._I, self._J, self._R = I, J, r[I] + r[J]
         else:
-            I, J, R = self._list_pairs(lay, xr, x1, r, dt)
             self._listed = True
-        self._I, self._J, self._R = I, J, R
-        self.stats["pairs"] = len(I)
+            self._list_pairs(lay, xr, x1, r, dt)
+        self.stats["pairs"] = len(self._I)
 
         # -- narrow phase: earliest times of impact, then contacts in time order --
-        ok, toi, slack = self._toi(I, J, R, 0.0)
+        ok, toi, slack = self._toi(self._I, self._J, self._R, 0.0)
         pend = np.flatnonzero(ok)
         if len(pend):
             self._resolve(lay, pend, toi[pend], slack[pend], dt)
 
     def _list_pairs(self, lay, xr, x1, r, dt):
-        """Pairs from the neighbour list, plus the sweeps of the bodies it does not cover."""
+        """Pairs from the neighbour list, plus this step's sweeps of the bodies it does not cover."""
         nl = self._list
         rebuild = (self._list_dirty or self._list_layout is not lay or len(nl.radius) != lay.n
                    or not np.array_equal(nl.radius, r))
@@ -265,50 +266,86 @@ class CollisionSystem(esper.Processor):
             self._list_layout = lay
             self._list_dirty = False
             self._list_R = r[nl.i] + r[nl.j]
+            self._list_adj = _adjacency(nl.i, nl.j, lay.n)
             self._blo = np.empty((3, lay.n))                 # path boxes of swept bodies
             self._bhi = np.empty((3, lay.n))
             self.stats["builds"] = 1
-        I, J, R = nl.i, nl.j, self._list_R
+        self._I, self._J, self._R = nl.i, nl.j, self._list_R
+        self._adj = self._list_adj
         sw = np.flatnonzero(nl.swept)
-        if not len(sw):
-            return I, J, R
-        # the list no longer speaks for swept bodies: drop their listed pairs, sweep their paths
-        keep = ~(nl.swept[I] | nl.swept[J])
-        a, b = xr[:, sw], x1[:, sw]
-        self._blo[:, sw] = np.minimum(a, b) - r[sw]
-        self._bhi[:, sw] = np.maximum(a, b) + r[sw]
-        si, sj = self._sweep_pairs(sw)
-        self.stats["swept"] = len(sw)
-        return (np.concatenate([I[keep], si]), np.concatenate([J[keep], sj]),
-                np.concatenate([R[keep], r[si] + r[sj]]))
+        if len(sw):
+            # the list no longer speaks for swept bodies (their listed pairs stay: a superset):
+            # sweep their paths against the territories and each other
+            a, b = xr[:, sw], x1[:, sw]
+            self._blo[:, sw] = np.minimum(a, b) - r[sw]
+            self._bhi[:, sw] = np.maximum(a, b) + r[sw]
+            self._add_pairs(*self._sweep_pairs(sw))
+            self.stats["swept"] = len(sw)
 
     def _sweep_pairs(self, which):
-        """Pairs (i < j) of the swept bodies ``which`` with listed territories and with each other."""
+        """Pairs of the swept bodies ``which`` with listed territories and with each other (may repeat)."""
         nl, blo, bhi = self._list, self._blo, self._bhi
-        out_i, out_j = [], []
+        out_i, out_j = [_NONE], [_NONE]
         for s in which:
             t = nl.territories(blo[:, s], bhi[:, s])
             out_i.append(np.full(len(t), s, np.intp))
             out_j.append(t)
-        # swept against swept (box test): every swept body, the ones in `which` included
         sw = np.flatnonzero(nl.swept)
-        if len(sw) > 1:
+        if len(sw) > 1:                                      # swept against swept: box test
             a = np.repeat(which, len(sw))
             b = np.tile(sw, len(which))
-            first = (a != b) & (~np.isin(b, which) | (a < b))     # each pair once
-            a, b = bp._overlap(blo, bhi, a[first], b[first])
+            a, b = bp._overlap(blo, bhi, a[a != b], b[a != b])
             out_i.append(a)
             out_j.append(b)
-        if not out_i:
-            return _NONE, _NONE
-        i, j = np.concatenate(out_i), np.concatenate(out_j)
-        return np.minimum(i, j), np.maximum(i, j)
+        return np.concatenate(out_i), np.concatenate(out_j)
+
+    def _partners(self, b: int) -> set:
+        """Bodies already paired with body b among this step's candidates."""
+        first, pairs = self._adj
+        ps = pairs[first[b]:first[b + 1]]
+        out = set(self._I[ps].tolist()) | set(self._J[ps].tolist())
+        for p in self._extra.get(b, ()):
+            out.add(int(self._I[p]))
+            out.add(int(self._J[p]))
+        out.discard(b)
+        return out
+
+    def _add_pairs(self, fi, fj) -> list[int]:
+        """Append the pairs not yet candidates; return their indices."""
+        if not len(fi):
+            return []
+        lo, hi = np.minimum(fi, fj), np.maximum(fi, fj)
+        known: dict[int, set] = {}
+        new_i, new_j = [], []
+        for a, b in zip(lo.tolist(), hi.tolist()):
+            ka = known.get(a)
+            if ka is None:
+                ka = known[a] = self._partners(a)
+            if b in ka:
+                continue
+            ka.add(b)
+            known.setdefault(b, self._partners(b)).add(a)
+            new_i.append(a)
+            new_j.append(b)
+        if not new_i:
+            return []
+        base = len(self._I)
+        ni, nj = np.array(new_i, np.intp), np.array(new_j, np.intp)
+        self._I = np.concatenate([self._I, ni])
+        self._J = np.concatenate([self._J, nj])
+        self._R = np.concatenate([self._R, self._r[ni] + self._r[nj]])
+        idx = list(range(base, base + len(new_i)))
+        for p, a, b in zip(idx, new_i, new_j):
+            self._extra.setdefault(a, []).append(p)
+            self._extra.setdefault(b, []).append(p)
+        return idx
 
     def _toi(self, I, J, R, t):
-        """Earliest time of impact in [t, dt] of pairs moving as p = xr + u t'.
+        """Earliest time of impact in [t, dt] of pairs moving as p = xr + u t' (whole arrays).
 
         Returns (valid, time, slack): ``slack`` is how long before its time of
         impact a pair is already within TOUCH * R, ``TOUCH R / |v_n|``.
+        :meth:`_toi1` is the same arithmetic for one pair.
         """
         xr, us = self._xr, self._us
         wx = us[0][J] - us[0][I]
@@ -339,79 +376,131 @@ class CollisionSystem(esper.Processor):
             ok &= (self._inv[I] + self._inv[J]) > 0.0        # two immovable bodies pass through
         return ok, toi, slack
 
+    def _toi1(self, bi, bj, R, t):
+        """:meth:`_toi` for one pair whose bodies are ``bi``, ``bj`` = [x, y, z, ux, uy, uz] (xr, u)."""
+        wx, wy, wz = bj[3] - bi[3], bj[4] - bi[4], bj[5] - bi[5]
+        dx = bj[0] - bi[0] + wx * t
+        dy = bj[1] - bi[1] + wy * t
+        dz = bj[2] - bi[2] + wz * t
+        dd = dx * dx + dy * dy + dz * dz
+        b = dx * wx + dy * wy + dz * wz
+        dist = math.sqrt(dd)
+        if not (b < -self._eps_v * dist and dist > CENTRED * R):
+            return None
+        c = dd - R * R
+        if c <= (2.0 * TOUCH) * R * R:
+            return t, (TOUCH * R) * dist / -b
+        disc = b * b - (wx * wx + wy * wy + wz * wz) * c
+        if disc < 0.0:
+            return None
+        toi = t + c / (math.sqrt(disc) - b)
+        if not toi <= self._dt:
+            return None
+        return toi, (TOUCH * R) * dist / -b
+
     def _resolve(self, lay, pend, pend_t, pend_s, dt):
-        """Take the pending contacts in time order, one wave of simultaneous contacts at a time."""
-        xr, us, inv = self._xr, self._us, self._inv
-        n = lay.n
-        changed = np.zeros(n, bool)
-        mark = np.zeros(n, bool)
-        e_col = SphereCollider._table.data["restitution"][lay.c_rows]
+        """Take the pending contacts in time order, one wave of simultaneous contacts at a time.
+
+        Only the contacts that happen and the pairs of the bodies they change
+        are visited here, so this is a Python loop over scalars (numpy's
+        per-call cost would dominate such small arrays).
+        """
+        xr, us, inv, I, J = self._xr, self._us, self._inv, self._I, self._J
+        state: dict[int, list[float]] = {}                   # body -> [xr, u] as floats, as touched
+
+        def body(k):
+            s = state.get(k)
+            if s is None:
+                s = state[k] = [*xr[:, k].tolist(), *us[:, k].tolist()]
+            return s
+
+        pending = {p: (t, sl, i, j, R) for p, t, sl, i, j, R in
+                   zip(pend.tolist(), pend_t.tolist(), pend_s.tolist(), I[pend].tolist(), J[pend].tolist(),
+                       self._R[pend].tolist())}
+        static = self._static
+        changed = set()
         waves = contacts = same = 0
         last_t = -1.0
         t0 = self._now()
         out = self.world.events if (self.events and self.world is not None) else None
-        while len(pend):
-            k = int(np.argmin(pend_t))
-            t = float(pend_t[k])
+        while pending:
+            first = min(pending, key=lambda p: pending[p][0])
+            t = pending[first][0]
             same = same + 1 if t == last_t else 0
             last_t = t
             if same > MAX_WAVES:
                 warnings.warn(f"collision: more than {MAX_WAVES} waves at t = {t0 + t!r} s (a jam between "
-                              f"immovable bodies?); {len(pend)} contacts left unresolved this step",
+                              f"immovable bodies?); {len(pending)} contacts left unresolved this step",
                               RuntimeWarning, stacklevel=3)
                 break
-            I, J, R = self._I, self._J, self._R
-            # -- the wave: the pending pairs already within TOUCH * R at t (they approach: pending) --
-            sel = np.flatnonzero(pend_t - t <= pend_s)
-            if not len(sel):
-                sel = np.array([k])
-            pk = pend[sel]
-            ci, cj = I[pk], J[pk]
-            w = us[:, cj] - us[:, ci]
-            d = xr[:, cj] - xr[:, ci] + w * t
-            dist = np.sqrt((d * d).sum(axis=0))
-            nrm = d / dist
-            vn = (nrm * w).sum(axis=0)
-            go = vn < -self._eps_v
-            go[sel == k] = True
-            if not go.all():
-                ci, cj, nrm, vn = ci[go], cj[go], nrm[:, go], vn[go]
-            e = np.minimum(e_col[ci], e_col[cj])
-            lam, bodies, dv = _solve_wave(ci, cj, nrm, vn, e, inv)
+            # -- the wave: pending pairs already within TOUCH * R at t, still approaching --
+            wave = []
+            for p, (tp, sl, i, j, R) in pending.items():
+                if tp - t > sl:
+                    continue
+                bi, bj = body(i), body(j)
+                wx, wy, wz = bj[3] - bi[3], bj[4] - bi[4], bj[5] - bi[5]
+                dx = bj[0] - bi[0] + wx * t
+                dy = bj[1] - bi[1] + wy * t
+                dz = bj[2] - bi[2] + wz * t
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                nx, ny, nz = dx / dist, dy / dist, dz / dist
+                vn = nx * wx + ny * wy + nz * wz
+                if vn < -self._eps_v or p == first:
+                    wave.append((i, j, nx, ny, nz, vn, min(float(self._e[i]), float(self._e[j]))))
+            lam, dv = _solve_wave(wave, inv)
             waves += 1
-            hit = lam > 0.0
-            contacts += int(np.count_nonzero(hit))
+            # -- apply: new velocity from t on; p(t) = xr + u t stays where it was --
+            moved = []
+            for k, (dvx, dvy, dvz) in dv.items():
+                s = body(k)
+                s[3] += dvx
+                s[4] += dvy
+                s[5] += dvz
+                s[0] -= dvx * t
+                s[1] -= dvy * t
+                s[2] -= dvz * t
+                moved.append(k)
+            changed.update(moved)
+            hit = [(c, l) for c, l in zip(wave, lam) if l > 0.0]
+            contacts += len(hit)
             if out is not None:
-                self._emit(out, lay, ci[hit], cj[hit], nrm[:, hit], lam[hit], t, t0)
-            # -- the bodies that changed: new velocity from t on, position at t kept --
-            moved = bodies
-            for ax in range(3):                               # p(t) = xr + u t stays where it was
-                us[ax][moved] += dv[ax]
-                xr[ax][moved] -= dv[ax] * t
-            changed[moved] = True
-            # -- re-check every pair of those bodies from t on --
-            mark[moved] = True
-            keep = ~(mark[I[pend]] | mark[J[pend]])
-            aff = np.flatnonzero(mark[I] | mark[J])
-            mark[moved] = False
-            ok, toi, slack = self._toi(I[aff], J[aff], R[aff], t)
-            pend = np.concatenate([pend[keep], aff[ok]])
-            pend_t = np.concatenate([pend_t[keep], toi[ok]])
-            pend_s = np.concatenate([pend_s[keep], slack[ok]])
+                self._emit(out, lay, hit, body, t, t0)
+            if not moved:
+                continue
+            # -- re-check every pair of the bodies that changed, from t on --
+            gone = set(moved)
+            pending = {p: e for p, e in pending.items() if e[2] not in gone and e[3] not in gone}
+            seen = set()
+            for k in moved:
+                for p in self._pairs_of(k):
+                    if p in seen:
+                        continue
+                    seen.add(p)
+                    i, j, R = int(self._I[p]), int(self._J[p]), float(self._R[p])
+                    if static and inv[i] + inv[j] == 0.0:
+                        continue
+                    hitp = self._toi1(body(i), body(j), R, t)
+                    if hitp is not None:
+                        pending[p] = (hitp[0], hitp[1], i, j, R)
             # -- a body whose new path leaves what the broad phase covered: sweep it against all --
             if self._listed:
-                new, new_t, new_s = self._extend(moved, t, dt)
-                if len(new):
-                    pend = np.concatenate([pend, new])
-                    pend_t = np.concatenate([pend_t, new_t])
-                    pend_s = np.concatenate([pend_s, new_s])
+                for p in self._extend(moved, body, t, dt):
+                    i, j, R = int(self._I[p]), int(self._J[p]), float(self._R[p])
+                    if static and inv[i] + inv[j] == 0.0:
+                        continue
+                    hitp = self._toi1(body(i), body(j), R, t)
+                    if hitp is not None:
+                        pending[p] = (hitp[0], hitp[1], i, j, R)
         self.stats["waves"] = waves
         self.stats["contacts"] = contacts
         # -- write back the bodies that changed: position and velocity at the end of the step --
-        ch = np.flatnonzero(changed)
-        if len(ch):
-            x_end = (xr[:, ch] + us[:, ch] * dt).T
-            v_end = us[:, ch].T.copy()
+        if changed:
+            ch = sorted(changed)
+            st = np.array([state[k] for k in ch])
+            ch = np.array(ch, np.intp)
+            x_end = st[:, :3] + st[:, 3:] * dt
+            v_end = st[:, 3:].copy()
             if len(lay.a_sel):
                 acc = lay.a_idx[ch]
                 thrust = acc >= 0
@@ -420,64 +509,51 @@ class CollisionSystem(esper.Processor):
             Transform._table.data["position"][lay.t_idx[ch]] = x_end
             Velocity._table.data["linear"][lay.v_idx[ch]] = v_end
 
-    def _extend(self, moved, t, dt):
-        """Sweep the changed bodies whose rest-of-step path left their cover; new (pending, toi, slack)."""
-        nl = self._list
-        xr, us, r = self._xr, self._us, self._r
-        b = xr[:, moved] + us[:, moved] * dt                  # where the body now ends the step
-        swept = nl.swept[moved]
-        out = np.zeros(len(moved), bool)
-        listed = ~swept
-        if listed.any():                                      # listed: covered while inside its territory
-            out[listed] = nl.strays(b[:, listed], moved[listed])
-        a = xr[:, moved] + us[:, moved] * t
-        nlo = np.minimum(a, b) - r[moved]
-        nhi = np.maximum(a, b) + r[moved]
-        if swept.any():                                       # swept: covered while inside its box
-            m = moved[swept]
-            out[swept] = ~np.all((nlo[:, swept] >= self._blo[:, m]) & (nhi[:, swept] <= self._bhi[:, m]),
-                                 axis=0)
-        if not out.any():
-            return _NONE, _NONE_T, _NONE_T
-        go = moved[out]
-        self._blo[:, go] = nlo[:, out]
-        self._bhi[:, go] = nhi[:, out]
-        nl.swept[go] = True
-        if int(np.count_nonzero(nl.swept)) > nl.budget:
-            self._list_dirty = True                           # rebuild at the next step
-        self.stats["swept"] += len(go)
-        fi, fj = self._sweep_pairs(go)
-        if not len(fi):
-            return _NONE, _NONE_T, _NONE_T
-        I, J, R = self._I, self._J, self._R
-        nb = np.int64(len(r))
-        if self._keys is None:
-            self._keys = I.astype(np.int64) * nb + J
-        new_keys = fi.astype(np.int64) * nb + fj
-        fresh = ~np.isin(new_keys, self._keys)
-        fi, fj = fi[fresh], fj[fresh]
-        if not len(fi):
-            return _NONE, _NONE_T, _NONE_T
-        base = len(I)
-        fR = r[fi] + r[fj]
-        self._I = np.concatenate([I, fi])
-        self._J = np.concatenate([J, fj])
-        self._R = np.concatenate([R, fR])
-        self._keys = np.concatenate([self._keys, new_keys[fresh]])
-        ok, toi, slack = self._toi(fi, fj, fR, t)
-        return base + np.flatnonzero(ok), toi[ok], slack[ok]
+    def _pairs_of(self, k: int) -> list[int]:
+        first, pairs = self._adj
+        out = pairs[first[k]:first[k + 1]].tolist()
+        extra = self._extra.get(k)
+        return out + extra if extra else out
 
-    def _emit(self, out, lay, ci, cj, nrm, lam, t, t0):
+    def _extend(self, moved, body, t, dt) -> list[int]:
+        """Sweep the changed bodies whose rest-of-step path left their cover; the new pairs."""
+        nl, r = self._list, self._r
+        go = []
+        for k in moved:
+            s = body(k)
+            a = (s[0] + s[3] * t, s[1] + s[4] * t, s[2] + s[5] * t)
+            b = (s[0] + s[3] * dt, s[1] + s[4] * dt, s[2] + s[5] * dt)
+            rk = float(r[k])
+            lo = [min(a[x], b[x]) - rk for x in range(3)]
+            hi = [max(a[x], b[x]) + rk for x in range(3)]
+            if not nl.swept[k]:                              # listed: covered inside its territory
+                c = nl.centre[:, k]
+                off = (b[0] - c[0]) ** 2 + (b[1] - c[1]) ** 2 + (b[2] - c[2]) ** 2
+                if off < float(nl.skin[k]) ** 2:
+                    continue
+            elif all(lo[x] >= self._blo[x, k] and hi[x] <= self._bhi[x, k] for x in range(3)):
+                continue                                     # swept: covered inside its box
+            self._blo[:, k] = lo
+            self._bhi[:, k] = hi
+            nl.swept[k] = True
+            go.append(k)
+        if not go:
+            return []
+        if int(np.count_nonzero(nl.swept)) > nl.budget:
+            self._list_dirty = True                          # rebuild at the next step
+        self.stats["swept"] += len(go)
+        return self._add_pairs(*self._sweep_pairs(np.array(go, np.intp)))
+
+    def _emit(self, out, lay, hit, body, t, t0):
         """One CollisionEvent per contact (a Python loop over contacts that happened: few)."""
-        ents = lay.entities
-        p = (self._xr[:, ci] + self._us[:, ci] * t + self._r[ci] * nrm).T.tolist()   # on i's surface
-        q = (self._xr[:, cj] + self._us[:, cj] * t - self._r[cj] * nrm).T.tolist()   # on j's surface
-        for a, b, n, pa, pb, imp in zip(ents[ci].tolist(), ents[cj].tolist(), nrm.T.tolist(), p, q,
-                                        lam.tolist()):
-            if a < b:
-                out.append(CollisionEvent(a, b, t0 + t, t, tuple(pa), tuple(n), imp))
-            else:                                          # name the lower entity id first
-                out.append(CollisionEvent(b, a, t0 + t, t, tuple(pb), (-n[0], -n[1], -n[2]), imp))
+        ents, r = lay.entities, self._r
+        for (i, j, nx, ny, nz, _, _), lam in hit:
+            a, b = int(ents[i]), int(ents[j])
+            if a > b:                                         # name the lower entity id first
+                i, j, a, b, nx, ny, nz = j, i, b, a, -nx, -ny, -nz
+            s, ri = body(i), float(r[i])
+            point = (s[0] + s[3] * t + ri * nx, s[1] + s[4] * t + ri * ny, s[2] + s[5] * t + ri * nz)
+            out.append(CollisionEvent(a, b, t0 + t, t, point, (nx, ny, nz), lam))
 
     # -- the articles' method (baseline) --------------------------------------
     def _articles(self, lay: _Layout, dt: float) -> None:
@@ -553,46 +629,72 @@ class CollisionSystem(esper.Processor):
             vel_t[lay.v_idx[idx[has_v]]] = vs[has_v]
 
 
-def _solve_wave(ci, cj, nrm, v_n, e, inv):
+def _adjacency(I: np.ndarray, J: np.ndarray, n: int):
+    """Pairs by body (CSR): the pairs of body b are ``pairs[first[b]:first[b + 1]]``."""
+    ends = np.concatenate([I, J])
+    order = np.argsort(ends, kind="stable")
+    first = np.zeros(n + 1, np.intp)
+    np.cumsum(np.bincount(ends, minlength=n), out=first[1:])
+    return first, order % max(len(I), 1)
+
+
+_TRIU_ADJ: dict[int, tuple] = {}
+
+
+def _triu_adjacency(n: int):
+    got = _TRIU_ADJ.get(n)
+    if got is None:
+        got = _TRIU_ADJ[n] = _adjacency(*bp._triu(n), n)
+    return got
+
+
+def _solve_wave(wave, inv):
     """Impulses of one wave of simultaneous contacts.
 
-    ``ci, cj``: body indices of each contact; ``nrm`` (3, K): unit normals i -> j;
-    ``v_n``: normal relative velocities (< 0, approaching); ``e``: restitution;
-    ``inv``: inverse masses of all bodies. Returns ``lambda`` (K,), the bodies
-    that move (B,) and their velocity changes (3, B).
+    ``wave``: contacts ``(i, j, nx, ny, nz, v_n, e)`` with the unit normal from
+    body i to body j, the normal relative velocity ``v_n < 0`` (approaching)
+    and the restitution ``e``; ``inv``: inverse masses. Returns the impulses
+    ``lambda`` (one per contact) and ``{body: velocity change}`` for the
+    bodies that move.
 
-    Solves ``A lambda = -(1 + e) v_n`` with ``A = J M^-1 J^T``; contacts whose
-    impulse comes out negative (they would pull) are dropped and the rest
-    solved again, until all are >= 0. For one contact this is the textbook
+    Solves ``A lambda = -(1 + e) v_n`` with ``A = J M^-1 J^T`` (J: one row per
+    contact, ``-n`` at body i and ``+n`` at body j); contacts whose impulse
+    comes out negative (they would pull) are dropped and the rest solved
+    again, until all are >= 0. For one contact this is the textbook
     ``lambda = -(1 + e) v_n / (1/m_i + 1/m_j)``.
     """
-    rhs = -(1.0 + e) * v_n
-    K = len(ci)
-    if K == 1:
-        i, j = int(ci[0]), int(cj[0])
-        lam = rhs / (inv[i] + inv[j])
-        bodies = np.array([i, j])
-        dv = nrm * (lam * np.array([-inv[i], inv[j]]))    # (3, 2)
-    else:
-        bodies, loc = np.unique(np.concatenate([ci, cj]), return_inverse=True)
-        li, lj = loc[:K], loc[K:]
-        invb = inv[bodies]
-        jac = np.zeros((K, len(bodies), 3))
-        rows = np.arange(K)
-        jac[rows, li] = -nrm.T
-        jac[rows, lj] = nrm.T
-        A = np.einsum("kbx,b,lbx->kl", jac, invb, jac)
-        active = np.ones(K, bool)
-        lam = np.zeros(K)
-        while active.any():
-            idx = np.flatnonzero(active)
-            sol = np.linalg.lstsq(A[np.ix_(idx, idx)], rhs[idx], rcond=None)[0]
-            if (sol >= 0.0).all():
-                lam[idx] = sol
-                break
-            active[idx[sol < 0.0]] = False
-        dv = np.einsum("kbx,k->xb", jac, lam) * invb          # dv_b = inv_m_b sum_k lambda_k J_kb
-    live = np.any(dv != 0.0, axis=0)                         # immovable bodies do not change
-    if not live.all():
-        bodies, dv = bodies[live], dv[:, live]
-    return lam, bodies, dv
+    if len(wave) == 1:
+        i, j, nx, ny, nz, vn, e = wave[0]
+        wi, wj = float(inv[i]), float(inv[j])
+        lam = -(1.0 + e) * vn / (wi + wj)
+        dv = {}
+        if wi:
+            dv[i] = (-lam * wi * nx, -lam * wi * ny, -lam * wi * nz)
+        if wj:
+            dv[j] = (lam * wj * nx, lam * wj * ny, lam * wj * nz)
+        return [lam], dv
+    K = len(wave)
+    ci = np.array([c[0] for c in wave])
+    cj = np.array([c[1] for c in wave])
+    nrm = np.array([c[2:5] for c in wave])                  # (K, 3)
+    rhs = -(1.0 + np.array([c[6] for c in wave])) * np.array([c[5] for c in wave])
+    bodies, loc = np.unique(np.concatenate([ci, cj]), return_inverse=True)
+    li, lj = loc[:K], loc[K:]
+    invb = inv[bodies]
+    jac = np.zeros((K, len(bodies), 3))
+    rows = np.arange(K)
+    jac[rows, li] = -nrm
+    jac[rows, lj] = nrm
+    A = np.einsum("kbx,b,lbx->kl", jac, invb, jac)
+    active = np.ones(K, bool)
+    lam = np.zeros(K)
+    while active.any():
+        idx = np.flatnonzero(active)
+        sol = np.linalg.lstsq(A[np.ix_(idx, idx)], rhs[idx], rcond=None)[0]
+        if (sol >= 0.0).all():
+            lam[idx] = sol
+            break
+        active[idx[sol < 0.0]] = False
+    dv = np.einsum("kbx,k->bx", jac, lam) * invb[:, None]   # dv_b = inv_m_b sum_k lambda_k J_kb
+    moves = np.any(dv != 0.0, axis=1)
+    return lam.tolist(), {int(b): tuple(d) for b, d, m in zip(bodies, dv.tolist(), moves) if m}
