@@ -521,17 +521,17 @@ class CollisionSystem(esper.Processor):
         go = []
         for k in moved:
             s = body(k)
+            b = (s[0] + s[3] * dt, s[1] + s[4] * dt, s[2] + s[5] * dt)   # where it now ends the step
+            swept = nl.swept[k]
+            if not swept:                                    # listed: covered inside its territory
+                c = nl.centre[:, k].tolist()
+                if (b[0] - c[0]) ** 2 + (b[1] - c[1]) ** 2 + (b[2] - c[2]) ** 2 < float(nl.skin[k]) ** 2:
+                    continue
             a = (s[0] + s[3] * t, s[1] + s[4] * t, s[2] + s[5] * t)
-            b = (s[0] + s[3] * dt, s[1] + s[4] * dt, s[2] + s[5] * dt)
             rk = float(r[k])
             lo = [min(a[x], b[x]) - rk for x in range(3)]
             hi = [max(a[x], b[x]) + rk for x in range(3)]
-            if not nl.swept[k]:                              # listed: covered inside its territory
-                c = nl.centre[:, k]
-                off = (b[0] - c[0]) ** 2 + (b[1] - c[1]) ** 2 + (b[2] - c[2]) ** 2
-                if off < float(nl.skin[k]) ** 2:
-                    continue
-            elif all(lo[x] >= self._blo[x, k] and hi[x] <= self._bhi[x, k] for x in range(3)):
+            if swept and all(lo[x] >= self._blo[x, k] and hi[x] <= self._bhi[x, k] for x in range(3)):
                 continue                                     # swept: covered inside its box
             self._blo[:, k] = lo
             self._bhi[:, k] = hi
