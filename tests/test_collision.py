@@ -130,12 +130,13 @@ def test_articles_method_lets_fast_spheres_pass_through(world):
 
 # -- many contacts in one step -----------------------------------------------------------------
 
+@pytest.mark.parametrize("broadphase", ["all", "grid"])
 @pytest.mark.parametrize("order", [None, [5, 3, 0, 4, 1, 2], [2, 4, 1, 5, 0, 3]])
-def test_newtons_cradle_passes_the_strikers_speed_to_the_last_ball(world, order):
+def test_newtons_cradle_passes_the_strikers_speed_to_the_last_ball(world, order, broadphase):
     r, v, x_s = 0.1, 1.0, -0.41                        # striker touches ball 1 at t_c = 0.21 s
     balls = [dict(x=(x_s, 0, 0), v=(v, 0, 0), r=r)] + [dict(x=(0.2 * i, 0, 0), v=(0, 0, 0), r=r)
                                                        for i in range(5)]
-    ids = scene(world, balls, order=order)
+    ids = scene(world, balls, order=order, broadphase=broadphase)
     e0 = energy(ids, [1] * 6)
     world.step(60)
     t_c, T = 0.21, 60 * DT
@@ -158,10 +159,11 @@ def _rack(r=0.5, cue=(-3.05, 0.0, 0.0), speed=10.0):
     return balls
 
 
+@pytest.mark.parametrize("broadphase", ["all", "grid"])
 @pytest.mark.parametrize("order", [None, list(np.random.default_rng(7).permutation(16))])
-def test_billiard_break_keeps_energy_momentum_and_mirror_symmetry(world, order):
+def test_billiard_break_keeps_energy_momentum_and_mirror_symmetry(world, order, broadphase):
     balls = _rack()
-    ids = scene(world, balls, order=order)
+    ids = scene(world, balls, order=order, broadphase=broadphase)
     R, speed = 1.0, 10.0
     e0, p0 = energy(ids, [1] * 16), momentum(ids, [1] * 16)
     before = np.array([pos(e) for e in ids])

@@ -38,12 +38,13 @@ def _state(ids, world):
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(groups())
-def test_random_groups_keep_momentum_and_energy_and_never_end_a_step_overlapping_and_approaching(g):
+@given(groups(), st.sampled_from(["all", "grid"]))
+def test_random_groups_keep_momentum_and_energy_and_never_end_a_step_overlapping_and_approaching(g, broadphase):
+    """Every pair tested each step ("all") or a neighbour list ("grid"): the same guarantees."""
     x, v, r, m = g
     with World() as w:
         w.add_system(MovementSystem())
-        w.add_system(CollisionSystem())
+        w.add_system(CollisionSystem(broadphase=broadphase))
         n = len(r)
         ids = w.create_entities(Transform.bulk(n, position=x), Velocity.bulk(n, linear=v),
                                 Mass.bulk(n, kg=m), SphereCollider.bulk(n, radius=r))
@@ -65,7 +66,8 @@ def test_random_groups_keep_momentum_and_energy_and_never_end_a_step_overlapping
                 vn = ((v1[None] - v1[:, None]) * d).sum(2) / dist
             overlap = (dist < R * (1 - 1e-9)) & ~np.eye(n, dtype=bool)
             approaching = vn < -1e-9 * np.abs(v1).max()
-            assert not (overlap & approaching).any()
+            centred = dist <= 1e-9 * R                        # no normal: documented to pass through
+            assert not (overlap & approaching & ~centred).any()
             # pairs that did not spawn overlapping never overlap at the end of a step
             assert not (overlap & ~spawn_overlap).any()
             v0 = v1
