@@ -325,7 +325,6 @@ def main(argv=None) -> int:
     L.append("")
     L.append("**Part B: many contacts per step** (dt = 1/60 s).")
     L.append("")
-    keys = ["energy drift", "momentum drift", "overlap", "jump", "order dependence", "cost"]
     rows = []
     for name in SCENES:
         for method in METHODS:

@@ -37,11 +37,14 @@ on the order of entities. Pairs that overlap (at spawn, or by rounding) but
 separate are left alone: they never stick, and no position is ever moved
 except by velocity times time, so nothing jumps.
 
-Broad phase: all pairs up to :data:`framework.broadphase.ALL_PAIRS_MAX`
-bodies; above that a :class:`~framework.broadphase.NeighbourList` (built with
-the uniform grid, rebuilt when a body strays half its skin) plus a per-step
-sweep of "fast" bodies against all. A body whose new path after a contact
-leaves its skin is swept against all for the rest of the step.
+Broad phase: every pair up to :data:`framework.broadphase.ALL_PAIRS_MAX`
+bodies (measured faster there); above that a
+:class:`~framework.broadphase.NeighbourList` built with the uniform grid and
+kept for several steps. A body that leaves its territory (between steps, or
+when a contact sends it off) is *swept*: its path box is tested against the
+others' territories for the rest of the list's life, and the list is rebuilt
+once more than a few bodies are swept. Only the contacts that happen are
+visited in a Python loop; pairs are never looped over.
 
 **The articles' method** (``method="articles"``, a labelled baseline): after
 the step, for every pair in turn (a Python double loop, in entity order),
@@ -50,8 +53,10 @@ centres are ``r_a + r_b`` apart, and reflect each velocity about the contact
 normal in the centre-of-mass frame (``v' = v - 2 n (n.v)``). As written
 there: it only sees overlaps at the end of a step (fast spheres pass through
 each other), the remaining time of the step is not re-advanced, pairs are
-handled one after another (so a break or a cradle depends on order), and it
-does not check that the pair approaches (spheres left overlapping can stick).
+handled one after another (so a break depends on the order of entities), and
+it does not ask whether an overlapping pair approaches: a pair that overlaps
+while separating (spawned so, or left so by rounding) is "moved back" through
+each other to the far side, a jump.
 
 Masses: :class:`~components.body.Mass` (``math.inf`` = immovable); a collider
 without ``Mass`` weighs 1 kg; one without ``Velocity`` is a fixed obstacle.
@@ -84,7 +89,6 @@ CENTRED = 1e-9
 MAX_WAVES = 10_000
 
 _NONE = np.empty(0, np.intp)
-_NONE_T = np.empty(0)
 
 
 class _Layout:
@@ -597,10 +601,12 @@ class CollisionSystem(esper.Processor):
                 dx, dy, dz = xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]
                 dist = math.sqrt(dx * dx + dy * dy + dz * dz) or 1.0
                 nx, ny, nz = dx / dist, dy / dist, dz / dist
-                # centre-of-mass velocity (an immovable body is the centre-of-mass frame)
-                wi, wj = inv[j], inv[i]                       # m_i/(m_i+m_j) = inv_j/(inv_i+inv_j)
-                tot = wi + wj
-                cm = [(wi * vi[k] + wj * vj[k]) / tot for k in range(3)]
+                impulse = 2.0 * abs(wx * nx + wy * ny + wz * nz) / (inv[i] + inv[j])   # |m_j dv_j|, N s
+                # centre-of-mass velocity, weights m_i/(m_i+m_j) = inv_j/(inv_i+inv_j) (an immovable
+                # body is the centre-of-mass frame)
+                ki, kj = inv[j], inv[i]
+                tot = ki + kj
+                cm = [(ki * vi[k] + kj * vj[k]) / tot for k in range(3)]
                 for q in (vi, vj):
                     rel = [q[k] - cm[k] for k in range(3)]
                     dot = rel[0] * nx + rel[1] * ny + rel[2] * nz
@@ -613,11 +619,9 @@ class CollisionSystem(esper.Processor):
                     a_, b_, sign = (i, j, 1.0) if ents[i] < ents[j] else (j, i, -1.0)
                     nn = (sign * nx, sign * ny, sign * nz)
                     pa = x[a_]
-                    m_i = 0.0 if inv[i] == 0.0 else 1.0 / inv[i]
-                    imp = abs(2.0 * dot) * (1.0 / (inv[i] + inv[j])) if m_i else 0.0
                     out.append(CollisionEvent(ents[a_], ents[b_], t0 + dt - s, dt - s,
                                               (pa[0] + r[a_] * nn[0], pa[1] + r[a_] * nn[1], pa[2] + r[a_] * nn[2]),
-                                              nn, imp, "articles"))
+                                              nn, impulse, "articles"))
         self.stats["pairs"] = n * (n - 1) // 2
         self.stats["contacts"] = count
         if touched:

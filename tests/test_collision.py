@@ -128,6 +128,22 @@ def test_articles_method_lets_fast_spheres_pass_through(world):
     assert pos(a)[0] > pos(b)[0]                                 # they passed through each other
 
 
+def test_articles_method_resolves_a_slow_hit_and_reports_it(world):
+    # slow enough to be seen overlapping: the baseline gets the velocities right (not the positions)
+    m1, m2, v1, v2 = 1.0, 3.0, 1.0, -1.0
+    a, b = scene(world, [dict(x=(0, 0, 0), v=(v1, 0, 0), m=m1), dict(x=(1.5, 0, 0), v=(v2, 0, 0), m=m2)],
+                 method="articles")
+    seen = []
+    for _ in range(30):
+        world.step()
+        seen += world.events
+    np.testing.assert_allclose(vel(a)[0], ((m1 - m2) * v1 + 2 * m2 * v2) / (m1 + m2), rtol=1e-12)
+    np.testing.assert_allclose(vel(b)[0], ((m2 - m1) * v2 + 2 * m1 * v1) / (m1 + m2), atol=1e-12)
+    assert len(seen) == 1 and seen[0].method == "articles" and (seen[0].a, seen[0].b) == (a, b)
+    np.testing.assert_allclose(seen[0].impulse, m2 * abs(vel(b)[0] - v2), rtol=1e-12)
+    np.testing.assert_allclose(seen[0].normal, [1, 0, 0], atol=1e-12)
+
+
 # -- many contacts in one step -----------------------------------------------------------------
 
 @pytest.mark.parametrize("broadphase", ["all", "grid"])
