@@ -85,8 +85,11 @@ TOUCH = 1e-9
 APPROACH = 1e-12
 #: Centres closer than this fraction of r_a + r_b define no contact normal: such a pair is left to pass.
 CENTRED = 1e-9
-#: Guard against a jam (e.g. a sphere squeezed between two immovable bodies): waves per instant.
-MAX_WAVES = 10_000
+#: Waves at one instant before it is treated as a jam (a sphere wedged between immovable bodies
+#: bounces between them forever in no time): JAM_WAVES + 4 per body, then the rest of that instant
+#: is resolved with e = 0 (no bounce), which ends it; MAX_WAVES is the last guard.
+JAM_WAVES = 1_000
+MAX_WAVES = 100_000
 
 _NONE = np.empty(0, np.intp)
 
@@ -425,6 +428,7 @@ class CollisionSystem(esper.Processor):
         changed = set()
         waves = contacts = same = 0
         last_t = -1.0
+        jam_after = JAM_WAVES + 4 * lay.n
         t0 = self._now()
         out = self.world.events if (self.events and self.world is not None) else None
         while pending:
@@ -432,10 +436,14 @@ class CollisionSystem(esper.Processor):
             t = pending[first][0]
             same = same + 1 if t == last_t else 0
             last_t = t
+            jam = same > jam_after
+            if same == jam_after + 1:
+                warnings.warn(f"collision: {jam_after} waves at t = {t0 + t!r} s without an end (bodies jammed "
+                              f"between immovable ones?); the rest of this instant is resolved without bounce "
+                              f"(e = 0)", RuntimeWarning, stacklevel=3)
             if same > MAX_WAVES:
-                warnings.warn(f"collision: more than {MAX_WAVES} waves at t = {t0 + t!r} s (a jam between "
-                              f"immovable bodies?); {len(pending)} contacts left unresolved this step",
-                              RuntimeWarning, stacklevel=3)
+                warnings.warn(f"collision: more than {MAX_WAVES} waves at t = {t0 + t!r} s; {len(pending)} "
+                              f"contacts left unresolved this step", RuntimeWarning, stacklevel=3)
                 break
             # -- the wave: pending pairs already within TOUCH * R at t, still approaching --
             wave = []
@@ -451,7 +459,8 @@ class CollisionSystem(esper.Processor):
                 nx, ny, nz = dx / dist, dy / dist, dz / dist
                 vn = nx * wx + ny * wy + nz * wz
                 if vn < -self._eps_v or p == first:
-                    wave.append((i, j, nx, ny, nz, vn, min(float(self._e[i]), float(self._e[j]))))
+                    e = 0.0 if jam else min(float(self._e[i]), float(self._e[j]))
+                    wave.append((i, j, nx, ny, nz, vn, e))
             lam, dv = _solve_wave(wave, inv)
             waves += 1
             # -- apply: new velocity from t on; p(t) = xr + u t stays where it was --

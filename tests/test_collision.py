@@ -276,6 +276,18 @@ def test_touching_spheres_at_rest_stay_put(world):
         np.testing.assert_allclose(vel(e), 0, atol=0)
 
 
+def test_sphere_jammed_between_immovable_spheres_stops_instead_of_looping(world):
+    # touching both walls, moving along the line of centres: no elastic answer exists
+    ids = scene(world, [dict(x=(-1.0, 0, 0), v=(0, 0, 0), m=math.inf),
+                        dict(x=(0.0, 0, 0), v=(1.0, 0.5, 0)),
+                        dict(x=(1.0, 0, 0), v=(0, 0, 0), m=math.inf)])
+    with pytest.warns(RuntimeWarning, match="jammed"):
+        world.step()
+    np.testing.assert_allclose(vel(ids[1]), [0, 0.5, 0], atol=1e-12)     # the part along the walls stays
+    world.step(10)
+    np.testing.assert_allclose(pos(ids[1])[0], 0.0, atol=1e-12)
+
+
 @pytest.mark.parametrize("ea, eb, e", [(0.5, 1.0, 0.5), (0.3, 0.8, 0.3), (0.0, 1.0, 0.0)])
 def test_restitution_scales_the_normal_speed_by_the_smaller_coefficient(world, ea, eb, e):
     m1, m2, v1, v2 = 1.0, 3.0, 2.0, -1.0
