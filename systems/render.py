@@ -174,6 +174,7 @@ class RenderSystem(esper.Processor):
                                       fragment_shader=FRAGMENT_SHADER)
         self._rows = RowCache()
         self._groups: list[_Group] = []
+        self._stale = False
         # (id(mesh_set), level) -> [instance buffer, capacity in instances, vao]; per-draw vaos apart
         self._inst: dict = {}
         self._draw_vaos: dict = {}
@@ -333,8 +334,10 @@ class RenderSystem(esper.Processor):
             prog["u_to_light"].value = tuple(self.light_direction)
             prog["u_ambient"].value = self.ambient
 
-        if self._rows.update(esper.get_components(Transform, ModelRef)):
+        if self._rows.update(esper.get_components(Transform, ModelRef)) or self._stale:
+            self._stale = True           # stays set if _regroup raises (an unknown model): retried next frame
             self._regroup()
+            self._stale = False
         skip = cam.target if cam.mode == "cockpit" else None   # do not draw the ship we sit in
         r_eye = fr.quat_to_matrix(q_eye)                          # columns right, up, forward
         f_px = 0.5 * h / cam.tan_half_fov                         # pixels per metre at 1 m depth

@@ -274,6 +274,9 @@ def test_unknown_model_and_missing_camera_are_clear_errors(ctx, make):
     bad = w.create_entity(Transform((0.0, 0.0, 5.0)), ModelRef("astroid"))
     with pytest.raises(ValueError, match=f"ModelRef on entity {bad}: unknown model 'astroid'; known models"):
         w.render()
+    w.resources["model_cache"].variant("astroid", "sphere", scale=2.0)   # fixed: drawn on the next frame
+    w.render()
+    assert render.stats["instances"] == 1
     w2 = World()
     try:
         attach(w2, ctx, (32, 32))
