@@ -92,6 +92,7 @@ JAM_WAVES = 1_000
 MAX_WAVES = 100_000
 
 _NONE = np.empty(0, np.intp)
+_NO_T = np.empty(0)
 
 
 class _Layout:
@@ -237,7 +238,6 @@ class CollisionSystem(esper.Processor):
         self._eps_v = APPROACH * vmax
         self._static = not inv.all()
         self._e = SphereCollider._table.data["restitution"][lay.c_rows]
-        self._extra: dict[int, list[int]] = {}               # body -> pairs added this step
 
         # -- broad phase: candidate pairs --
         if self.broadphase == "all" or (self.broadphase == "auto" and n <= bp.ALL_PAIRS_MAX):
@@ -245,16 +245,16 @@ class CollisionSystem(esper.Processor):
             I, J = bp._triu(n)
             self._adj = _triu_adjacency(n)
             self._I, self._J, self._R = I, J, r[I] + r[J]
+            self._base = len(I)                              # pairs past this were added this step
         else:
             self._listed = True
             self._list_pairs(lay, xr, x1, r, dt)
         self.stats["pairs"] = len(self._I)
 
         # -- narrow phase: earliest times of impact, then contacts in time order --
-        ok, toi, slack = self._toi(self._I, self._J, self._R, 0.0)
-        pend = np.flatnonzero(ok)
+        pend, toi, slack = self._toi(self._I, self._J, self._R, 0.0)
         if len(pend):
-            self._resolve(lay, pend, toi[pend], slack[pend], dt)
+            self._resolve(lay, pend, toi, slack, dt)
 
     def _list_pairs(self, lay, xr, x1, r, dt):
         """Pairs from the neighbour list, plus this step's sweeps of the bodies it does not cover."""
@@ -279,6 +279,7 @@ class CollisionSystem(esper.Processor):
             self.stats["builds"] = 1
         self._I, self._J, self._R = nl.i, nl.j, self._list_R
         self._adj = self._list_adj
+        self._base = len(nl.i)                               # pairs past this were added this step
         sw = np.flatnonzero(nl.swept)
         if len(sw):
             # the list no longer speaks for swept bodies (their listed pairs stay: a superset):
@@ -286,7 +287,7 @@ class CollisionSystem(esper.Processor):
             a, b = xr[:, sw], x1[:, sw]
             self._blo[:, sw] = np.minimum(a, b) - r[sw]
             self._bhi[:, sw] = np.maximum(a, b) + r[sw]
-            self._add_pairs(*self._sweep_pairs(sw))
+            self._add_pairs(*self._sweep_pairs(sw), sw)
             self.stats["swept"] = len(sw)
 
     def _sweep_pairs(self, which):
@@ -306,111 +307,97 @@ class CollisionSystem(esper.Processor):
             out_j.append(b)
         return np.concatenate(out_i), np.concatenate(out_j)
 
-    def _partners(self, b: int) -> set:
-        """Bodies already paired with body b among this step's candidates."""
+    def _pairs_of(self, k: int) -> np.ndarray:
+        """Indices of this step's candidate pairs that involve body k."""
         first, pairs = self._adj
-        ps = pairs[first[b]:first[b + 1]]
-        out = set(self._I[ps].tolist()) | set(self._J[ps].tolist())
-        for p in self._extra.get(b, ()):
-            out.add(int(self._I[p]))
-            out.add(int(self._J[p]))
-        out.discard(b)
-        return out
+        own = pairs[first[k]:first[k + 1]]
+        base = self._base
+        if len(self._I) == base:
+            return own
+        extra = base + np.flatnonzero((self._I[base:] == k) | (self._J[base:] == k))
+        return np.concatenate([own, extra])
 
-    def _add_pairs(self, fi, fj) -> list[int]:
-        """Append the pairs not yet candidates; return their indices."""
+    def _add_pairs(self, fi, fj, which) -> np.ndarray:
+        """Append the pairs (fi, fj) that are not candidates yet; return their indices.
+
+        Every pair involves a body of ``which``, so only those bodies' pairs are
+        looked up; the rest is whole-array work.
+        """
         if not len(fi):
-            return []
-        lo, hi = np.minimum(fi, fj), np.maximum(fi, fj)
-        known: dict[int, set] = {}
-        new_i, new_j = [], []
-        for a, b in zip(lo.tolist(), hi.tolist()):
-            ka = known.get(a)
-            if ka is None:
-                ka = known[a] = self._partners(a)
-            if b in ka:
-                continue
-            ka.add(b)
-            known.setdefault(b, self._partners(b)).add(a)
-            new_i.append(a)
-            new_j.append(b)
-        if not new_i:
-            return []
-        base = len(self._I)
-        ni, nj = np.array(new_i, np.intp), np.array(new_j, np.intp)
+            return _NONE
+        n = np.int64(len(self._r))
+        keys = np.unique(np.minimum(fi, fj).astype(np.int64) * n + np.maximum(fi, fj))
+        have = np.concatenate([self._pairs_of(int(k)) for k in which])
+        keys = keys[~np.isin(keys, self._I[have].astype(np.int64) * n + self._J[have])]
+        if not len(keys):
+            return _NONE
+        ni, nj = (keys // n).astype(np.intp), (keys % n).astype(np.intp)
+        start = len(self._I)
         self._I = np.concatenate([self._I, ni])
         self._J = np.concatenate([self._J, nj])
         self._R = np.concatenate([self._R, self._r[ni] + self._r[nj]])
-        idx = list(range(base, base + len(new_i)))
-        for p, a, b in zip(idx, new_i, new_j):
-            self._extra.setdefault(a, []).append(p)
-            self._extra.setdefault(b, []).append(p)
-        return idx
+        return np.arange(start, start + len(keys))
 
     def _toi(self, I, J, R, t):
-        """Earliest time of impact in [t, dt] of pairs moving as p = xr + u t' (whole arrays).
+        """Earliest times of impact in [t, dt] of pairs moving as p = xr + u t' (whole arrays).
 
-        Returns (valid, time, slack): ``slack`` is how long before its time of
-        impact a pair is already within TOUCH * R, ``TOUCH R / |v_n|``.
-        :meth:`_toi1` is the same arithmetic for one pair.
+        Returns (which, time, slack) for the pairs that meet: their positions
+        in I, J; when; and ``slack``, how long before that time the pair is
+        already within TOUCH * R (``TOUCH R / |v_n|``).
         """
         xr, us = self._xr, self._us
-        wx = us[0][J] - us[0][I]
-        wy = us[1][J] - us[1][I]
-        wz = us[2][J] - us[2][I]
-        dx = xr[0][J] - xr[0][I]
-        dy = xr[1][J] - xr[1][I]
-        dz = xr[2][J] - xr[2][I]
-        if t:
-            dx += wx * t
-            dy += wy * t
-            dz += wz * t
-        dd = dx * dx + dy * dy + dz * dz
-        b = dx * wx + dy * wy + dz * wz                      # |d| times the normal relative velocity
-        c = dd - R * R
+        if len(I) <= 64:
+            # few pairs (a re-check after a contact): 2-D gathers, fewer calls; the same arithmetic
+            w = us[:, J] - us[:, I]
+            d = xr[:, J] - xr[:, I]
+            if t:
+                d += w * t
+            dd = (d * d).sum(axis=0)
+            b = (d * w).sum(axis=0)
+            a = (w * w).sum(axis=0)
+        else:
+            # many pairs (the whole step): 1-D gathers per axis are several times faster
+            wx = us[0][J] - us[0][I]
+            wy = us[1][J] - us[1][I]
+            wz = us[2][J] - us[2][I]
+            dx = xr[0][J] - xr[0][I]
+            dy = xr[1][J] - xr[1][I]
+            dz = xr[2][J] - xr[2][I]
+            if t:
+                dx += wx * t
+                dy += wy * t
+                dz += wz * t
+            dd = dx * dx + dy * dy + dz * dz
+            b = dx * wx + dy * wy + dz * wz                  # |d| times the normal relative velocity
+            a = wx * wx + wy * wy + wz * wz
+        RR = R * R
+        c = dd - RR
         dist = np.sqrt(dd)
         # approaching; centres closer than CENTRED * R have no normal to push along: left alone
-        approach = (b < -self._eps_v * dist) & (dist > CENTRED * R)
-        touching = c <= (2.0 * TOUCH) * R * R                # gap <= TOUCH * R
-        a = wx * wx + wy * wy + wz * wz
+        ok = (b < -self._eps_v * dist) & (dist > CENTRED * R)
+        touching = c <= (2.0 * TOUCH) * RR                   # gap <= TOUCH * R
         disc = b * b - a * c
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            toi = t + c / (np.sqrt(np.maximum(disc, 0.0)) - b)
-            slack = (TOUCH * R) * dist / -b
-        toi[touching] = t
-        ok = approach & (touching | (disc >= 0.0)) & (toi <= self._dt)
+        ok &= touching | (disc >= 0.0)
         if self._static:
             ok &= (self._inv[I] + self._inv[J]) > 0.0        # two immovable bodies pass through
-        return ok, toi, slack
-
-    def _toi1(self, bi, bj, R, t):
-        """:meth:`_toi` for one pair whose bodies are ``bi``, ``bj`` = [x, y, z, ux, uy, uz] (xr, u)."""
-        wx, wy, wz = bj[3] - bi[3], bj[4] - bi[4], bj[5] - bi[5]
-        dx = bj[0] - bi[0] + wx * t
-        dy = bj[1] - bi[1] + wy * t
-        dz = bj[2] - bi[2] + wz * t
-        dd = dx * dx + dy * dy + dz * dz
-        b = dx * wx + dy * wy + dz * wz
-        dist = math.sqrt(dd)
-        if not (b < -self._eps_v * dist and dist > CENTRED * R):
-            return None
-        c = dd - R * R
-        if c <= (2.0 * TOUCH) * R * R:
-            return t, (TOUCH * R) * dist / -b
-        disc = b * b - (wx * wx + wy * wy + wz * wz) * c
-        if disc < 0.0:
-            return None
-        toi = t + c / (math.sqrt(disc) - b)
-        if not toi <= self._dt:
-            return None
-        return toi, (TOUCH * R) * dist / -b
+        idx = np.flatnonzero(ok)
+        if not len(idx):
+            return idx, _NO_T, _NO_T
+        b, c, disc, dist, R = b[idx], c[idx], disc[idx], dist[idx], R[idx]
+        # b < 0 here, so the denominator is > 0; touching pairs are in contact now
+        toi = np.where(touching[idx], t, t + c / (np.sqrt(np.maximum(disc, 0.0)) - b))
+        keep = toi <= self._dt
+        if not keep.all():
+            idx, toi, b, dist, R = idx[keep], toi[keep], b[keep], dist[keep], R[keep]
+        return idx, toi, (TOUCH * R) * dist / -b
 
     def _resolve(self, lay, pend, pend_t, pend_s, dt):
         """Take the pending contacts in time order, one wave of simultaneous contacts at a time.
 
-        Only the contacts that happen and the pairs of the bodies they change
-        are visited here, so this is a Python loop over scalars (numpy's
-        per-call cost would dominate such small arrays).
+        The loop runs once per wave, over the contacts that happen (few, in
+        plain floats: numpy's per-call cost would dominate arrays this small);
+        the pairs of the bodies a wave changed are re-checked as one array
+        (:meth:`_toi`), so no Python loop runs over candidate pairs.
         """
         xr, us, inv, I, J = self._xr, self._us, self._inv, self._I, self._J
         state: dict[int, list[float]] = {}                   # body -> [xr, u] as floats, as touched
@@ -424,7 +411,6 @@ class CollisionSystem(esper.Processor):
         pending = {p: (t, sl, i, j, R) for p, t, sl, i, j, R in
                    zip(pend.tolist(), pend_t.tolist(), pend_s.tolist(), I[pend].tolist(), J[pend].tolist(),
                        self._R[pend].tolist())}
-        static = self._static
         changed = set()
         waves = contacts = same = 0
         last_t = -1.0
@@ -473,6 +459,8 @@ class CollisionSystem(esper.Processor):
                 s[0] -= dvx * t
                 s[1] -= dvy * t
                 s[2] -= dvz * t
+                xr[0, k], xr[1, k], xr[2, k] = s[0], s[1], s[2]   # the arrays too: _toi reads them
+                us[0, k], us[1, k], us[2, k] = s[3], s[4], s[5]
                 moved.append(k)
             changed.update(moved)
             hit = [(c, l) for c, l in zip(wave, lam) if l > 0.0]
@@ -481,39 +469,27 @@ class CollisionSystem(esper.Processor):
                 self._emit(out, lay, hit, body, t, t0)
             if not moved:
                 continue
-            # -- re-check every pair of the bodies that changed, from t on --
+            # -- re-check every pair of the bodies that changed, from t on (one array operation) --
             gone = set(moved)
             pending = {p: e for p, e in pending.items() if e[2] not in gone and e[3] not in gone}
-            seen = set()
-            for k in moved:
-                for p in self._pairs_of(k):
-                    if p in seen:
-                        continue
-                    seen.add(p)
-                    i, j, R = int(self._I[p]), int(self._J[p]), float(self._R[p])
-                    if static and inv[i] + inv[j] == 0.0:
-                        continue
-                    hitp = self._toi1(body(i), body(j), R, t)
-                    if hitp is not None:
-                        pending[p] = (hitp[0], hitp[1], i, j, R)
-            # -- a body whose new path leaves what the broad phase covered: sweep it against all --
-            if self._listed:
-                for p in self._extend(moved, body, t, dt):
-                    i, j, R = int(self._I[p]), int(self._J[p]), float(self._R[p])
-                    if static and inv[i] + inv[j] == 0.0:
-                        continue
-                    hitp = self._toi1(body(i), body(j), R, t)
-                    if hitp is not None:
-                        pending[p] = (hitp[0], hitp[1], i, j, R)
+            aff = [self._pairs_of(k) for k in moved]
+            if self._listed:                                  # and the pairs of a body that left its cover
+                aff.append(self._extend(moved, body, t, dt))
+            aff = np.concatenate(aff)                         # a pair of two moved bodies comes twice:
+            found, toi, slack = self._toi(self._I[aff], self._J[aff], self._R[aff], t)   # same answer
+            if len(found):
+                hit_p = aff[found]
+                for p, tp, sl, i, j, R in zip(hit_p.tolist(), toi.tolist(), slack.tolist(),
+                                              self._I[hit_p].tolist(), self._J[hit_p].tolist(),
+                                              self._R[hit_p].tolist()):
+                    pending[p] = (tp, sl, i, j, R)
         self.stats["waves"] = waves
         self.stats["contacts"] = contacts
         # -- write back the bodies that changed: position and velocity at the end of the step --
         if changed:
-            ch = sorted(changed)
-            st = np.array([state[k] for k in ch])
-            ch = np.array(ch, np.intp)
-            x_end = st[:, :3] + st[:, 3:] * dt
-            v_end = st[:, 3:].copy()
+            ch = np.array(sorted(changed), np.intp)
+            x_end = (xr[:, ch] + us[:, ch] * dt).T
+            v_end = us[:, ch].T.copy()
             if len(lay.a_sel):
                 acc = lay.a_idx[ch]
                 thrust = acc >= 0
@@ -522,13 +498,7 @@ class CollisionSystem(esper.Processor):
             Transform._table.data["position"][lay.t_idx[ch]] = x_end
             Velocity._table.data["linear"][lay.v_idx[ch]] = v_end
 
-    def _pairs_of(self, k: int) -> list[int]:
-        first, pairs = self._adj
-        out = pairs[first[k]:first[k + 1]].tolist()
-        extra = self._extra.get(k)
-        return out + extra if extra else out
-
-    def _extend(self, moved, body, t, dt) -> list[int]:
+    def _extend(self, moved, body, t, dt) -> np.ndarray:
         """Sweep the changed bodies whose rest-of-step path left their cover; the new pairs."""
         nl, r = self._list, self._r
         go = []
@@ -551,11 +521,12 @@ class CollisionSystem(esper.Processor):
             nl.swept[k] = True
             go.append(k)
         if not go:
-            return []
+            return _NONE
         if int(np.count_nonzero(nl.swept)) > nl.budget:
             self._list_dirty = True                          # rebuild at the next step
         self.stats["swept"] += len(go)
-        return self._add_pairs(*self._sweep_pairs(np.array(go, np.intp)))
+        go = np.array(go, np.intp)
+        return self._add_pairs(*self._sweep_pairs(go), go)
 
     def _emit(self, out, lay, hit, body, t, t0):
         """One CollisionEvent per contact (a Python loop over contacts that happened: few)."""
