@@ -432,7 +432,7 @@ class CollisionSystem(esper.Processor):
                               f"contacts left unresolved this step", RuntimeWarning, stacklevel=3)
                 break
             # -- the wave: pending pairs already within TOUCH * R at t, still approaching --
-            wave = []
+            wave, wave_p = [], []
             for p, (tp, sl, i, j, R) in pending.items():
                 if tp - t > sl:
                     continue
@@ -444,9 +444,13 @@ class CollisionSystem(esper.Processor):
                 dist = math.sqrt(dx * dx + dy * dy + dz * dz)
                 nx, ny, nz = dx / dist, dy / dist, dz / dist
                 vn = nx * wx + ny * wy + nz * wz
-                if vn < -self._eps_v or p == first:
+                if vn < -self._eps_v:
                     e = 0.0 if jam else min(float(self._e[i]), float(self._e[j]))
                     wave.append((i, j, nx, ny, nz, vn, e))
+                    wave_p.append(p)
+            if not wave:                                      # rounding: the first no longer approaches
+                del pending[first]
+                continue
             lam, dv = _solve_wave(wave, inv)
             waves += 1
             # -- apply: new velocity from t on; p(t) = xr + u t stays where it was --
@@ -475,8 +479,13 @@ class CollisionSystem(esper.Processor):
             aff = [self._pairs_of(k) for k in moved]
             if self._listed:                                  # and the pairs of a body that left its cover
                 aff.append(self._extend(moved, body, t, dt))
-            aff = np.concatenate(aff)                         # a pair of two moved bodies comes twice:
-            found, toi, slack = self._toi(self._I[aff], self._J[aff], self._R[aff], t)   # same answer
+            aff = np.concatenate(aff)                         # (a pair of two moved bodies comes twice)
+            # a contact that took an impulse now separates (v_n' = -e v_n >= 0): no need to look again
+            done = [p for p, l in zip(wave_p, lam) if l > 0.0]
+            aff = aff[aff != done[0]] if len(done) == 1 else aff[~np.isin(aff, done)]
+            if not len(aff):
+                continue
+            found, toi, slack = self._toi(self._I[aff], self._J[aff], self._R[aff], t)
             if len(found):
                 hit_p = aff[found]
                 for p, tp, sl, i, j, R in zip(hit_p.tolist(), toi.tolist(), slack.tolist(),
