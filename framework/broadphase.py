@@ -298,18 +298,19 @@ class NeighbourList:
         self.budget = 2 + n // 128
         self.builds += 1
 
-    def strays(self, points: np.ndarray, which=None) -> np.ndarray:
-        """Which listed (not swept) bodies are at their skin's distance or more from their build centre.
-
-        ``points`` is ``(3, n)``, or ``(3, len(which))`` for the bodies ``which``.
-        """
+    def strays(self, *points: np.ndarray, which=None) -> np.ndarray:
+        """Which listed (not swept) bodies are at their skin's distance or more from their build
+        centre at any of ``points`` (each ``(3, n)``, or ``(3, len(which))`` for the bodies ``which``)."""
         if which is None:
             c, skin, swept = self.centre, self.skin, self.swept
         else:
             c, skin, swept = self.centre[:, which], self.skin[which], self.swept[which]
-        off = points - c
-        far = off[0] * off[0] + off[1] * off[1] + off[2] * off[2] >= skin * skin
-        return far & ~swept
+        far2 = None
+        for p in points:
+            off = p - c
+            d2 = off[0] * off[0] + off[1] * off[1] + off[2] * off[2]
+            far2 = d2 if far2 is None else np.maximum(far2, d2)
+        return (far2 >= skin * skin) & ~swept
 
     def territories(self, lo, hi) -> np.ndarray:
         """Listed (not swept) bodies whose territory box overlaps the box ``[lo, hi]`` (3-vectors)."""

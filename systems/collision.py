@@ -176,10 +176,11 @@ class CollisionSystem(esper.Processor):
 
     # -- bookkeeping ----------------------------------------------------------
     def _refresh(self) -> _Layout:
-        q = _query()
+        # esper drops *every* cached query list when any entity or component changes, so the
+        # base query's list object alone tells whether the optional ones may have changed too
         lay = self._layout
-        if lay is None or any(a is not b for a, b in zip(q, lay.queries)):
-            lay = self._layout = _Layout(q)
+        if lay is None or esper.get_components(Transform, SphereCollider) is not lay.queries[0]:
+            lay = self._layout = _Layout(_query())
         return lay
 
     def _now(self) -> float:
@@ -227,7 +228,7 @@ class CollisionSystem(esper.Processor):
         x1 = Transform._table.data["position"][lay.t_rows]
         u = self._velocities(lay, dt)
         us = np.ascontiguousarray(u.T)                       # (3, n): 1-D gathers are fast
-        vmax = float(np.abs(us).max()) * math.sqrt(3.0)
+        vmax = max(float(us.max()), -float(us.min())) * math.sqrt(3.0)   # >= the fastest speed
         if vmax == 0.0:
             return                                           # nothing moves: nothing can approach
         x1 = x1.T
@@ -263,7 +264,7 @@ class CollisionSystem(esper.Processor):
                    or not np.array_equal(nl.radius, r))
         if not rebuild:
             # the straight path x0 -> x1 stays in the territory if both ends do (a ball is convex)
-            stray = nl.strays(xr) | nl.strays(x1)
+            stray = nl.strays(xr, x1)
             if stray.any():
                 nl.swept |= stray
                 rebuild = int(np.count_nonzero(nl.swept)) > nl.budget

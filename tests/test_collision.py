@@ -339,6 +339,19 @@ def test_two_immovable_spheres_pass_through_each_other(world):
     np.testing.assert_allclose(pos(a), [2, 0, 0], atol=1e-12)
 
 
+def test_components_added_or_removed_between_steps_are_seen(world):
+    a, b = scene(world, [dict(x=(0, 0, 0), v=(2, 0, 0), m=None), dict(x=(2.5, 0, 0), v=(0, 0, 0), m=None)])
+    world.step()
+    esper.add_component(b, Mass(math.inf))            # b becomes immovable after the first step
+    world.step(59)
+    np.testing.assert_allclose(vel(a), [-2, 0, 0], rtol=1e-12)
+    np.testing.assert_allclose(vel(b), [0, 0, 0], atol=0)
+    esper.remove_component(b, SphereCollider)         # and then stops colliding at all
+    esper.component_for_entity(a, Velocity).linear = (2.0, 0.0, 0.0)
+    world.step(60)
+    assert pos(a)[0] > pos(b)[0]                      # passed straight through
+
+
 def test_spin_is_not_touched(world):
     world.add_system(SpinSystem())
     a, b = scene(world, [dict(x=(0, 0, 0), v=(2, 0, 0)), dict(x=(2.5, 0.3, 0), v=(0, 0, 0))])
