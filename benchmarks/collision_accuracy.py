@@ -119,7 +119,10 @@ def run_pairs(method: str, speed: float, dt: float, repeats: int) -> dict:
     R = 2 * R_SPHERE
     dist = np.linalg.norm(x[b] - x[a], axis=1)
     ke0, ke1 = (v0 * v0).sum(), (v * v).sum()
+    found = changed[a] | changed[b]
+    err = np.maximum(np.linalg.norm(x[a] - x_ex[a], axis=1), np.linalg.norm(x[b] - x_ex[b], axis=1))
     return {"missed": missed,
+            "position error, hits found": float(err[found].max()) if found.any() else float("nan"),
             "velocity error": float(np.max(np.linalg.norm(v - v_ex, axis=1)) / speed),
             "position error": float(np.max(np.linalg.norm(x - x_ex, axis=1))),
             "overlap": float(max(0.0, np.max((R - dist) / R))),
@@ -316,9 +319,10 @@ def main(argv=None) -> int:
              f"its worst velocity error was {worst['velocity error']:.1e} (relative), position error "
              f"{worst['position error']:.1e} m, final overlap {worst['overlap']:.1e}, energy drift "
              f"{worst['energy drift']:.0e}. The articles' method starts missing hits once a pair closes by about "
-             f"{first_miss:.2g} combined diameters in one step, and even the hits it finds end up to "
-             f"{max(a['position error'] for a in art):.2g} m off (it moves the pair back to contact and does "
-             f"not re-advance them for the rest of the step). Its cost is "
+             f"{first_miss:.2g} combined diameters in one step (a missed pair passes through: up to "
+             f"{max(a['position error'] for a in art):.2g} m off), and even the hits it finds end up to "
+             f"{np.nanmax([a['position error, hits found'] for a in art]):.2g} m off (it moves the pair back "
+             f"to contact and does not re-advance it for the rest of the step). Its cost is "
              f"{statistics.median(a['cost'] for a in art) * 1e6:.0f} us per step against "
              f"{statistics.median(a['cost'] for a in cont) * 1e6:.0f} us for the continuous method (80 "
              f"bodies: a Python loop over 3,160 pairs against whole-array work).")

@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 #: Up to this many boxes "auto" tests every pair (measured crossover; see benchmarks/collision_scaling.py).
-ALL_PAIRS_MAX = 40
+ALL_PAIRS_MAX = 32
 METHODS = ("auto", "all", "sweep", "grid", "kdtree")
 
 _EMPTY = np.empty(0, np.intp)

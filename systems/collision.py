@@ -386,11 +386,32 @@ class CollisionSystem(esper.Processor):
             return idx, _NO_T, _NO_T
         b, c, disc, dist, R = b[idx], c[idx], disc[idx], dist[idx], R[idx]
         # b < 0 here, so the denominator is > 0; touching pairs are in contact now
-        toi = np.where(touching[idx], t, t + c / (np.sqrt(np.maximum(disc, 0.0)) - b))
+        h = c / (np.sqrt(np.maximum(disc, 0.0)) - b)
+        touch = touching[idx]
+        if not touch.all():
+            # one refinement from the estimate: c = |d|^2 - R^2 loses digits when the pair starts far
+            # apart (|d| >> R, e.g. 100 m at 10 km/s), so solve again from where the pair is then
+            far = np.flatnonzero(~touch)
+            h[far] += self._toi_refine(I[idx[far]], J[idx[far]], R[far], t + h[far])
+        toi = np.where(touch, t, np.maximum(t + h, t))       # (never before now, whatever rounding)
         keep = toi <= self._dt
         if not keep.all():
             idx, toi, b, dist, R = idx[keep], toi[keep], b[keep], dist[keep], R[keep]
         return idx, toi, (TOUCH * R) * dist / -b
+
+    def _toi_refine(self, I, J, R, t):
+        """Correction to estimated impact times ``t``: the root of ``|d(t) + w h|^2 = R^2`` nearest 0."""
+        xr, us = self._xr, self._us
+        w = us[:, J] - us[:, I]
+        d = xr[:, J] - xr[:, I] + w * t
+        c = (d * d).sum(axis=0) - R * R
+        b = (d * w).sum(axis=0)
+        a = (w * w).sum(axis=0)
+        disc = np.maximum(b * b - a * c, 0.0)
+        # h = c / (-b + sqrt(disc)), the root nearest 0 while approaching; no cancellation. A grazing
+        # pair (b ~ 0 at contact) has nothing to refine: keep the estimate
+        den = np.sqrt(disc) - b
+        return np.divide(c, den, out=np.zeros_like(c), where=den > 0.0)
 
     def _resolve(self, lay, pend, pend_t, pend_s, dt):
         """Take the pending contacts in time order, one wave of simultaneous contacts at a time.
