@@ -502,11 +502,12 @@ class CollisionSystem(esper.Processor):
             if self._listed:                                  # and the pairs of a body that left its cover
                 aff.append(self._extend(moved, body, t, dt))
             aff = np.concatenate(aff)                         # (a pair of two moved bodies comes twice)
-            # a contact that took an impulse now separates (v_n' = -e v_n >= 0): no need to look again
-            done = [p for p, l in zip(wave_p, lam) if l > 0.0]
-            aff = aff[aff != done[0]] if len(done) == 1 else aff[~np.isin(aff, done)]
-            if not len(aff):
-                continue
+            # a lone contact that took its impulse now separates (v_n' = -e v_n >= 0, exactly): no need
+            # to look at it again. (A wave of several is re-checked whole: its solve may be least squares.)
+            if len(wave) == 1 and lam[0] > 0.0:
+                aff = aff[aff != wave_p[0]]
+                if not len(aff):
+                    continue
             found, toi, slack = self._toi(self._I[aff], self._J[aff], self._R[aff], t)
             if len(found):
                 hit_p = aff[found]
