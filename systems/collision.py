@@ -17,8 +17,10 @@ step's path:
 for ``0 <= t <= dt``. For each candidate pair the earliest time of impact is
 the smaller root of ``|d + w t|^2 = R^2`` (``d`` relative position, ``w``
 relative velocity, ``R = r_a + r_b``), written ``t = c / (-b + sqrt(b^2 - a
-c))`` with ``a = w.w``, ``b = d.w``, ``c = d.d - R^2`` so nothing cancels.
-Contacts are taken in time order. At the earliest instant ``t*``, every pair
+c))`` with ``a = w.w``, ``b = d.w``, ``c = d.d - R^2`` so nothing cancels,
+and solved once more from the pair's positions at that estimate (``c`` loses
+digits when a fast pair starts many radii apart). Contacts are taken in time
+order. At the earliest instant ``t*``, every pair
 that is touching (gap <= 1e-9 R) and approaching is resolved *together*, in
 one wave: impulses ``lambda >= 0`` along the normals so that each contact's
 normal relative velocity becomes ``-e`` times what it was,
@@ -33,7 +35,10 @@ re-advanced from ``t*`` with their new velocities, the pairs they belong to
 are re-checked, and contacts that now approach at ``t*`` form the next wave.
 So a chain of touching spheres (Newton's cradle) passes the impulse ball by
 ball inside one instant, a symmetric hit stays symmetric, and nothing depends
-on the order of entities. Pairs that overlap (at spawn, or by rounding) but
+on the order of entities. (A sphere wedged between immovable ones has no
+elastic answer and would bounce forever in no time: after
+``JAM_WAVES + 4 n`` waves at one instant the rest of it is resolved with
+``e = 0``, with a warning.) Pairs that overlap (at spawn, or by rounding) but
 separate are left alone: they never stick, and no position is ever moved
 except by velocity times time, so nothing jumps.
 
