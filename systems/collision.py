@@ -204,16 +204,15 @@ class CollisionSystem(esper.Processor):
 
     # -- shared gathers -------------------------------------------------------
     def _velocities(self, lay: _Layout, dt: float) -> np.ndarray:
-        """Path velocity u (n, 3): v1 for free bodies, v1 - a dt/2 (average over the step) with thrust."""
+        """Path velocity u as (3, n): v1 for free bodies, v1 - a dt/2 (the step's average) with thrust."""
         vel = Velocity._table.data["linear"]
-        if lay.all_v:
-            u = np.array(vel[lay.v_rows])
-        else:
-            u = np.zeros((lay.n, 3))
-            u[lay.v_sel] = vel[lay.v_rows]
+        if lay.all_v and not len(lay.a_sel):
+            return np.ascontiguousarray(vel[lay.v_rows].T)   # a copy: the solver changes it
+        u = np.zeros((lay.n, 3))
+        u[lay.v_sel] = vel[lay.v_rows]
         if len(lay.a_sel):
             u[lay.a_sel] -= (0.5 * dt) * Acceleration._table.data["linear"][lay.a_rows]
-        return u
+        return np.ascontiguousarray(u.T)
 
     def _inverse_mass(self, lay: _Layout) -> np.ndarray:
         """1/kg per collider: 0 for infinite mass or no Velocity; 1 (1 kg) with no Mass."""
@@ -231,8 +230,7 @@ class CollisionSystem(esper.Processor):
     def _continuous(self, lay: _Layout, dt: float) -> None:
         n = lay.n
         x1 = Transform._table.data["position"][lay.t_rows]
-        u = self._velocities(lay, dt)
-        us = np.ascontiguousarray(u.T)                       # (3, n): 1-D gathers are fast
+        us = self._velocities(lay, dt)                       # (3, n): 1-D gathers are fast
         vmax = max(float(us.max()), -float(us.min())) * math.sqrt(3.0)   # >= the fastest speed
         if vmax == 0.0:
             return                                           # nothing moves: nothing can approach
