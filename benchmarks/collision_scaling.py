@@ -281,7 +281,7 @@ def main(argv=None) -> int:
     if not bullet:
         print("[collision_scaling] pybullet is not installed: its column is skipped "
               "(pip install -e '.[compare]' to include it)")
-    plan = {50: (600, 200), 500: (600, 60), 2_000: (400, 5), 10_000: (300, 2)}
+    plan = {50: (600, 200), 500: (1200, 100), 2_000: (400, 5), 10_000: (300, 2)}
     if quick:
         plan = {50: (60, 20), 500: (60, 10), 2_000: (30, 2)}
     block = {"continuous": 20, "pybullet": 5, "articles": 1}
