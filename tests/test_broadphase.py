@@ -49,12 +49,16 @@ def boxes(draw):
 @settings(max_examples=60, deadline=None)
 @given(b=boxes())
 def test_box_pairs_finds_exactly_the_overlapping_boxes(method, b):
+    if method == "kdtree":
+        pytest.importorskip("scipy.spatial")             # scipy comes with the bench extra only
     lo, hi = b
     assert as_set(*bp.box_pairs(lo, hi, method)) == brute(lo, hi)
 
 
 @pytest.mark.parametrize("method", ["grid", "sweep", "kdtree"])
 def test_box_pairs_on_a_large_field_matches_all_pairs(method):
+    if method == "kdtree":
+        pytest.importorskip("scipy.spatial")
     rng = np.random.default_rng(3)
     c = rng.uniform(0, 30, (2000, 3))
     r = rng.uniform(0.25, 0.75, (2000, 1))
