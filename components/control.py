@@ -10,6 +10,8 @@ from dataclasses import dataclass
 from framework import validate
 
 MODES = ("direct", "momentum")
+#: The proportional channels of FlightInput, each in [-1, 1].
+CHANNELS = ("throttle", "roll", "pitch", "yaw")
 ASSIST_AXES = ("all", "roll", "pitch", "yaw", "sequential")
 
 
@@ -33,7 +35,7 @@ class FlightInput:
     kill_rotation: bool = False
 
     def __post_init__(self):
-        for name in ("throttle", "roll", "pitch", "yaw"):
+        for name in CHANNELS:
             setattr(self, name, validate.scalar(f"FlightInput.{name}", getattr(self, name), lo=-1.0, hi=1.0))
         self.kill_rotation = bool(self.kill_rotation)
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from components.control import CHANNELS, FlightInput
 from framework import validate
 
 #: Held actions: (FlightInput field, value while held).
@@ -63,9 +64,17 @@ def keys_help() -> str:
     return "\n".join(f"  {' / '.join(keys):<{width}}  {names[a]}" for a, keys in KEYMAP.items())
 
 
+def _blank() -> dict:
+    return {**dict.fromkeys(CHANNELS, 0.0), "kill_rotation": False}
+
+
+def _clamp(x: float) -> float:
+    return max(-1.0, min(1.0, x))
+
+
 def intent_from_held(held) -> dict:
     """FlightInput field values for a set of held action names (opposite keys cancel)."""
-    out = {"throttle": 0.0, "roll": 0.0, "pitch": 0.0, "yaw": 0.0, "kill_rotation": False}
+    out = _blank()
     for action in held:
         if action not in HELD:
             raise ValueError(f"unknown held action {action!r}; known: {', '.join(HELD)}")
@@ -73,29 +82,30 @@ def intent_from_held(held) -> dict:
         if name == "kill_rotation":
             out[name] = True
         else:
-            out[name] += value
+            out[name] = _clamp(out[name] + value)
     return out
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Hold:
-    """From ``start`` to ``end`` seconds (simulated time), hold these FlightInput values."""
+    """From ``start`` to ``end`` seconds (simulated time), hold a pilot's input.
+
+    ``Hold(2.0, 3.5, throttle=1.0, yaw=-0.5)``: the keyword arguments are
+    :class:`~components.control.FlightInput` fields (and checked as such).
+    """
 
     start: float
     end: float
-    throttle: float = 0.0
-    roll: float = 0.0
-    pitch: float = 0.0
-    yaw: float = 0.0
-    kill_rotation: bool = False
+    input: FlightInput
 
-    def __post_init__(self):
-        s = validate.scalar("Hold.start", self.start, nonnegative=True)
-        e = validate.scalar("Hold.end", self.end, nonnegative=True)
+    def __init__(self, start: float, end: float, **channels):
+        s = validate.scalar("Hold.start", start, nonnegative=True)
+        e = validate.scalar("Hold.end", end, nonnegative=True)
         if not e > s:
             raise ValueError(f"Hold.end must be after Hold.start, got start={s!r}, end={e!r}")
-        for name in ("throttle", "roll", "pitch", "yaw"):
-            validate.scalar(f"Hold.{name}", getattr(self, name), lo=-1.0, hi=1.0)
+        object.__setattr__(self, "start", s)
+        object.__setattr__(self, "end", e)
+        object.__setattr__(self, "input", FlightInput(**channels))
 
 
 @dataclass(frozen=True)
@@ -124,12 +134,12 @@ class Track:
 
     def intent_at(self, t: float) -> dict:
         """FlightInput values at simulated time ``t`` (holds are half-open: start <= t < end)."""
-        out = {"throttle": 0.0, "roll": 0.0, "pitch": 0.0, "yaw": 0.0, "kill_rotation": False}
+        out = _blank()
         for ev in self.events:
             if isinstance(ev, Hold) and ev.start <= t < ev.end:
-                for name in ("throttle", "roll", "pitch", "yaw"):
-                    out[name] = max(-1.0, min(1.0, out[name] + getattr(ev, name)))
-                out["kill_rotation"] |= ev.kill_rotation
+                for name in CHANNELS:
+                    out[name] = _clamp(out[name] + getattr(ev.input, name))
+                out["kill_rotation"] |= ev.input.kill_rotation
         return out
 
     def presses_at_step(self, step: int, dt: float) -> list[str]:

@@ -52,11 +52,8 @@ class InputSystem(esper.Processor):
         presses += self.pressed
         self.pressed.clear()
         for _, (inp, _) in esper.get_components(FlightInput, Player):
-            inp.throttle = max(-1.0, min(1.0, intent["throttle"]))
-            inp.roll = max(-1.0, min(1.0, intent["roll"]))
-            inp.pitch = max(-1.0, min(1.0, intent["pitch"]))
-            inp.yaw = max(-1.0, min(1.0, intent["yaw"]))
-            inp.kill_rotation = intent["kill_rotation"]
+            for name, value in intent.items():       # already clamped to [-1, 1]
+                setattr(inp, name, value)
         for action in presses:
             handler = self.handlers.get(action)
             if handler is not None:

@@ -72,7 +72,8 @@ def test_live_keys_and_presses_go_through_the_same_path(world):
 
 @pytest.mark.parametrize("make,match", [
     (lambda: Hold(2.0, 1.0), "end must be after"),
-    (lambda: Hold(0.0, 1.0, yaw=2.0), r"Hold.yaw"),
+    (lambda: Hold(0.0, 1.0, yaw=2.0), r"FlightInput.yaw must be in \[-1.0, 1.0\], got 2.0"),
+    (lambda: Hold(0.0, 1.0, warp=1.0), r"warp"),
     (lambda: Hold(-1.0, 1.0), r"Hold.start"),
     (lambda: Press(1.0, "fly"), "'fly'"),
     (lambda: Track(("x",)), "Hold or Press"),
