@@ -365,11 +365,8 @@ def main(argv=None) -> int:
             notes.append(f"- {name}: " + "; ".join(parts) + ".")
     L += notes
     L.append("")
-    title = "Collision accuracy: the articles' method vs continuous" + (
-        " (quick smoke run, not the reported figures)" if quick else "")
-    common.write_section("collision_accuracy", title, "\n".join(L))
-    print(f"[collision_accuracy] wrote docs/bench/collision_accuracy.md, docs/img/collision_accuracy.png "
-          f"({time.perf_counter() - t_start:.0f} s)")
+    common.write_section("collision_accuracy", "Collision accuracy: the articles' method vs continuous",
+                         "\n".join(L), quick=quick, started=t_start)
     return 0
 
 

@@ -427,11 +427,8 @@ def main(argv=None) -> int:
     L.append("")
     L.append(common.table(["spheres"] + [f"{n}" for n in xs],
                           [[label] + [f"{cross[label][n] * 1e6:.0f}" for n in xs] for label in cross]))
-    title = "Collision scaling: continuous vs the articles' method vs pybullet" + (
-        " (quick smoke run, not the reported figures)" if quick else "")
-    common.write_section("collision_scaling", title, "\n".join(L))
-    print(f"[collision_scaling] wrote docs/bench/collision_scaling.md, docs/img/collision_scaling.png "
-          f"({time.perf_counter() - t_start:.0f} s)")
+    common.write_section("collision_scaling", "Collision scaling: continuous vs the articles' method vs pybullet",
+                         "\n".join(L), quick=quick, started=t_start)
     return 0
 
 

@@ -50,15 +50,26 @@ def table(headers: list[str], rows: list[list]) -> str:
     return "\n".join(out)
 
 
-def write_section(name: str, title: str, body: str) -> Path:
-    """Write ``docs/bench/<name>.md``: a titled section with the machine line and the chart link."""
+QUICK_NOTE = " (quick smoke run, not the reported figures)"
+
+
+def write_section(name: str, title: str, body: str, *, quick: bool = False, started: float | None = None) -> Path:
+    """Write ``docs/bench/<name>.md``: a titled section with the machine line and the chart link.
+
+    ``quick`` marks the title as a smoke run; ``started`` (a ``perf_counter``
+    value) adds the run time to the line printed about what was written.
+    """
     TABLES.mkdir(parents=True, exist_ok=True)
+    title += QUICK_NOTE if quick else ""
     chart = IMG / f"{name}.png"
     text = f"## {title}\n\nMeasured on {machine()}; `python -m benchmarks.{name}`.\n\n{body.strip()}\n"
     if chart.exists():
         text += f"\n![{title}](img/{name}.png)\n"
     path = TABLES / f"{name}.md"
     path.write_text(text)
+    took = f" ({time.perf_counter() - started:.0f} s)" if started is not None else ""
+    wrote = f"docs/bench/{name}.md" + (f", docs/img/{name}.png" if chart.exists() else "")
+    print(f"[{name}] wrote {wrote}{took}")
     return path
 
 

@@ -618,10 +618,8 @@ def main(argv=None) -> int:
         L.append(common.table(["\\|w\\| dt"] + [m.label for m in METHODS], rows))
         L.append("")
     L.append(conclusion(cost, paths, longs, short, theta_of, thetas, settings, long_steps, short_steps))
-    title = "Spin accuracy: storage and update" + (" (quick smoke run, not the reported figures)" if quick else "")
-    common.write_section("spin_accuracy", title, "\n".join(L))
-    print(f"[spin_accuracy] wrote docs/bench/spin_accuracy.md, docs/img/spin_accuracy.png "
-          f"({time.perf_counter() - t_start:.0f} s)")
+    common.write_section("spin_accuracy", "Spin accuracy: storage and update",
+                         "\n".join(L), quick=quick, started=t_start)
     return 0
 
 

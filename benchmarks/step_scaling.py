@@ -365,11 +365,8 @@ def main(argv=None) -> int:
              f"the components' constructors took {one_by_one:.2f} s "
              f"({one_by_one / one_by_one_n * 1e6:.0f} us per body against "
              f"{(setup['bulk components'] + setup['create_entities']) / setup_n * 1e6:.1f} us in bulk).")
-    title = "Step scaling: vectorised systems vs a per-entity loop" + (
-        " (quick smoke run, not the reported figures)" if quick else "")
-    common.write_section("step_scaling", title, "\n".join(L))
-    print(f"[step_scaling] wrote docs/bench/step_scaling.md, docs/img/step_scaling.png "
-          f"({time.perf_counter() - t_start:.0f} s)")
+    common.write_section("step_scaling", "Step scaling: vectorised systems vs a per-entity loop",
+                         "\n".join(L), quick=quick, started=t_start)
     return 0
 
 

@@ -260,10 +260,8 @@ def main(argv=None) -> int:
              f"start-of-step sample: a pilot's input is sampled once per step anyway, and the error is "
              f"{turn['driftframe pipeline'][1 / 60]:.2f} m over {T:g} s of hard turning at full thrust; a scene that needs more can add a "
              f"mid-step sample in its own control system.")
-    title = "Thrust accuracy: Euler vs exact" + (" (quick smoke run, not the reported figures)" if quick else "")
-    common.write_section("thrust_accuracy", title, "\n".join(L))
-    print(f"[thrust_accuracy] wrote docs/bench/thrust_accuracy.md, docs/img/thrust_accuracy.png "
-          f"({time.perf_counter() - t_start:.0f} s)")
+    common.write_section("thrust_accuracy", "Thrust accuracy: Euler vs exact",
+                         "\n".join(L), quick=quick, started=t_start)
     return 0
 
 

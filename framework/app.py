@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from framework import validate
 from framework.world import World
 
 

@@ -5,7 +5,6 @@ import esper
 import numpy as np
 
 from components.body import AngularVelocity, Transform
-from framework import frame as fr
 from framework.store import RowCache, to_indices
 
 

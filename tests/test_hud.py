@@ -1,5 +1,4 @@
 """HUD: the prograde marker sits where the velocity projects on screen; text reports speed and camera."""
-import esper
 import numpy as np
 import pytest
 

@@ -1,6 +1,5 @@
 """MovementSystem: free bodies move v t; thrust matches the closed form."""
 import numpy as np
-import pytest
 
 from components.body import Acceleration, Transform, Velocity
 from systems.movement import MovementSystem

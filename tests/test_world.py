@@ -81,6 +81,7 @@ def test_hash_ignores_where_rows_live_in_the_tables():
         junk = [Velocity((9, 9, 9)) for _ in range(pad)]   # occupy rows first
         w.create_entity(Transform((1, 2, 3)), Velocity((4, 5, 6)))
         h = w.state_hash()
+        assert len(junk) == pad           # (kept alive until here, so their rows stay taken)
         w.close()
         return h
     assert build(0) == build(37)
