@@ -17,7 +17,7 @@ from framework.recorder import record  # noqa: E402
 
 SIZE = (320, 180)
 FPS = 12                     # 60 Hz simulation: 5 steps per frame
-MAX_SECONDS = 12.0
+MAX_SECONDS = 8.0
 
 
 def picture(name: str) -> Path:

@@ -164,9 +164,11 @@ class HudSystem(esper.Processor):
         cam = esper.try_component(self.render.camera_entity, Camera) if self.render.camera_entity else None
         vel = esper.try_component(ent, Velocity) if ent is not None else None
         spin = esper.try_component(ent, AngularVelocity) if ent is not None else None
-        out = [f"CAMERA  {cam.mode if cam else '-'}",
-               f"SPEED   {np.linalg.norm(vel.linear) if vel is not None else 0.0:7.2f} m/s",
-               f"SPIN    {np.linalg.norm(spin.angular) if spin is not None else 0.0:7.3f} rad/s"]
+        out = [f"CAMERA  {cam.mode if cam else '-'}"]
+        if vel is not None:                  # a fixed viewpoint (billiards, cradle) has no speed to show
+            out.append(f"SPEED   {np.linalg.norm(vel.linear):7.2f} m/s")
+        if spin is not None:
+            out.append(f"SPIN    {np.linalg.norm(spin.angular):7.3f} rad/s")
         assist = esper.try_component(ent, RotationAssist) if ent is not None else None
         if assist is not None:
             inp = esper.try_component(ent, FlightInput)

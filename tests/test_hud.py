@@ -72,3 +72,11 @@ def test_project_direction_behind_the_eye_is_none():
     proj[3] = [0, 0, -1, 0]                 # w = -z_view: in front means z_view < 0
     assert project_direction((0, 0, 1.0), np.eye(4), proj, (100, 100)) is None
     np.testing.assert_allclose(project_direction((0, 0, -1.0), np.eye(4), proj, (100, 100)), [50, 50])
+
+
+def test_a_fixed_viewpoint_shows_only_the_camera(world, ctx):
+    eye = world.create_entity(Transform((0, 0, -5.0)))
+    world.create_entity(Camera(target=eye, mode="cockpit"))
+    attach_rendering(world, ctx, size=(160, 120), own_context=False)
+    world.render()
+    assert world.get_system(HudSystem).last["text"] == ["CAMERA  cockpit"]
