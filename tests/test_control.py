@@ -76,3 +76,34 @@ def test_input_out_of_range_is_rejected_by_name(field, value):
 def test_unknown_mode_is_rejected_by_name():
     with pytest.raises(ValueError, match="'warp'"):
         FlightControl(mode="warp")
+
+
+def _turning_burn_error(dt, seconds=4.0, rate=1.0, thrust=5.0):
+    """Full thrust while yawing at a constant rate; distance from the continuous solution."""
+    from framework.world import World
+    world = World(dt=dt)
+    try:
+        e, inp = _ship(world, "direct", turn_rate=rate, thrust=thrust)
+        inp.throttle, inp.yaw = 1.0, 1.0
+        world.step(round(seconds / dt))
+        t, w = seconds, rate
+        # nose(t) = (sin wt, 0, cos wt); x(t) = a/w * (t - sin(wt)/w, 0, (1 - cos wt)/w)
+        exact = thrust / w * np.array([t - np.sin(w * t) / w, 0.0, (1 - np.cos(w * t)) / w])
+        return np.linalg.norm(esper.component_for_entity(e, Transform).position - exact)
+    finally:
+        world.close()
+
+
+def test_thrust_while_turning_is_second_order_in_dt():
+    coarse, fine = _turning_burn_error(1 / 30), _turning_burn_error(1 / 60)
+    assert fine < 2e-3
+    assert 3.5 < coarse / fine < 4.5          # halving dt quarters the error
+
+
+def test_no_throttle_means_no_acceleration(world):
+    e, inp = _ship(world, thrust=4.0)
+    inp.throttle = 1.0
+    world.step()
+    inp.throttle = 0.0
+    world.step()
+    np.testing.assert_array_equal(esper.component_for_entity(e, Acceleration).linear, 0.0)
