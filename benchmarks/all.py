@@ -49,14 +49,26 @@ def run(name: str, quick: bool) -> tuple[int, float]:
     return rc, time.perf_counter() - t0
 
 
+def _anchor(title: str) -> str:
+    """GitHub's heading anchor: lower case, punctuation dropped, spaces to hyphens."""
+    kept = "".join(ch for ch in title.lower() if ch.isalnum() or ch in " -_")
+    return kept.replace(" ", "-")
+
+
 def assemble(status: dict[str, str]) -> str:
     """docs/BENCHMARKS.md: the introduction, a status list, then every section in ORDER."""
     parts = [INTRO.strip(), ""]
+    sections = {p.stem: p for p in common.TABLES.glob("*.md")} if common.TABLES.exists() else {}
     listed = []
     for name in ORDER:
-        listed.append(f"- `{name}`: {status.get(name, 'not run this time')}")
+        note = status.get(name, "")
+        note = f" — {note}" if note.startswith(("FAILED", "not yet")) else ""
+        if name in sections:
+            title = sections[name].read_text().splitlines()[0].lstrip("#").strip()
+            listed.append(f"- [{title}](#{_anchor(title)}) (`{name}`){note}")
+        else:
+            listed.append(f"- `{name}`{note or ' — no table yet'}")
     parts += ["## Contents", "", *listed, ""]
-    sections = {p.stem: p for p in common.TABLES.glob("*.md")} if common.TABLES.exists() else {}
     for name in ORDER + sorted(set(sections) - set(ORDER)):
         if name in sections:
             parts += [sections[name].read_text().strip(), ""]
