@@ -82,10 +82,6 @@ class Transform(Columnar):
         """Local +z in world coordinates (unit): the nose."""
         return fr.rotate(self.orientation, fr.FORWARD)
 
-    def to_world(self, local) -> np.ndarray:
-        """A direction given in this body's local axes, in world coordinates."""
-        return fr.rotate(self.orientation, validate.vector("local", local))
-
 
 class Velocity(Columnar):
     """Linear velocity of the centre of mass. Nothing slows it down."""

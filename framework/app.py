@@ -116,13 +116,3 @@ def player(world) -> int | None:
     world.activate()
     ents = sorted(e for e, _ in esper.get_component(Player))
     return ents[0] if ents else None
-
-
-def body_count(world) -> int:
-    import esper
-
-    from components.body import Transform
-
-    world.activate()
-    return len(esper.get_component(Transform))
-

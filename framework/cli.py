@@ -10,7 +10,6 @@ import argparse
 import math
 import os
 import sys
-import time
 
 from framework import __version__
 
@@ -142,16 +141,15 @@ def cmd_record(args) -> int:
         k = steps_per_frame(args.fps, world.dt)
         frames = max(1, round(seconds * args.fps))
         attach_rendering(world, size=args.size, camera=args.camera)
-        t0 = time.perf_counter()
         result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet)
-        took = time.perf_counter() - t0
     finally:
         world.close()
     if result.path is None:
         print("nothing written (interrupted before the first frame)", file=sys.stderr)
         return 130
     print(f"wrote {result.path} ({result.frames} frames, {result.frames / args.fps:.2f} s of {args.demo} "
-          f"at {args.fps:g} fps, {args.size[0]}x{args.size[1]}) in {took:.1f} s")
+          f"at {args.fps:g} fps, {args.size[0]}x{args.size[1]}) in {result.seconds:.1f} s "
+          f"({result.frames_per_second:.0f} frames/s)")
     return 130 if result.interrupted else 0
 
 

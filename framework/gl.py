@@ -134,11 +134,6 @@ def renderer(ctx) -> str:
     return str(ctx.info.get("GL_RENDERER", "unknown"))
 
 
-def is_software(ctx) -> bool:
-    """True on Mesa's llvmpipe (where golden-image comparisons are exact across runs)."""
-    return renderer(ctx).startswith("llvmpipe")
-
-
 class ContextHandle:
     """A context stored in ``world.resources``; releases it with the world only if ``owned``.
 

@@ -5,7 +5,7 @@ columns instead. A :class:`Columnar` component is both: an ordinary object that
 esper stores and a user can read and write (``vel.linear[0] = 2.0``), whose
 fields are *views into rows of one table per component class*. A system asks
 each matching component for its ``_row`` once (when esper's cached query list
-changes, see :class:`RowCache`) and then works on ``Table.column(name)[rows]``
+changes, see :class:`RowCache`) and then works on ``Cls._table.data[name][rows]``
 for every entity at once. A plain per-entity system and a vectorised system
 therefore see and change the same numbers.
 
@@ -116,13 +116,6 @@ class Table:
     def release(self, row: int) -> None:
         self.free.append(row)
 
-    def column(self, name: str) -> np.ndarray:
-        """The whole live array of one field (valid until the table grows)."""
-        return self.data[name]
-
-    @property
-    def live(self) -> int:
-        return self.size - len(self.free)
 
 
 class Columnar:

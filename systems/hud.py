@@ -159,8 +159,8 @@ class HudSystem(esper.Processor):
             return players[0]
         return self.render.camera_entity and esper.component_for_entity(self.render.camera_entity, Camera).target
 
-    def lines(self) -> list[str]:
-        ent = self._subject()
+    def lines(self, ent) -> list[str]:
+        """The text lines for subject entity ``ent`` (the Player, or the camera's target)."""
         cam = esper.try_component(self.render.camera_entity, Camera) if self.render.camera_entity else None
         vel = esper.try_component(ent, Velocity) if ent is not None else None
         spin = esper.try_component(ent, AngularVelocity) if ent is not None else None
@@ -210,7 +210,7 @@ class HudSystem(esper.Processor):
                 if px is not None and -radius <= px[0] <= w + radius and -radius <= px[1] <= h + radius:
                     markers[kind] = px
                     self._draw(_segments_to_triangles(marker_segments(px, radius, kind), 2.0), colour, False)
-        text = self.lines()
+        text = self.lines(ent)
         pad = self.font.line_height // 2
         quads = [self.font.quads(line, pad, pad + i * self.font.line_height) for i, line in enumerate(text)]
         self._draw(np.vstack(quads), TEXT_COLOUR, True)
