@@ -41,11 +41,11 @@ import esper
 import numpy as np
 
 from benchmarks import common
-from components.body import Mass, Transform, Velocity
-from components.collision import SphereCollider
-from framework.world import World
-from systems.collision import CollisionSystem
-from systems.movement import MovementSystem
+from driftframe.components.body import Mass, Transform, Velocity
+from driftframe.components.collision import SphereCollider
+from driftframe.framework.world import World
+from driftframe.systems.collision import CollisionSystem
+from driftframe.systems.movement import MovementSystem
 
 R_SPHERE = 0.1
 PAIRS = 40

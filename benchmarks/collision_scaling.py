@@ -46,14 +46,14 @@ import time
 import numpy as np
 
 from benchmarks import common
-from components.body import AngularVelocity, Mass, Transform, Velocity
-from components.collision import SphereCollider
-from framework import broadphase as bp
-from framework.store import rows_of
-from framework.world import World
-from systems.collision import CollisionSystem
-from systems.movement import MovementSystem
-from systems.spin import SpinSystem
+from driftframe.components.body import AngularVelocity, Mass, Transform, Velocity
+from driftframe.components.collision import SphereCollider
+from driftframe.framework import broadphase as bp
+from driftframe.framework.store import rows_of
+from driftframe.framework.world import World
+from driftframe.systems.collision import CollisionSystem
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.spin import SpinSystem
 
 DT = 1.0 / 60.0
 DENSITY = 1000.0          # kg/m^3

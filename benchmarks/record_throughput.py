@@ -22,16 +22,16 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import figure, parser, save_chart, table, write_section
-from components.body import AngularVelocity, Transform, Velocity
-from components.camera import Camera
-from components.render import ModelRef
-from framework import frame as fr
-from framework.gl import create_context, renderer
-from framework.recorder import record
-from framework.world import World
-from systems.movement import MovementSystem
-from systems.render import attach
-from systems.spin import SpinSystem
+from driftframe.components.body import AngularVelocity, Transform, Velocity
+from driftframe.components.camera import Camera
+from driftframe.components.render import ModelRef
+from driftframe.framework import frame as fr
+from driftframe.framework.gl import create_context, renderer
+from driftframe.framework.recorder import record
+from driftframe.framework.world import World
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.render import attach
+from driftframe.systems.spin import SpinSystem
 
 NAME = "record_throughput"
 SIZE = (1280, 720)
@@ -44,7 +44,7 @@ def build(ctx, seed: int = 1) -> World:
     spinning asteroids, chase camera) if the demo modules are not there.
     """
     try:
-        from framework.app import attach_rendering, make_world
+        from driftframe.app import attach_rendering, make_world
     except ImportError:
         return _fallback(ctx, seed)
     w, _ = make_world("asteroids", seed=seed)

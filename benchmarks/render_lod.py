@@ -29,13 +29,13 @@ from __future__ import annotations
 import numpy as np
 
 from benchmarks.common import figure, median_time, parser, save_chart, table, write_section
-from components.body import Transform
-from components.camera import Camera
-from components.render import ModelRef
-from framework import frame as fr
-from framework.gl import create_context, renderer
-from framework.world import World
-from systems.render import RenderSystem, attach
+from driftframe.components.body import Transform
+from driftframe.components.camera import Camera
+from driftframe.components.render import ModelRef
+from driftframe.framework import frame as fr
+from driftframe.framework.gl import create_context, renderer
+from driftframe.framework.world import World
+from driftframe.systems.render import RenderSystem, attach
 
 NAME = "render_lod"
 SIZE = (1280, 720)

@@ -235,7 +235,7 @@ def initial_state(method: Method, n: int | None):
 
 def to_matrices(method: Method, state) -> np.ndarray:
     """State -> rotation estimates ``(n, 3, 3)`` (columns right, up, forward)."""
-    from framework import frame as fr
+    from driftframe.framework import frame as fr
     cols = [np.atleast_1d(np.asarray(c, dtype=np.float64)) for c in state]
     if method.storage == "quat":
         return fr.quat_to_matrix(np.stack(cols, -1))
@@ -308,7 +308,7 @@ def orientation_error(est: np.ndarray, exact: np.ndarray) -> np.ndarray:
 
 
 def ortho_error(est: np.ndarray) -> np.ndarray:
-    from framework import frame as fr
+    from driftframe.framework import frame as fr
     with np.errstate(all="ignore"):
         e = fr.orthonormality_error(est)
     return np.where(np.isfinite(e), e, np.inf)
@@ -328,9 +328,9 @@ def check_matches_spin_system(steps: int = 200, n: int = 64) -> tuple[bool, floa
     """
     import esper
 
-    from components.body import AngularVelocity, Transform
-    from framework.world import World
-    from systems.spin import SpinSystem
+    from driftframe.components.body import AngularVelocity, Transform
+    from driftframe.framework.world import World
+    from driftframe.systems.spin import SpinSystem
 
     rng = np.random.default_rng(7)
     w = random_axes(rng, n) * rng.uniform(0.1, 250.0, (n, 1))
@@ -375,10 +375,10 @@ def measure_cost(n: int, repeats: int) -> dict[str, float]:
 def measure_driftframe_paths(n: int, repeats: int) -> dict[str, float]:
     """ns per body of what the framework runs: SpinSystem's kernel on the (n, 4) table, and
     turning stored quaternions into frames (what a renderer or a user reading ``right/up/forward`` pays)."""
-    from framework import frame as fr
-    from components.body import AngularVelocity, Transform
-    from framework.world import World
-    from systems.spin import SpinSystem
+    from driftframe.framework import frame as fr
+    from driftframe.components.body import AngularVelocity, Transform
+    from driftframe.framework.world import World
+    from driftframe.systems.spin import SpinSystem
 
     rng = np.random.default_rng(2)
     w = random_axes(rng, n) * rng.uniform(1.0, 20.0, (n, 1))

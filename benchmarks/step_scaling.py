@@ -29,10 +29,10 @@ import esper
 import numpy as np
 
 from benchmarks import common
-from components.body import AngularVelocity, Transform, Velocity
-from framework.world import World
-from systems.movement import MovementSystem
-from systems.spin import SpinSystem
+from driftframe.components.body import AngularVelocity, Transform, Velocity
+from driftframe.framework.world import World
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.spin import SpinSystem
 
 DT = 1.0 / 60.0
 

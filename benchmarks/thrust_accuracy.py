@@ -32,12 +32,12 @@ import esper
 import numpy as np
 
 from benchmarks import common
-from components.body import Acceleration, AngularVelocity, Transform, Velocity
-from components.control import FlightControl, FlightInput
-from framework.world import World
-from systems.control import ControlSystem
-from systems.movement import MovementSystem
-from systems.spin import SpinSystem
+from driftframe.components.body import Acceleration, AngularVelocity, Transform, Velocity
+from driftframe.components.control import FlightControl, FlightInput
+from driftframe.framework.world import World
+from driftframe.systems.control import ControlSystem
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.spin import SpinSystem
 
 X0 = np.array([120.0, -35.0, 40.0])              # m
 V0 = np.array([20.0, 3.0, -5.0])                 # m/s

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from framework import frame as fr
-from framework import validate
-from framework.store import Columnar, Field
+from driftframe.framework import frame as fr
+from driftframe.framework import validate
+from driftframe.framework.store import Columnar, Field
 
 
 def _unit_quat(name, q):

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from framework import validate
+from driftframe.framework import validate
 
 #: "cockpit": the target's own frame. "chase": behind and above, looking along the velocity.
 MODES = ("cockpit", "chase")

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from framework.store import Columnar, Field
+from driftframe.framework.store import Columnar, Field
 
 
 def _positive_radius(name, r):

@@ -7,11 +7,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from framework import validate
+from driftframe.framework import validate
+from driftframe.framework.input import CHANNELS
 
 MODES = ("direct", "momentum")
-#: The proportional channels of FlightInput, each in [-1, 1].
-CHANNELS = ("throttle", "roll", "pitch", "yaw")
 ASSIST_AXES = ("all", "roll", "pitch", "yaw", "sequential")
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from framework.model_cache import check_colour
+from driftframe.framework.model_cache import check_colour
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """asteroids — the ship among fifty asteroids that share one sphere mesh (Framework 0.0.5)."""
-from demos.parts import asteroid_field, chase_camera, ship
-from framework.input import Hold, Press, Track
+from driftframe.demos.parts import asteroid_field, chase_camera, ship
+from driftframe.framework.input import Hold, Press, Track
 
 TITLE = "Asteroids"
 DESCRIPTION = "fifty scaled asteroids, elastic collisions, skybox, chase and cockpit cameras"

@@ -1,8 +1,8 @@
 """billiards — a break: the cue ball into a triangle of fifteen touching balls, seen from above."""
 import numpy as np
 
-from demos.parts import balls, viewpoint
-from framework.input import Track
+from driftframe.demos.parts import balls, viewpoint
+from driftframe.framework.input import Track
 
 TITLE = "Billiards"
 DESCRIPTION = "a perfectly elastic break: cue ball into a 15-ball triangle, seen from above"

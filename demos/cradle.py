@@ -1,8 +1,8 @@
 """cradle — Newton's cradle: five touching balls struck by a sixth; only the last one leaves."""
 import numpy as np
 
-from demos.parts import balls, viewpoint
-from framework.input import Track
+from driftframe.demos.parts import balls, viewpoint
+from driftframe.framework.input import Track
 
 TITLE = "Newton's cradle"
 DESCRIPTION = "five touching balls and a striker: the impulse passes through and only the last ball leaves"

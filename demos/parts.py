@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from components.body import Acceleration, AngularVelocity, Mass, Transform, Velocity
-from components.camera import Camera
-from components.collision import SphereCollider
-from components.control import FlightControl, FlightInput, Player, RotationAssist
-from components.render import ModelRef
-from framework import frame as fr
+from driftframe.components.body import Acceleration, AngularVelocity, Mass, Transform, Velocity
+from driftframe.components.camera import Camera
+from driftframe.components.collision import SphereCollider
+from driftframe.components.control import FlightControl, FlightInput, Player, RotationAssist
+from driftframe.components.render import ModelRef
+from driftframe.framework import frame as fr
 
 
 def ship(world, *, mode: str = "momentum", position=(0.0, 0.0, 0.0), forward=(0.0, 0.0, 1.0),
@@ -42,7 +42,7 @@ def viewpoint(world, position, look_at, up=(0.0, 1.0, 0.0), **settings) -> int:
 def balls(world, positions, velocities, radius: float, *, mass: float = 1.0, colour=None,
           model: str = "sphere") -> list[int]:
     """Equal elastic balls (``model`` scaled to ``radius`` by a declared variant) at ``positions``."""
-    from framework.app import declare_variant
+    from driftframe.framework.model_cache import declare_variant
 
     n = len(positions)
     name = declare_variant(world, f"{model}_r{radius:g}", model, scale=radius)
@@ -61,7 +61,7 @@ def asteroid_field(world, rng, n: int, *, inner: float, outer: float, radii=(0.5
     Mass = density * 4/3 pi r^3 (kg); random drift velocity (~``speed`` m/s)
     and spin (~``spin`` rad/s). Asteroids never overlap each other at spawn.
     """
-    from framework.app import declare_variant
+    from driftframe.framework.model_cache import declare_variant
 
     sizes = np.sort(rng.uniform(*radii, variants))
     names = [declare_variant(world, f"asteroid_{i}", "sphere", scale=float(r),

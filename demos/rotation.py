@@ -1,6 +1,6 @@
 """rotation — the ship turns only while a key is held and thrusts along its nose (Framework 0.0.2)."""
-from demos.parts import balls, chase_camera, ship
-from framework.input import Hold, Track
+from driftframe.demos.parts import balls, chase_camera, ship
+from driftframe.framework.input import Hold, Track
 
 TITLE = "Rotation"
 DESCRIPTION = "direct control: the ship turns only while a key is held; velocity persists"

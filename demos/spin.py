@@ -1,6 +1,6 @@
 """spin — angular momentum: spin accumulates and persists; the assist takes it out (Framework 0.0.4)."""
-from demos.parts import balls, chase_camera, ship
-from framework.input import Hold, Track
+from driftframe.demos.parts import balls, chase_camera, ship
+from driftframe.framework.input import Hold, Track
 
 TITLE = "Spin"
 DESCRIPTION = "momentum control: spin accumulates and persists until the kill-rotation assist takes it out"

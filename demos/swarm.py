@@ -1,6 +1,6 @@
 """swarm — thousands of colliding asteroids around the ship: the scale the framework holds."""
-from demos.parts import asteroid_field, chase_camera, ship
-from framework.input import Hold, Press, Track
+from driftframe.demos.parts import asteroid_field, chase_camera, ship
+from driftframe.framework.input import Hold, Press, Track
 
 TITLE = "Swarm"
 DESCRIPTION = "3,000 colliding asteroids (one sphere mesh, level of detail and culling) around the ship"

@@ -8,12 +8,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from driftframe import demos
+from driftframe.app import attach_rendering, make_world
+from driftframe.framework.recorder import record
 
-import demos  # noqa: E402
-from framework.app import attach_rendering, make_world  # noqa: E402
-from framework.recorder import record  # noqa: E402
+ROOT = Path(__file__).resolve().parent.parent
 
 SIZE = (320, 180)
 FPS = 12                     # 60 Hz simulation: 5 steps per frame

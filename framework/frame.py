@@ -63,7 +63,7 @@ def quat_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
 
 def quat_from_axis_angle(axis, angle) -> np.ndarray:
     """Unit quaternion rotating by ``angle`` rad about ``axis`` (any non-zero length; right-hand rule)."""
-    from framework import validate
+    from driftframe.framework import validate
 
     a = validate.vector("axis", axis)
     angle = validate.scalar("angle", angle)
@@ -147,7 +147,7 @@ def orthonormality_error(m: np.ndarray) -> np.ndarray:
 
 def frame_to_quat(right, up, forward, *, name: str = "frame") -> np.ndarray:
     """Validate a user-given frame (orthonormal, right-handed) and return its quaternion."""
-    from framework import validate
+    from driftframe.framework import validate
 
     r = validate.vector(f"{name}.right", right)
     u = validate.vector(f"{name}.up", up)

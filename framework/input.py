@@ -15,8 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from components.control import CHANNELS, FlightInput
-from framework import validate
+from driftframe.framework import validate
+
+#: The proportional channels of a pilot's intent (``FlightInput``), each in [-1, 1].
+CHANNELS = ("throttle", "roll", "pitch", "yaw")
 
 #: Held actions: (FlightInput field, value while held).
 HELD = {
@@ -86,26 +88,52 @@ def intent_from_held(held) -> dict:
     return out
 
 
+def step_index(t: float, dt: float) -> int:
+    """The first step whose start time ``k * dt`` reaches ``t`` (with a hair of tolerance).
+
+    Every track time becomes a step index once, here: ``1.5 s`` at 1/100 s is
+    step 150 however ``150 * 0.01`` rounds, so a hold covers the same steps at
+    any dt, and a press fires exactly once.
+    """
+    return max(0, math.ceil(t / dt - 1e-9))
+
+
 @dataclass(frozen=True, init=False)
 class Hold:
     """From ``start`` to ``end`` seconds (simulated time), hold a pilot's input.
 
-    ``Hold(2.0, 3.5, throttle=1.0, yaw=-0.5)``: the keyword arguments are
-    :class:`~components.control.FlightInput` fields (and checked as such).
+    ``Hold(2.0, 3.5, throttle=1.0, yaw=-0.5)``: the keyword arguments are the
+    pilot's channels (:data:`CHANNELS`, each in [-1, 1]) and
+    ``kill_rotation``. At time step ``dt`` the hold covers
+    ``round((end - start) / dt)`` steps (at least one) from
+    ``step_index(start)``: the same number of steps wherever it starts.
     """
 
     start: float
     end: float
-    input: FlightInput
+    #: Channel values while held (only the given ones), e.g. ``{"throttle": 1.0}``.
+    channels: dict
+    kill_rotation: bool
 
-    def __init__(self, start: float, end: float, **channels):
+    def __init__(self, start: float, end: float, *, kill_rotation: bool = False, **channels):
         s = validate.scalar("Hold.start", start, nonnegative=True)
         e = validate.scalar("Hold.end", end, nonnegative=True)
         if not e > s:
             raise ValueError(f"Hold.end must be after Hold.start, got start={s!r}, end={e!r}")
+        for name, value in channels.items():
+            if name not in CHANNELS:
+                raise TypeError(f"Hold got an unknown channel {name!r}; channels: {', '.join(CHANNELS)}, "
+                                "kill_rotation")
+            channels[name] = validate.scalar(f"FlightInput.{name}", value, lo=-1.0, hi=1.0)
         object.__setattr__(self, "start", s)
         object.__setattr__(self, "end", e)
-        object.__setattr__(self, "input", FlightInput(**channels))
+        object.__setattr__(self, "channels", dict(channels))
+        object.__setattr__(self, "kill_rotation", bool(kill_rotation))
+
+    def steps(self, dt: float) -> range:
+        """The step indices this hold covers at time step ``dt``."""
+        first = step_index(self.start, dt)
+        return range(first, first + max(1, round((self.end - self.start) / dt)))
 
 
 @dataclass(frozen=True)
@@ -123,7 +151,11 @@ class Press:
 
 @dataclass(frozen=True)
 class Track:
-    """A scripted input track: holds (may overlap; values add, then clamp to [-1, 1]) and presses."""
+    """A scripted input track: holds (may overlap; values add, then clamp to [-1, 1]) and presses.
+
+    Times are simulated seconds; the input system asks for a *step* index, so
+    every time is quantised to steps once (:func:`step_index`).
+    """
 
     events: tuple = field(default_factory=tuple)
 
@@ -132,22 +164,19 @@ class Track:
             if not isinstance(ev, (Hold, Press)):
                 raise TypeError(f"Track events must be Hold or Press, got {ev!r}")
 
-    def intent_at(self, t: float) -> dict:
-        """FlightInput values at simulated time ``t`` (holds are half-open: start <= t < end)."""
+    def intent_at_step(self, step: int, dt: float) -> dict:
+        """The pilot's intent in step ``step``: every hold with ``step`` in ``hold.steps(dt)``."""
         out = _blank()
         for ev in self.events:
-            if isinstance(ev, Hold) and ev.start <= t < ev.end:
-                for name in CHANNELS:
-                    out[name] = _clamp(out[name] + getattr(ev.input, name))
-                out["kill_rotation"] |= ev.input.kill_rotation
+            if isinstance(ev, Hold) and step in ev.steps(dt):
+                for name, value in ev.channels.items():
+                    out[name] = _clamp(out[name] + value)
+                out["kill_rotation"] |= ev.kill_rotation
         return out
 
     def presses_at_step(self, step: int, dt: float) -> list[str]:
-        """Pressed actions that fire in step ``step``: the first step whose start time
-        ``step * dt`` reaches the press time. Computed on step indices, so every press
-        fires exactly once whatever the rounding of ``step * dt``."""
-        hits = [ev for ev in self.events
-                if isinstance(ev, Press) and max(0, math.ceil(ev.time / dt - 1e-9)) == step]
+        """Pressed actions that fire in step ``step`` (the step :func:`step_index` gives the press time)."""
+        hits = [ev for ev in self.events if isinstance(ev, Press) and step_index(ev.time, dt) == step]
         return [ev.action for ev in sorted(hits, key=lambda e: e.time)]
 
     @property

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from framework import validate
+from driftframe.framework import validate
 
 
 class FixedStepLoop:

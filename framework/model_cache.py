@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from framework import meshes, validate
+from driftframe.framework import meshes, validate
 
 GREY = (0.62, 0.60, 0.58)
 SHIP_BLUE = (0.55, 0.75, 1.0)
@@ -215,3 +215,17 @@ class ModelCache:
                     vbo.release()
                     ibo.release()
                 ms.gpu = None
+
+
+def declare_variant(world, name: str, base: str = "sphere", *, scale=1.0, colour=None) -> str:
+    """Declare a model variant (a scaled entry sharing ``base``'s buffers); returns ``name``.
+
+    Stored in ``world.resources["model_variants"]`` until rendering is attached.
+    """
+    if not isinstance(name, str) or not name:
+        raise TypeError(f"variant name must be a non-empty str, got {name!r}")
+    check_scale(f"variant {name!r} scale", scale)
+    if colour is not None:
+        check_colour(f"variant {name!r} colour", colour)
+    world.resources.setdefault("model_variants", {})[name] = (base, scale, colour)
+    return name

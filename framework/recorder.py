@@ -2,7 +2,7 @@
 
 ::
 
-    from framework.recorder import record
+    from driftframe.framework.recorder import record
     result = record(world, "out/asteroids.mp4", frames=600)     # 10 s at dt = 1/60
     result.frames, result.interrupted, result.path
 

@@ -20,7 +20,7 @@ from operator import attrgetter, itemgetter
 
 import numpy as np
 
-from framework import validate
+from driftframe.framework import validate
 
 
 class Field:

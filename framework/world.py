@@ -25,8 +25,8 @@ from collections import defaultdict
 import esper
 import numpy as np
 
-from framework import validate
-from framework.store import Columnar
+from driftframe.framework import validate
+from driftframe.framework.store import Columnar
 
 #: Stages run once per fixed simulation step, in this order.
 STEP_STAGES = ("input", "control", "movement", "spin", "collision", "camera")

@@ -4,9 +4,9 @@ from __future__ import annotations
 import esper
 import numpy as np
 
-from components.body import AngularVelocity, Transform
-from components.control import FlightInput, RotationAssist
-from framework import frame as fr
+from driftframe.components.body import AngularVelocity, Transform
+from driftframe.components.control import FlightInput, RotationAssist
+from driftframe.framework import frame as fr
 
 _ORDER = ("roll", "pitch", "yaw")
 _CONJUGATE = np.array([-1.0, -1.0, -1.0, 1.0])   # q * _CONJUGATE is the inverse rotation

@@ -29,9 +29,9 @@ import math
 import esper
 import numpy as np
 
-from components.body import Transform, Velocity
-from components.camera import MODES, Camera, check_mode
-from framework import frame as fr
+from driftframe.components.body import Transform, Velocity
+from driftframe.components.camera import MODES, Camera, check_mode
+from driftframe.framework import frame as fr
 
 _FLIP_Z = np.diag([1.0, 1.0, -1.0])
 

@@ -77,10 +77,10 @@ import warnings
 import esper
 import numpy as np
 
-from components.body import Acceleration, Mass, Transform, Velocity
-from components.collision import CollisionEvent, SphereCollider
-from framework import broadphase as bp
-from framework.store import as_index
+from driftframe.components.body import Acceleration, Mass, Transform, Velocity
+from driftframe.components.collision import CollisionEvent, SphereCollider
+from driftframe.framework import broadphase as bp
+from driftframe.framework.store import as_index
 
 METHODS = ("continuous", "articles")
 

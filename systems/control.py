@@ -4,9 +4,9 @@ from __future__ import annotations
 import esper
 import numpy as np
 
-from components.body import Acceleration, AngularVelocity, Transform
-from components.control import FlightControl, FlightInput
-from framework import frame as fr
+from driftframe.components.body import Acceleration, AngularVelocity, Transform
+from driftframe.components.control import FlightControl, FlightInput
+from driftframe.framework import frame as fr
 
 
 class ControlSystem(esper.Processor):

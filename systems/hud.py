@@ -5,9 +5,9 @@ import esper
 import moderngl
 import numpy as np
 
-from components.body import AngularVelocity, Velocity
-from components.camera import Camera
-from components.control import FlightInput, Player, RotationAssist
+from driftframe.components.body import AngularVelocity, Velocity
+from driftframe.components.camera import Camera
+from driftframe.components.control import FlightInput, Player, RotationAssist
 
 TEXT_COLOUR = (0.80, 1.00, 0.80, 1.0)
 PROGRADE_COLOUR = (0.85, 1.00, 0.30, 1.0)

@@ -3,19 +3,19 @@ from __future__ import annotations
 
 import esper
 
-from components.control import FlightInput, Player
-from framework.input import PRESSED, Track, intent_from_held
+from driftframe.components.control import FlightInput, Player
+from driftframe.framework.input import PRESSED, Track, intent_from_held
 
 
 def _switch_camera(world) -> None:
-    from systems.camera import switch_camera
+    from driftframe.systems.camera import switch_camera
     switch_camera(world)
 
 
 class InputSystem(esper.Processor):
     """Reads a Track (or held keys); writes FlightInput of Player entities; fires pressed actions.
 
-    * With a ``track`` (recordings, tests) the intent is ``track.intent_at(time)``
+    * With a ``track`` (recordings, tests) the intent is ``track.intent_at_step(step, dt)``
       and presses fire in the step the track says — the same every run.
     * Without one (a window) the intent comes from ``held`` (action names the
       window keeps up to date) and presses queued in ``pressed`` fire at the
@@ -44,7 +44,7 @@ class InputSystem(esper.Processor):
     def process(self, dt: float) -> None:
         world = self.world
         if self.track is not None:
-            intent = self.track.intent_at(world.time)
+            intent = self.track.intent_at_step(world.step_count, dt)
             presses = self.track.presses_at_step(world.step_count, dt)
         else:
             intent = intent_from_held(self.held)

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import esper
 
-from components.body import Acceleration, Transform, Velocity
-from framework.store import RowCache
+from driftframe.components.body import Acceleration, Transform, Velocity
+from driftframe.framework.store import RowCache
 
 
 class MovementSystem(esper.Processor):

@@ -2,7 +2,7 @@
 
 Setting up rendering for a world is one call::
 
-    from systems.render import attach
+    from driftframe.systems.render import attach
     render = attach(world, ctx=None, size=(1280, 720))   # ctx=None: a new off-screen EGL context
     world.step(); world.render()
     rgba = render.read_rgba()        # (720, 1280, 4) uint8, top row first
@@ -50,15 +50,15 @@ import esper
 import moderngl
 import numpy as np
 
-from components.body import Transform
-from components.camera import Camera
-from components.render import ModelRef
-from framework import frame as fr
-from framework import validate
-from framework.gl import ContextHandle, RenderTarget, create_context
-from framework.model_cache import ModelCache, check_colour
-from framework.store import RowCache, to_indices
-from systems import camera as camera_sys
+from driftframe.components.body import Transform
+from driftframe.components.camera import Camera
+from driftframe.components.render import ModelRef
+from driftframe.framework import frame as fr
+from driftframe.framework import validate
+from driftframe.framework.gl import ContextHandle, RenderTarget, create_context
+from driftframe.framework.model_cache import ModelCache, check_colour
+from driftframe.framework.store import RowCache, to_indices
+from driftframe.systems import camera as camera_sys
 
 VERTEX_SHADER = """
 #version 330
@@ -456,7 +456,7 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
     the cameras, and sets ``world.resources["model_cache"]``,
     ``["render_target"]`` and ``["gl"]``.
     """
-    from systems.skybox import SkyboxSystem
+    from driftframe.systems.skybox import SkyboxSystem
 
     if "render_target" in world.resources:
         raise ValueError("rendering is attached to this world already")

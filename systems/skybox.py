@@ -13,7 +13,7 @@ import esper
 import moderngl
 import numpy as np
 
-from framework.model_cache import ModelCache, check_colour
+from driftframe.framework.model_cache import ModelCache, check_colour
 
 VERTEX_SHADER = """
 #version 330

@@ -4,8 +4,8 @@ from __future__ import annotations
 import esper
 import numpy as np
 
-from components.body import AngularVelocity, Transform
-from framework.store import RowCache, to_indices
+from driftframe.components.body import AngularVelocity, Transform
+from driftframe.framework.store import RowCache, to_indices
 
 
 class SpinSystem(esper.Processor):

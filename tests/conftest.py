@@ -5,7 +5,7 @@ import os
 
 import pytest
 
-from framework.world import World
+from driftframe.framework.world import World
 
 
 @pytest.fixture
@@ -20,7 +20,7 @@ def world():
 @pytest.fixture(scope="session")
 def gl_context():
     """One off-screen EGL context for the whole session; skips only when no GL driver exists."""
-    from framework.gl import GLUnavailableError, create_context
+    from driftframe.framework.gl import GLUnavailableError, create_context
 
     try:
         ctx = create_context()

@@ -3,11 +3,11 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import AngularVelocity, Transform
-from components.control import FlightInput, RotationAssist
-from framework import frame as fr
-from systems.assist import RotationAssistSystem
-from systems.spin import SpinSystem
+from driftframe.components.body import AngularVelocity, Transform
+from driftframe.components.control import FlightInput, RotationAssist
+from driftframe.framework import frame as fr
+from driftframe.systems.assist import RotationAssistSystem
+from driftframe.systems.spin import SpinSystem
 
 
 def _spinner(world, w, axes, decel=2.0, q=None):

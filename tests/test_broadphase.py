@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from framework import broadphase as bp
+from driftframe.framework import broadphase as bp
 
 METHODS = ["all", "sweep", "grid", "kdtree", "auto"]
 

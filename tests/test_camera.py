@@ -7,11 +7,11 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import Transform, Velocity
-from components.camera import Camera
-from framework import frame as fr
-from framework.world import World
-from systems import camera as cs
+from driftframe.components.body import Transform, Velocity
+from driftframe.components.camera import Camera
+from driftframe.framework import frame as fr
+from driftframe.framework.world import World
+from driftframe.systems import camera as cs
 
 
 def fwd(q):

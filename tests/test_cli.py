@@ -6,9 +6,9 @@ import sys
 import numpy as np
 import pytest
 
-import demos
+from driftframe import demos
 
-EXE = [sys.executable, "-m", "framework.cli"]
+EXE = [sys.executable, "-m", "driftframe"]
 
 
 def run(*args, env=None, timeout=300):

@@ -7,11 +7,11 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import Acceleration, AngularVelocity, Mass, Transform, Velocity
-from components.collision import CollisionEvent, SphereCollider
-from systems.collision import CollisionSystem
-from systems.movement import MovementSystem
-from systems.spin import SpinSystem
+from driftframe.components.body import Acceleration, AngularVelocity, Mass, Transform, Velocity
+from driftframe.components.collision import CollisionEvent, SphereCollider
+from driftframe.systems.collision import CollisionSystem
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.spin import SpinSystem
 
 DT = 1.0 / 60.0
 
@@ -212,7 +212,7 @@ def test_symmetric_hit_does_not_depend_on_creation_order(world):
              dict(x=(s, -0.5, 0), v=(0, 0, 0))]
     results = []
     for order in ([0, 1, 2], [2, 1, 0], [1, 2, 0]):
-        from framework.world import World
+        from driftframe.framework.world import World
         with World() as w:
             ids = scene(w, balls, order=order)
             w.step(60)
@@ -380,7 +380,7 @@ def _field(world, n, seed, broadphase, fast=0):
     r = rng.uniform(0.25, 0.75, n)
     side = ((4 / 3 * np.pi * r ** 3).sum() / 0.05) ** (1 / 3)
     x = rng.uniform(0, side, (n, 3))
-    from framework.broadphase import sphere_pairs
+    from driftframe.framework.broadphase import sphere_pairs
     for _ in range(200):                              # no overlaps at spawn
         i, j = sphere_pairs(x, r)
         if not len(i):
@@ -397,7 +397,7 @@ def _field(world, n, seed, broadphase, fast=0):
 
 @pytest.mark.parametrize("fast", [0, 3])
 def test_neighbour_list_finds_the_same_contacts_as_all_pairs(fast):
-    from framework.world import World
+    from driftframe.framework.world import World
     runs = []
     for broadphase in ("all", "grid"):
         with World() as w:

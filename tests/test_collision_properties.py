@@ -5,11 +5,11 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from components.body import Mass, Transform, Velocity
-from components.collision import SphereCollider
-from framework.world import World
-from systems.collision import CollisionSystem
-from systems.movement import MovementSystem
+from driftframe.components.body import Mass, Transform, Velocity
+from driftframe.components.collision import SphereCollider
+from driftframe.framework.world import World
+from driftframe.systems.collision import CollisionSystem
+from driftframe.systems.movement import MovementSystem
 
 DT = 1.0 / 60.0
 finite = dict(allow_nan=False, allow_infinity=False)

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from components.body import AngularVelocity, Mass, Transform, Velocity
-from framework import frame as fr
+from driftframe.components.body import AngularVelocity, Mass, Transform, Velocity
+from driftframe.framework import frame as fr
 
 
 def test_transform_from_frame_vectors_round_trips():

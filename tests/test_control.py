@@ -3,12 +3,12 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import Acceleration, AngularVelocity, Transform, Velocity
-from components.control import FlightControl, FlightInput
-from framework import frame as fr
-from systems.control import ControlSystem
-from systems.movement import MovementSystem
-from systems.spin import SpinSystem
+from driftframe.components.body import Acceleration, AngularVelocity, Transform, Velocity
+from driftframe.components.control import FlightControl, FlightInput
+from driftframe.framework import frame as fr
+from driftframe.systems.control import ControlSystem
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.spin import SpinSystem
 
 
 def _ship(world, mode="momentum", q=None, **ctl):
@@ -80,7 +80,7 @@ def test_unknown_mode_is_rejected_by_name():
 
 def _turning_burn_error(dt, seconds=4.0, rate=1.0, thrust=5.0):
     """Full thrust while yawing at a constant rate; distance from the continuous solution."""
-    from framework.world import World
+    from driftframe.framework.world import World
     world = World(dt=dt)
     try:
         e, inp = _ship(world, "direct", turn_rate=rate, thrust=thrust)

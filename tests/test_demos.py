@@ -3,13 +3,13 @@ import esper
 import numpy as np
 import pytest
 
-import demos
-from components.body import AngularVelocity, Transform, Velocity
-from components.camera import Camera
-from components.collision import SphereCollider
-from components.control import Player
-from components.render import ModelRef
-from framework.app import make_world
+from driftframe import demos
+from driftframe.components.body import AngularVelocity, Transform, Velocity
+from driftframe.components.camera import Camera
+from driftframe.components.collision import SphereCollider
+from driftframe.components.control import Player
+from driftframe.components.render import ModelRef
+from driftframe.app import make_world
 
 EXPECTED = {   # (bodies with a collider, players, cameras)
     "rotation": (18, 1, 1),
@@ -76,14 +76,14 @@ def test_same_seed_same_run_different_seed_different_scene():
 def test_asteroids_script_flies_and_switches_camera_both_ways():
     world, demo = make_world("asteroids", seed=0)
     try:
-        from systems.camera import active_camera
+        from driftframe.systems.camera import active_camera
         modes = []
         for _ in range(int(demo.SECONDS * 60)):
             world.step()
             modes.append(active_camera(world)[1].mode)
         changes = sum(a != b for a, b in zip(modes, modes[1:]))
         assert changes >= 2 and "cockpit" in modes and "chase" in modes
-        from framework.app import player
+        from driftframe.app import player
         assert np.linalg.norm(esper.component_for_entity(player(world), Velocity).linear) > 5.0
     finally:
         world.close()
@@ -92,7 +92,7 @@ def test_asteroids_script_flies_and_switches_camera_both_ways():
 def test_spin_script_builds_spin_then_the_assist_removes_it_exactly():
     world, demo = make_world("spin", seed=0)
     try:
-        from framework.app import player
+        from driftframe.app import player
         me = player(world)
         world.step(int(6.5 * 60))
         assert np.linalg.norm(esper.component_for_entity(me, AngularVelocity).angular) > 0.5   # persists

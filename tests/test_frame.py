@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from framework import frame as fr
+from driftframe.framework import frame as fr
 
 rng = np.random.default_rng(7)
 ROTVECS = rng.normal(size=(200, 3)) * rng.uniform(0, 3.2, size=(200, 1))

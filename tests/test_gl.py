@@ -5,7 +5,7 @@ import moderngl
 import numpy as np
 import pytest
 
-from framework import gl
+from driftframe.framework import gl
 
 
 def test_missing_driver_error_names_what_is_missing_and_the_packages():

@@ -2,13 +2,13 @@
 import numpy as np
 import pytest
 
-from components.body import AngularVelocity, Transform, Velocity
-from components.camera import Camera
-from components.control import Player
-from components.render import ModelRef
-from framework import frame as fr
-from framework.app import attach_rendering
-from systems.hud import HudSystem, PROGRADE_COLOUR, project_direction
+from driftframe.components.body import AngularVelocity, Transform, Velocity
+from driftframe.components.camera import Camera
+from driftframe.components.control import Player
+from driftframe.components.render import ModelRef
+from driftframe.framework import frame as fr
+from driftframe.app import attach_rendering
+from driftframe.systems.hud import HudSystem, PROGRADE_COLOUR, project_direction
 
 pytestmark = pytest.mark.gl
 

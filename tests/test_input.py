@@ -3,12 +3,12 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import Acceleration, AngularVelocity, Transform, Velocity
-from components.control import FlightControl, FlightInput, Player
-from framework.input import KEYMAP, HELD, PRESSED, Hold, Press, Track, intent_from_held, keys_help
-from systems.control import ControlSystem
-from systems.input import InputSystem
-from systems.movement import MovementSystem
+from driftframe.components.body import Acceleration, AngularVelocity, Transform, Velocity
+from driftframe.components.control import FlightControl, FlightInput, Player
+from driftframe.framework.input import KEYMAP, HELD, PRESSED, Hold, Press, Track, intent_from_held, keys_help
+from driftframe.systems.control import ControlSystem
+from driftframe.systems.input import InputSystem
+from driftframe.systems.movement import MovementSystem
 
 
 def test_opposite_keys_cancel_and_kill_rotation_is_a_flag():
@@ -26,12 +26,26 @@ def test_every_action_has_a_key_and_the_help_lists_them():
 
 def test_track_holds_are_half_open_and_add_then_clamp():
     tr = Track((Hold(1.0, 2.0, throttle=0.7), Hold(1.5, 3.0, throttle=0.7, yaw=-0.5)))
-    assert tr.intent_at(0.99)["throttle"] == 0.0
-    assert tr.intent_at(1.0)["throttle"] == 0.7
-    assert tr.intent_at(1.5)["throttle"] == 1.0          # 1.4 clamped
-    assert tr.intent_at(2.0)["throttle"] == 0.7 and tr.intent_at(2.0)["yaw"] == -0.5
-    assert tr.intent_at(3.0)["yaw"] == 0.0
+    at = lambda t: tr.intent_at_step(round(t * 100), 0.01)  # noqa: E731
+    assert at(0.99)["throttle"] == 0.0
+    assert at(1.0)["throttle"] == 0.7
+    assert at(1.5)["throttle"] == 1.0          # 1.4 clamped
+    assert at(2.0)["throttle"] == 0.7 and at(2.0)["yaw"] == -0.5
+    assert at(3.0)["yaw"] == 0.0
     assert tr.duration == 3.0
+
+
+@pytest.mark.parametrize("dt", [1 / 100, 1 / 60, 1 / 64, 0.1])
+def test_holds_cover_the_same_number_of_steps_at_any_start(dt):
+    # half-second holds on every 1/100 s boundary: float times would give 29, 30 or 31 steps
+    want = round(0.5 / dt)
+    for k in range(1500):
+        start = k * 0.01
+        hold = Hold(start, start + 0.5, throttle=1.0)
+        tr = Track((hold,))
+        first = hold.steps(dt).start
+        covered = sum(tr.intent_at_step(s, dt)["throttle"] == 1.0 for s in range(first - 2, first + want + 3))
+        assert covered == want, (start, covered)
 
 
 @pytest.mark.parametrize("dt", [1 / 60, 1 / 64, 1 / 30, 0.1])
@@ -73,7 +87,7 @@ def test_live_keys_and_presses_go_through_the_same_path(world):
 @pytest.mark.parametrize("make,match", [
     (lambda: Hold(2.0, 1.0), "end must be after"),
     (lambda: Hold(0.0, 1.0, yaw=2.0), r"FlightInput.yaw must be in \[-1.0, 1.0\], got 2.0"),
-    (lambda: Hold(0.0, 1.0, warp=1.0), r"warp"),
+    (lambda: Hold(0.0, 1.0, warp=1.0), r"unknown channel 'warp'"),
     (lambda: Hold(-1.0, 1.0), r"Hold.start"),
     (lambda: Press(1.0, "fly"), "'fly'"),
     (lambda: Track(("x",)), "Hold or Press"),

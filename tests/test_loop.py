@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from components.body import Transform, Velocity
-from framework.loop import FixedStepLoop
-from framework.world import World
-from systems.movement import MovementSystem
+from driftframe.components.body import Transform, Velocity
+from driftframe.framework.loop import FixedStepLoop
+from driftframe.framework.world import World
+from driftframe.systems.movement import MovementSystem
 
 
 class FakeClock:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from framework import meshes
+from driftframe.framework import meshes
 
 
 @pytest.mark.parametrize("level", [0, 1, 2, 3, 4])

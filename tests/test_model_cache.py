@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from framework import meshes
-from framework.model_cache import ModelCache
+from driftframe.framework import meshes
+from driftframe.framework.model_cache import ModelCache
 
 pytestmark = pytest.mark.gl
 

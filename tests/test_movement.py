@@ -1,8 +1,8 @@
 """MovementSystem: free bodies move v t; thrust matches the closed form."""
 import numpy as np
 
-from components.body import Acceleration, Transform, Velocity
-from systems.movement import MovementSystem
+from driftframe.components.body import Acceleration, Transform, Velocity
+from driftframe.systems.movement import MovementSystem
 
 
 def test_free_body_moves_v_times_t(world):

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from components.body import Transform, Velocity
-from components.camera import Camera
-from components.render import ModelRef
-from framework.recorder import output_format, record
-from framework.world import World
-from systems.movement import MovementSystem
-from systems.render import RenderSystem, attach
+from driftframe.components.body import Transform, Velocity
+from driftframe.components.camera import Camera
+from driftframe.components.render import ModelRef
+from driftframe.framework.recorder import output_format, record
+from driftframe.framework.world import World
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.render import RenderSystem, attach
 
 pytestmark = pytest.mark.gl
 

@@ -7,13 +7,13 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import Transform
-from components.camera import Camera
-from components.render import ModelRef
-from framework import frame as fr
-from framework.world import World
-from systems import camera as cs
-from systems.render import RenderSystem, attach
+from driftframe.components.body import Transform
+from driftframe.components.camera import Camera
+from driftframe.components.render import ModelRef
+from driftframe.framework import frame as fr
+from driftframe.framework.world import World
+from driftframe.systems import camera as cs
+from driftframe.systems.render import RenderSystem, attach
 
 pytestmark = pytest.mark.gl
 

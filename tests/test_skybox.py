@@ -5,14 +5,14 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import Transform
-from components.camera import Camera
-from components.render import ModelRef
-from framework import frame as fr
-from framework import meshes
-from framework.world import World
-from systems import camera as cs
-from systems.render import attach
+from driftframe.components.body import Transform
+from driftframe.components.camera import Camera
+from driftframe.components.render import ModelRef
+from driftframe.framework import frame as fr
+from driftframe.framework import meshes
+from driftframe.framework.world import World
+from driftframe.systems import camera as cs
+from driftframe.systems.render import attach
 
 pytestmark = pytest.mark.gl
 
@@ -81,7 +81,7 @@ def test_skybox_is_the_cube_whose_corners_project_where_expected(ctx):
         render = attach(w, ctx, (W, H), skybox=False)
         cache = w.resources["model_cache"]
         cache.define("plain_cube", meshes.line_cube(1), colour=(0.0, 1.0, 0.0))
-        from systems.skybox import SkyboxSystem
+        from driftframe.systems.skybox import SkyboxSystem
         w.add_system(SkyboxSystem(ctx, cache, render, model="plain_cube"))
         img = shot(w, render)
         green = img[..., 1] > 100

@@ -3,9 +3,9 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import AngularVelocity, Transform
-from framework import frame as fr
-from systems.spin import SpinSystem
+from driftframe.components.body import AngularVelocity, Transform
+from driftframe.framework import frame as fr
+from driftframe.systems.spin import SpinSystem
 
 
 def _spin_world(world, w, q=None):
@@ -58,7 +58,7 @@ def test_frame_stays_orthonormal_for_a_million_steps_and_heading_matches_exact()
 
     The whole loop runs the system's process() directly to keep the test near 30 s.
     """
-    from framework.world import World
+    from driftframe.framework.world import World
 
     world = World(dt=1.0 / 60.0)
     try:

@@ -6,8 +6,8 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import AngularVelocity, Mass, Transform, Velocity
-from framework.store import RowCache, as_index
+from driftframe.components.body import AngularVelocity, Mass, Transform, Velocity
+from driftframe.framework.store import RowCache, as_index
 
 
 def test_component_fields_are_views_into_the_table():

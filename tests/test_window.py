@@ -57,7 +57,7 @@ def _wait_for_window(display, proc, title="driftframe"):
 def test_keys_thrust_the_ship_and_switch_the_camera(display, tmp_path):
     state = tmp_path / "state.json"
     env = {**os.environ, "DISPLAY": display}
-    proc = subprocess.Popen([sys.executable, "-m", "framework.cli", "play", "asteroids", "--size", "480x270",
+    proc = subprocess.Popen([sys.executable, "-m", "driftframe", "play", "asteroids", "--size", "480x270",
                              "--state-out", str(state), "--screenshots", str(tmp_path)],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

@@ -3,10 +3,10 @@ import esper
 import numpy as np
 import pytest
 
-from components.body import AngularVelocity, Mass, Transform, Velocity
-from framework.world import FRAME_STAGES, STEP_STAGES, World
-from systems.movement import MovementSystem
-from systems.spin import SpinSystem
+from driftframe.components.body import AngularVelocity, Mass, Transform, Velocity
+from driftframe.framework.world import FRAME_STAGES, STEP_STAGES, World
+from driftframe.systems.movement import MovementSystem
+from driftframe.systems.spin import SpinSystem
 
 
 class Recorder(esper.Processor):

@@ -7,7 +7,8 @@ their stages, and attaches rendering when a picture is wanted::
     world, demo = make_world("asteroids", seed=1)      # headless: physics only
     render = attach_rendering(world, size=(1280, 720)) # off-screen EGL, or a window's context
 
-Models: a demo declares asteroid variants with :func:`declare_variant`
+Models: a demo declares asteroid variants with
+:func:`driftframe.framework.model_cache.declare_variant`
 (no GL needed), and :func:`attach_rendering` puts them into the model cache,
 where each is an entry sharing the base mesh's buffers plus a scale.
 """
@@ -15,36 +16,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from framework.world import World
+from driftframe.framework.model_cache import declare_variant  # noqa: F401  (re-exported)
+from driftframe.framework.world import World
 
 
 def simulation_systems(track=None, *, collision: str = "continuous") -> list:
     """The standard per-step systems, one per job, for every stage up to collision."""
-    from systems.assist import RotationAssistSystem
-    from systems.collision import CollisionSystem
-    from systems.control import ControlSystem
-    from systems.input import InputSystem
-    from systems.movement import MovementSystem
-    from systems.spin import SpinSystem
+    from driftframe.systems.assist import RotationAssistSystem
+    from driftframe.systems.collision import CollisionSystem
+    from driftframe.systems.control import ControlSystem
+    from driftframe.systems.input import InputSystem
+    from driftframe.systems.movement import MovementSystem
+    from driftframe.systems.spin import SpinSystem
 
     return [InputSystem(track), ControlSystem(), RotationAssistSystem(), MovementSystem(), SpinSystem(),
             CollisionSystem(method=collision)]
-
-
-def declare_variant(world, name: str, base: str = "sphere", *, scale=1.0, colour=None) -> str:
-    """Declare a model variant (a scaled entry sharing ``base``'s buffers); returns ``name``.
-
-    Stored in ``world.resources["model_variants"]`` until rendering is attached.
-    """
-    from framework.model_cache import check_colour, check_scale
-
-    if not isinstance(name, str) or not name:
-        raise TypeError(f"variant name must be a non-empty str, got {name!r}")
-    check_scale(f"variant {name!r} scale", scale)
-    if colour is not None:
-        check_colour(f"variant {name!r} colour", colour)
-    world.resources.setdefault("model_variants", {})[name] = (base, scale, colour)
-    return name
 
 
 def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous"):
@@ -53,7 +39,7 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
     ``scripted``: drive the player with the demo's input track (recordings,
     tests); False leaves input to the keyboard.
     """
-    import demos
+    from driftframe import demos
 
     demo = demos.load(name)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -76,8 +62,8 @@ def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = 
     ``camera``: start in ``"cockpit"`` or ``"chase"`` (default: as the demo
     built it). Returns the :class:`~systems.render.RenderSystem`.
     """
-    from systems import camera as camera_sys
-    from systems.render import attach
+    from driftframe.systems import camera as camera_sys
+    from driftframe.systems.render import attach
 
     size = parse_size(size) if isinstance(size, str) else size
     render = attach(world, ctx, size, **options)
@@ -86,7 +72,7 @@ def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = 
         if vname not in cache:
             cache.variant(vname, base, scale=scale, colour=colour)
     if hud:
-        from systems.hud import HudSystem
+        from driftframe.systems.hud import HudSystem
         world.add_system(HudSystem(render))
     if camera is not None:
         camera_sys.switch_camera(world, camera)
@@ -111,7 +97,7 @@ def player(world) -> int | None:
     """Entity id of the (lowest-numbered) Player, or None."""
     import esper
 
-    from components.control import Player
+    from driftframe.components.control import Player
 
     world.activate()
     ents = sorted(e for e, _ in esper.get_component(Player))

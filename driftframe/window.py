@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from framework.input import HELD, KEYMAP
+from driftframe.framework.input import HELD, KEYMAP
 
 
 class PlayError(Exception):
@@ -68,9 +68,9 @@ def state_summary(world) -> dict:
     """The player's state and the camera mode, as plain JSON-able values."""
     import esper
 
-    from components.body import AngularVelocity, Transform, Velocity
-    from framework.app import player
-    from systems.camera import active_camera
+    from driftframe.components.body import AngularVelocity, Transform, Velocity
+    from driftframe.app import player
+    from driftframe.systems.camera import active_camera
 
     world.activate()
     out = {"steps": world.step_count, "time": world.time}
@@ -92,14 +92,14 @@ def state_summary(world) -> dict:
 def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
          state_out: str | None = None, screenshot_dir: str = ".") -> int:
     """Open a window and fly demo ``name`` until Esc or the window is closed. Returns an exit code."""
-    from framework.app import attach_rendering, make_world
-    from framework.gl import RenderTarget, wrap_current_context
-    from framework.loop import FixedStepLoop
-    from systems.camera import switch_camera
-    from systems.input import InputSystem
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.framework.gl import RenderTarget, wrap_current_context
+    from driftframe.framework.loop import FixedStepLoop
+    from driftframe.systems.camera import switch_camera
+    from driftframe.systems.input import InputSystem
 
     glfw = _glfw()
-    import demos
+    from driftframe import demos
     demo = demos.load(name)
     win = open_window(glfw, size, f"driftframe - {demo.TITLE}")
     world = None

@@ -11,7 +11,7 @@ import math
 import os
 import sys
 
-from framework import __version__
+from driftframe.framework import __version__
 
 CAMERAS = ("cockpit", "chase")
 
@@ -43,7 +43,7 @@ def _seed(text):
 
 
 def _size(text):
-    from framework.app import parse_size
+    from driftframe.app import parse_size
     try:
         return parse_size(text)
     except ValueError as e:
@@ -51,12 +51,12 @@ def _size(text):
 
 
 def _keys_epilog() -> str:
-    from framework.input import keys_help
+    from driftframe.framework.input import keys_help
     return "keys while playing:\n" + keys_help()
 
 
 def build_parser() -> argparse.ArgumentParser:
-    import demos
+    from driftframe import demos
 
     p = argparse.ArgumentParser(
         prog="driftframe",
@@ -99,7 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_list(args) -> int:
-    import demos
+    from driftframe import demos
     width = max(map(len, demos.NAMES))
     for name in demos.NAMES:
         print(f"{name:<{width}}  {demos.load(name).DESCRIPTION}")
@@ -107,7 +107,7 @@ def cmd_list(args) -> int:
 
 
 def _load_demo(name):
-    import demos
+    from driftframe import demos
     try:
         return demos.load(name)
     except LookupError as e:
@@ -126,8 +126,8 @@ def steps_per_frame(fps: float, dt: float) -> int:
 
 
 def cmd_record(args) -> int:
-    from framework.app import attach_rendering, make_world
-    from framework.recorder import output_format, record
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.framework.recorder import output_format, record
 
     demo = _load_demo(args.demo)
     seconds = args.seconds if args.seconds is not None else demo.SECONDS
@@ -154,7 +154,7 @@ def cmd_record(args) -> int:
 
 
 def cmd_play(args) -> int:
-    from framework.window import PlayError, play
+    from driftframe.window import PlayError, play
     _load_demo(args.demo)
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    from framework.gl import GLUnavailableError
+    from driftframe.framework.gl import GLUnavailableError
 
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play}
     try:
