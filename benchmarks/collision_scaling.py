@@ -49,7 +49,6 @@ from benchmarks import common
 from driftframe.components.body import AngularVelocity, Mass, Transform, Velocity
 from driftframe.components.collision import SphereCollider
 from driftframe.framework import broadphase as bp
-from driftframe.framework.store import rows_of
 from driftframe.framework.world import World
 from driftframe.systems.collision import CollisionSystem
 from driftframe.systems.movement import MovementSystem
@@ -92,10 +91,10 @@ class Ours:
         vel = Velocity.bulk(n, linear=f["velocity"])
         # a body with no spin carries no AngularVelocity (the spin system then has nothing to do)
         spin = AngularVelocity.bulk(n, angular=f["spin"]) if f["spin"].any() else None
-        self.world.create_entities(Transform.bulk(n, position=f["position"]), vel, spin,
-                                   Mass.bulk(n, kg=f["mass"]), SphereCollider.bulk(n, radius=f["radius"]))
-        self.v_rows = rows_of(vel)
-        self.w_rows = rows_of(spin) if spin is not None else None
+        self.ents = self.world.create_entities(Transform.bulk(n, position=f["position"]), vel, spin,
+                                               Mass.bulk(n, kg=f["mass"]),
+                                               SphereCollider.bulk(n, radius=f["radius"]))
+        self.spinning = spin is not None
         self.m, self.inertia = f["mass"], inertia(f)
         self.contacts = 0
         self.builds = 0
@@ -106,10 +105,10 @@ class Ours:
         self.builds += self.system.stats["builds"]
 
     def energy(self) -> float:
-        v = Velocity._table.data["linear"][self.v_rows]
+        v = self.world.columns(Velocity, self.ents).linear
         e = float(self.m @ (v * v).sum(1))
-        if self.w_rows is not None:
-            w = AngularVelocity._table.data["angular"][self.w_rows]
+        if self.spinning:
+            w = self.world.columns(AngularVelocity, self.ents).angular
             e += float(self.inertia @ (w * w).sum(1))
         return 0.5 * e
 

@@ -385,10 +385,10 @@ def measure_driftframe_paths(n: int, repeats: int) -> dict[str, float]:
     world = World()
     try:
         spin = world.add_system(SpinSystem())
-        world.create_entities(Transform.bulk(n), AngularVelocity.bulk(n, angular=w))
+        ents = world.create_entities(Transform.bulk(n), AngularVelocity.bulk(n, angular=w))
         world.step()                                        # builds esper's query cache and the rows
         t_spin = common.median_time(lambda: spin.process(world.dt), repeats=repeats, number=5)
-        q = Transform._table.data["orientation"][: Transform._table.size][-n:].copy()
+        q = world.columns(Transform, ents).orientation
         t_mat = common.median_time(lambda: fr.quat_to_matrix(q), repeats=repeats, number=5)
     finally:
         world.close()

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -57,6 +58,12 @@ class Camera:
     cockpit_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #: The render system draws from the first active camera.
     active: bool = True
+    #: Set by the camera system while the target entity is gone (deleted, or lost its Transform):
+    #: the eye holds its last pose, and the HUD says so. Cleared when the target is back.
+    target_lost: bool = False
+
+    #: A camera is presentation, not simulation: ``World.state_hash`` leaves its entity out.
+    presentation: ClassVar[bool] = True
 
     def __post_init__(self):
         if self.target is None:
@@ -77,6 +84,7 @@ class Camera:
         self.rest_speed = validate.scalar("Camera.rest_speed", self.rest_speed, nonnegative=True)
         self.cockpit_offset = tuple(validate.vector("Camera.cockpit_offset", self.cockpit_offset).tolist())
         self.active = bool(self.active)
+        self.target_lost = bool(self.target_lost)
 
     @property
     def tan_half_fov(self) -> float:

@@ -70,7 +70,10 @@ class CollisionEvent:
     ``a``'s surface (world frame, m). ``impulse`` (N s, >= 0) is the size of
     the impulse along ``normal``: ``b`` received ``+impulse * normal`` and
     ``a`` ``-impulse * normal``, so ``b``'s velocity changed by
-    ``impulse * normal / m_b``. ``method`` names the method that resolved it.
+    ``impulse * normal / m_b``. ``method`` names the method that resolved it;
+    ``step`` is the index of the fixed step it happened in. The world keeps
+    the events of every step since the last rendered frame (``world.events``)
+    and calls subscribers at once (``world.subscribe(CollisionEvent, fn)``).
     """
 
     a: int
@@ -81,3 +84,5 @@ class CollisionEvent:
     normal: tuple[float, float, float]
     impulse: float
     method: str = "continuous"
+    #: Index of the fixed step it happened in (``world.step_count`` during that step).
+    step: int = -1

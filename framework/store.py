@@ -1,18 +1,34 @@
-"""Columnar (struct-of-arrays) storage behind the hot components.
+"""Columnar (struct-of-arrays) storage behind the hot components, owned by each World.
 
-esper keeps one Python object per component. Hot systems want whole numpy
-columns instead. A :class:`Columnar` component is both: an ordinary object that
-esper stores and a user can read and write (``vel.linear[0] = 2.0``), whose
-fields are *views into rows of one table per component class*. A system asks
-each matching component for its ``_row`` once (when esper's cached query list
-changes, see :class:`RowCache`) and then works on ``Cls._table.data[name][rows]``
-for every entity at once. A plain per-entity system and a vectorised system
-therefore see and change the same numbers.
+esper keeps one Python object per component; hot systems want whole numpy
+columns. A :class:`Columnar` component is both: an ordinary object that esper
+stores and user code reads and writes per entity (``vel.linear = (2, 0, 0)``),
+whose values live in one row of a :class:`Table` — one table per component
+class *per World*, one growable numpy array per field.
 
-Rows are handed out by the table, recycled when the component object is
-garbage-collected, and grown by doubling. Reading a vector field returns a
-*view* of the current table array: keep using the component, not the view,
-across the creation of new components (growth moves the data).
+The lifecycle is explicit, never left to the garbage collector:
+
+* A component made outside a world (``Velocity((1, 0, 0))``, or a block from
+  :meth:`Columnar.bulk`) keeps its values in a small private table of its own.
+* When its entity is in a World, the World copies the values into its own
+  table and the component points at that row (:meth:`Table.attach`). Bulk
+  blocks move in one array copy, into free rows first.
+* When the component is removed or its entity deleted — through the World or
+  through esper's own functions, which the World reconciles before every
+  system runs and before every column read — its values are copied back into
+  a private table and its row is freed for reuse (:meth:`Table.detach`).
+
+So a component object is always a valid value and never aliases another
+entity's row: there are no stale handles to detect. Reading a vector field
+returns a *read-only copy* (``vel.linear[0] = 2`` raises; write the whole field),
+for the same reason: a kept view could otherwise outlive its row. Copy,
+deepcopy and pickle give an independent value; components compare by value
+and, being mutable, are unhashable.
+
+Vectorised code reads and writes whole columns through
+:meth:`driftframe.framework.world.World.columns` (gather/scatter in a stated
+entity order) or, inside systems, through :class:`Query` rows into
+:attr:`Table.data`.
 """
 from __future__ import annotations
 
@@ -51,10 +67,12 @@ class Field:
     def __get__(self, obj, objtype=None):
         if obj is None:
             return self
-        data = type(obj)._table.data[self.name]
+        value = obj._table.data[self.name][obj._row]
         if self.shape:
-            return data[obj._row]
-        return data[obj._row].item()
+            value = value.copy()
+            value.flags.writeable = False
+            return value
+        return value.item()
 
     def coerce(self, value) -> np.ndarray:
         """Validate one entity's value for this field."""
@@ -72,20 +90,51 @@ class Field:
             arr = self.check(label, arr)
         return arr
 
+    def coerce_column(self, label: str, value, n: int) -> np.ndarray:
+        """Validate a whole column of ``n`` values, shape ``(n, *shape)`` (the error names the first bad row)."""
+        arr = np.asarray(value)
+        if self.dtype.kind == "f":
+            arr = validate.array(label, arr, self.shape, n, allow_inf=self.allow_inf)
+        elif arr.shape != (n, *self.shape):
+            raise ValueError(f"{label} must have shape {(n, *self.shape)}, got {arr.shape}")
+        if self.check is not None:
+            arr = self.check(label, arr)
+        return arr
+
     def __set__(self, obj, value):
-        type(obj)._table.data[self.name][obj._row] = self.coerce(value)
+        obj._table.data[self.name][obj._row] = self.coerce(value)
 
 
 class Table:
-    """One growable array per field; rows are handed out and recycled."""
+    """One growable array per field of one component class, with its rows' owners.
 
-    def __init__(self, name: str, fields: dict[str, Field], capacity: int = 64):
-        self.name = name
-        self.fields = fields
-        self.capacity = capacity
-        self.size = 0                    # high-water mark of rows ever used
-        self.free: list[int] = []        # recycled rows, reused first by alloc()
-        self.data = {n: np.zeros((capacity, *f.shape), f.dtype) for n, f in fields.items()}
+    ``world`` is the owning world's name (None for a component's private
+    table). ``owner[row]`` is the component object living in ``row`` (None
+    when free) and ``entity[row]`` its entity id (-1 when free). Free rows are
+    reused lowest first, so bulk blocks stay contiguous when they can.
+    """
+
+    def __init__(self, cls, capacity: int = 16, world: str | None = None):
+        self.cls = cls
+        self.fields: dict[str, Field] = cls._fields
+        self.world = world
+        self.capacity = max(1, int(capacity))
+        self.size = 0                                   # high-water mark of rows ever used
+        self.free: list[int] = []                       # freed rows below size
+        self.data = {n: np.zeros((self.capacity, *f.shape), f.dtype) for n, f in self.fields.items()}
+        self.owner: list = [None] * self.capacity
+        self.entity = np.full(self.capacity, -1, np.int64)
+        #: Bumped whenever a row is attached or detached (for caches keyed on membership).
+        self.version = 0
+        self._by_entity = None
+
+    def __repr__(self):
+        return f"<Table {self.cls.__name__} of {self.world or 'a component'}: {self.live} live rows>"
+
+    @property
+    def live(self) -> int:
+        """Rows in use."""
+        return self.size - len(self.free)
 
     def _grow(self, need: int) -> None:
         if need <= self.capacity:
@@ -97,37 +146,106 @@ class Table:
             new = np.zeros((cap, *old.shape[1:]), old.dtype)
             new[: self.size] = old[: self.size]
             self.data[n] = new
+        self.owner.extend([None] * (cap - self.capacity))
+        entity = np.full(cap, -1, np.int64)
+        entity[: self.size] = self.entity[: self.size]
+        self.entity = entity
         self.capacity = cap
 
-    def alloc(self) -> int:
-        if self.free:
-            return self.free.pop()
-        self._grow(self.size + 1)
-        self.size += 1
-        return self.size - 1
+    def alloc(self, n: int) -> np.ndarray:
+        """``n`` rows: free ones first (lowest first), then fresh ones at the end."""
+        take = min(n, len(self.free))
+        rows = []
+        if take:
+            self.free.sort(reverse=True)
+            rows = [self.free.pop() for _ in range(take)]
+        fresh = n - take
+        if fresh:
+            self._grow(self.size + fresh)
+            rows.extend(range(self.size, self.size + fresh))
+            self.size += fresh
+        return np.asarray(rows, np.intp)
 
-    def alloc_block(self, n: int) -> slice:
-        """``n`` contiguous fresh rows (bulk creation keeps columns contiguous)."""
-        self._grow(self.size + n)
-        start = self.size
-        self.size += n
-        return slice(start, start + n)
+    # -- membership -----------------------------------------------------------
+    def attach(self, entities, comps) -> None:
+        """Move ``comps`` (components of ``entities``, in private tables) into rows of this table."""
+        n = len(comps)
+        if not n:
+            return
+        rows = self.alloc(n)
+        # group by source table so a bulk block moves in one array copy per field
+        sources: dict[int, tuple] = {}
+        for k, c in enumerate(comps):
+            src = c._table
+            group = sources.get(id(src))
+            if group is None:
+                sources[id(src)] = group = (src, [], [])
+            group[1].append(k)
+            group[2].append(c._row)
+        for src, ks, src_rows in sources.values():
+            ks = np.asarray(ks, np.intp)
+            for name in self.fields:
+                self.data[name][rows[ks]] = src.data[name][src_rows]
+        owner = self.owner
+        for c, row in zip(comps, rows.tolist()):
+            c._table = self
+            c._row = row
+            owner[row] = c
+        self.entity[rows] = entities
+        self.version += 1
+        self._by_entity = None
 
-    def release(self, row: int) -> None:
-        self.free.append(row)
+    def detach(self, rows) -> None:
+        """Free ``rows``: their components get private copies of their values."""
+        rows = [int(r) for r in rows]
+        if not rows:
+            return
+        comps = [self.owner[r] for r in rows]
+        private = Table(self.cls, len(rows))
+        private.size = len(rows)
+        idx = np.asarray(rows, np.intp)
+        for name in self.fields:
+            private.data[name][:] = self.data[name][idx]
+        for k, (c, r) in enumerate(zip(comps, rows)):
+            c._table = private
+            c._row = k
+            self.owner[r] = None
+        self.entity[idx] = -1
+        self.free.extend(rows)
+        self.version += 1
+        self._by_entity = None
 
+    def detach_all(self) -> None:
+        """Free every row (the world is closing): its components keep their values."""
+        self.detach([r for r in range(self.size) if self.owner[r] is not None])
+
+    def rows_of(self, entities: np.ndarray, what: str = "") -> np.ndarray:
+        """Rows of ``entities`` (ids) in this table, in their order; a KeyError names a missing one."""
+        if self._by_entity is None:
+            live = np.flatnonzero(self.entity[: self.size] >= 0)
+            ents = self.entity[live]
+            order = np.argsort(ents, kind="stable")
+            self._by_entity = (ents[order], live[order])
+        ents, rows = self._by_entity
+        entities = np.asarray(entities, np.int64)
+        k = np.searchsorted(ents, entities)
+        k = np.minimum(k, max(len(ents) - 1, 0))
+        found = (ents[k] == entities) if len(ents) else np.zeros(len(entities), bool)
+        if not found.all():
+            bad = int(entities[np.flatnonzero(~found)[0]])
+            raise KeyError(f"entity {bad} has no {self.cls.__name__}{what}")
+        return rows[k]
 
 
 class Columnar:
-    """Base class of components whose fields live in a per-class :class:`Table`.
+    """Base class of components whose fields live in a :class:`Table` row.
 
     Subclasses declare :class:`Field` attributes; ``__init__`` takes them as
     keyword (or positional, in declaration order) arguments, validates each,
-    and fills one row.
+    and fills a private one-row table until the component joins a World.
     """
 
-    __slots__ = ("_row",)
-    _table: Table
+    __slots__ = ("_table", "_row")
     _fields: dict[str, Field]
 
     def __init_subclass__(cls, **kw):
@@ -138,7 +256,6 @@ class Columnar:
                 if isinstance(attr, Field):
                     fields[name] = attr
         cls._fields = fields
-        cls._table = Table(cls.__name__, fields)
 
     def __init__(self, *args, **kwargs):
         names = list(self._fields)
@@ -152,17 +269,23 @@ class Columnar:
                 raise TypeError(f"{type(self).__name__} got two values for {k!r}")
             values[k] = v
         coerced = {n: f.coerce(values.get(n, f.default)) for n, f in self._fields.items()}
-        table = type(self)._table
-        self._row = table.alloc()
-        for n, v in coerced.items():
-            table.data[n][self._row] = v
+        self._fill(coerced)
+
+    def _fill(self, values: dict) -> None:
+        table = Table(type(self), 1)
+        table.size = 1
+        for n, v in values.items():
+            table.data[n][0] = v
+        self._table = table
+        self._row = 0
 
     @classmethod
     def bulk(cls, n: int, **columns) -> list:
         """Create ``n`` components at once from arrays of shape ``(n, *field.shape)``.
 
         Every array is validated as a whole (the error names the first bad
-        row); fields left out take their default. The rows are contiguous.
+        row); fields left out take their default. The block moves into a
+        World's table in one copy per field.
         """
         n = int(n)
         if n < 0:
@@ -170,39 +293,40 @@ class Columnar:
         unknown = set(columns) - set(cls._fields)
         if unknown:
             raise TypeError(f"{cls.__name__} has no field(s) {sorted(unknown)}")
-        checked = {}
+        table = Table(cls, max(n, 1))
+        table.size = n
         for name, f in cls._fields.items():
-            label = f"{cls.__name__}.{name}"
             if name in columns:
-                arr = np.asarray(columns[name])
-                if f.dtype.kind == "f":
-                    arr = validate.array(label, arr, f.shape, n, allow_inf=f.allow_inf)
-                elif arr.shape != (n, *f.shape):
-                    raise ValueError(f"{label} must have shape {(n, *f.shape)}, got {arr.shape}")
-                if f.check is not None:
-                    arr = f.check(label, arr)
+                table.data[name][:n] = f.coerce_column(f"{cls.__name__}.{name}", columns[name], n)
             else:
-                arr = f.coerce(f.default)
-            checked[name] = arr
-        table = cls._table
-        block = table.alloc_block(n)
-        for name, arr in checked.items():
-            table.data[name][block] = arr
+                table.data[name][:n] = f.coerce(f.default)
         out = []
         new = object.__new__
-        for row in range(block.start, block.stop):
+        for row in range(n):
             obj = new(cls)
+            obj._table = table
             obj._row = row
             out.append(obj)
         return out
 
-    def __del__(self):
-        # the object is gone: its row may be reused (esper no longer holds it,
-        # and RowCache holds the query list, so no cached row outlives its owner)
-        try:
-            type(self)._table.free.append(self._row)
-        except (AttributeError, TypeError):  # half-built object, or interpreter shutdown
-            pass
+    def values(self) -> dict:
+        """The field values, as a dict of copies."""
+        return {n: self._table.data[n][self._row].copy() for n in self._fields}
+
+    @classmethod
+    def _from_values(cls, values: dict):
+        obj = object.__new__(cls)
+        obj._fill({n: np.asarray(values[n], f.dtype) for n, f in cls._fields.items()})
+        return obj
+
+    def __copy__(self):
+        return self._from_values(self.values())
+
+    def __deepcopy__(self, memo):
+        return self._from_values(self.values())
+
+    def __reduce__(self):
+        return type(self)._from_values, (self.values(),)
 
     def __repr__(self):
         parts = []
@@ -214,17 +338,17 @@ class Columnar:
     def __eq__(self, other):
         if type(other) is not type(self):
             return NotImplemented
-        return all(np.array_equal(getattr(self, n), getattr(other, n)) for n in self._fields)
+        return all(np.array_equal(self._table.data[n][self._row], other._table.data[n][other._row])
+                   for n in self._fields)
 
-    __hash__ = object.__hash__
+    #: Components are mutable values: equal by value, so not hashable.
+    __hash__ = None
 
 
 _ROW = attrgetter("_row")
-
-
-def rows_of(components) -> np.ndarray:
-    """Table rows of a sequence of columnar components, as an index array."""
-    return np.fromiter(map(_ROW, components), dtype=np.intp, count=len(components))
+_TABLE = attrgetter("_table")
+_FIRST = itemgetter(0)
+_SECOND = itemgetter(1)
 
 
 def as_index(rows: np.ndarray):
@@ -241,40 +365,116 @@ def to_indices(rows) -> np.ndarray:
     return np.asarray(rows)
 
 
-class RowCache:
-    """Packed row indices for one esper query, rebuilt only when the query list changes.
+class Columns:
+    """The fields of one component class for a stated list of entities: gather and scatter.
 
-    esper's ``get_components`` returns the *same list object* until an entity
-    or component is added or removed. ``RowCache.get(query)`` compares identity
-    and rebuilds the per-component row arrays (and entity ids) only then.
+    ``cols.entities`` is the entity order. Reading a field (``cols.linear``)
+    gathers a *copy* of shape ``(n, *field.shape)`` in that order; assigning
+    (``cols.linear = v``) validates the whole array (the error names the
+    first bad row) and scatters it back. Made by
+    :meth:`~driftframe.framework.world.World.columns` or :meth:`Query.columns`.
     """
 
-    def __init__(self):
-        self._query = None
+    __slots__ = ("_table", "_rows", "entities")
+
+    def __init__(self, table: Table, entities: np.ndarray, rows):
+        object.__setattr__(self, "_table", table)
+        object.__setattr__(self, "_rows", rows)
+        object.__setattr__(self, "entities", entities)
+
+    def __len__(self) -> int:
+        return len(self.entities)
+
+    def _field(self, name) -> Field:
+        f = self._table.fields.get(name)
+        if f is None:
+            raise AttributeError(f"{self._table.cls.__name__} has no field {name!r}; "
+                                 f"fields: {', '.join(self._table.fields)}")
+        return f
+
+    def __getattr__(self, name):
+        self._field(name)
+        out = self._table.data[name][self._rows]
+        return out.copy() if isinstance(self._rows, slice) else out
+
+    def __setattr__(self, name, value):
+        f = self._field(name)
+        arr = f.coerce_column(f"{self._table.cls.__name__}.{name}", value, len(self.entities))
+        self._table.data[name][self._rows] = arr
+
+    def __repr__(self):
+        return f"<Columns {self._table.cls.__name__} of {len(self.entities)} entities>"
+
+
+class Query:
+    """Entities that have all of ``types`` (and, per entity, which of ``optional`` they have).
+
+    Made by :meth:`~driftframe.framework.world.World.query` and cached there.
+    :meth:`refresh` (call it at the top of ``process``) rebuilds the packed
+    rows only when esper's query result changed; it returns True then.
+
+    * ``entities``: ascending entity ids (an order that does not depend on
+      esper's set order, so results do not either);
+    * ``rows(T)``: rows into ``world.table(T).data[field]``, aligned with
+      ``entities`` — a slice when contiguous. For an optional ``T`` an int
+      array with -1 where the entity lacks it. For a plain (non-columnar)
+      ``T``, the list of its component objects, aligned the same way;
+    * ``columns(T)``: a :class:`Columns` over these entities.
+    """
+
+    def __init__(self, world, types: tuple, optional: tuple = ()):
+        self.world = world
+        self.types = types
+        self.optional = optional
+        self._list = None
         self.entities = np.empty(0, np.int64)
-        self.rows: tuple = ()
+        self._rows: dict = {}
         self.version = 0
 
-    def update(self, query: list) -> bool:
-        """Refresh from ``query``; return True when the rows were rebuilt."""
-        if query is self._query:
+    def refresh(self) -> bool:
+        import esper
+
+        world = self.world
+        world.sync()
+        lst = esper.get_components(*self.types)
+        if lst is self._list:
             return False
-        self._query = query
-        n = len(query)
-        if n:
-            # map/itemgetter instead of zip(*query): ~4x faster for 100,000 entities
-            self.entities = np.fromiter(map(itemgetter(0), query), np.int64, n)
-            comps = list(map(itemgetter(1), query))
-            rows = []
-            for k, first in enumerate(comps[0]):
-                column = map(itemgetter(k), comps)
-                if isinstance(first, Columnar):
-                    rows.append(as_index(np.fromiter(map(_ROW, column), np.intp, n)))
-                else:
-                    rows.append(list(column))
-            self.rows = tuple(rows)
-        else:
-            self.entities = np.empty(0, np.int64)
-            self.rows = ()
+        self._list = lst
+        n = len(lst)
+        ents = np.fromiter(map(_FIRST, lst), np.int64, n)
+        order = np.argsort(ents, kind="stable")
+        self.entities = ents = ents[order]
+        comps = list(map(_SECOND, lst))
+        rows = {}
+        for k, T in enumerate(self.types):
+            column = map(itemgetter(k), comps)
+            if issubclass(T, Columnar):
+                r = np.fromiter(map(_ROW, column), np.intp, n)[order]
+                rows[T] = as_index(r) if n else r
+            else:                                   # plain objects (ModelRef, Camera, ...)
+                objs = list(column)
+                rows[T] = [objs[i] for i in order.tolist()]
+        for T in self.optional:
+            r = np.full(n, -1, np.intp)
+            if n:
+                table = world.table(T)
+                held = table.entity[: table.size]
+                has = np.isin(ents, held[held >= 0])
+                if has.any():
+                    r[has] = table.rows_of(ents[has])
+            rows[T] = r
+        self._rows = rows
         self.version += 1
         return True
+
+    def rows(self, T):
+        return self._rows[T]
+
+    def columns(self, T) -> Columns:
+        """Gather/scatter ``T``'s fields for :attr:`entities`."""
+        if T not in self.types:
+            raise ValueError(f"{T.__name__} is not a required type of this query ({self.types})")
+        return Columns(self.world.table(T), self.entities, self._rows[T])
+
+    def __len__(self) -> int:
+        return len(self.entities)

@@ -1,39 +1,72 @@
-"""The world: one esper context, the stage order, the step, its profile and its hash.
+"""The world: one esper context, its component tables, the schedule, the step, events and the hash.
 
-Data flows one way each step, in the order declared here once::
+Data flows one way each step. The built-in stages give the default order::
 
     input -> control -> movement -> spin -> collision -> camera      (every fixed step)
     render -> record                                                  (every presented frame)
 
-A system is an ``esper.Processor`` with a ``stage`` attribute (one of
-:data:`STEP_STAGES` or :data:`FRAME_STAGES`) and ``process(dt)``. Several
-systems may share a stage; they run in the order they were added.
+A system is an ``esper.Processor`` with ``process(dt)`` that declares, as
+class attributes, its ``stage`` (one of the names above, or none), its
+``name`` (default: the class name in snake case without "System") and what it
+``reads`` and ``writes`` (tuples of component classes). The schedule is open:
+``world.add_system(Damage(), after="collision")`` places a user's system;
+``after``/``before`` name systems or stages (or give a class), an impossible
+order is an error naming the systems of the cycle, and
+``print(world.describe())`` shows the order and each system's access.
 
 ``World`` owns a private esper world context and makes it current whenever it
-steps, so esper's ordinary module functions (``esper.create_entity``,
-``esper.get_components``, ...) act on it from inside systems and from user code
-after ``world.activate()`` (a new World is also activated on creation).
+steps, so esper's module functions (``esper.create_entity``,
+``esper.get_components``, ...) act on it from inside systems and from user
+code after ``world.activate()`` (a new World is also activated on creation).
+It also owns one :class:`~driftframe.framework.store.Table` per columnar
+component class; :meth:`World.sync` reconciles them with esper (see
+``store.py`` for the lifecycle), and :meth:`World.columns` is the public way
+to read and write whole columns.
+
+Events (collision contacts, ...) go through :meth:`World.emit`:
+subscribers (:meth:`World.subscribe`) are called at once, and
+``world.events`` keeps every event of every fixed step since the last
+rendered frame, so a reader in the render stage sees them all however many
+steps the frame took. A world that renders nothing keeps those of the last
+``step()`` call.
 """
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import heapq
+import io
 import itertools
+import re
 import time
 from collections import defaultdict
+from operator import attrgetter, itemgetter
 
 import esper
 import numpy as np
 
 from driftframe.framework import validate
-from driftframe.framework.store import Columnar
+from driftframe.framework.store import Columnar, Columns, Query, Table
 
 #: Stages run once per fixed simulation step, in this order.
 STEP_STAGES = ("input", "control", "movement", "spin", "collision", "camera")
 #: Stages run once per presented frame (window or recorder), in this order.
 FRAME_STAGES = ("render", "record")
+#: Where a system with no stage and no ``after``/``before`` runs: after collision, before camera.
+DEFAULT_AFTER, DEFAULT_BEFORE = "collision", "camera"
 
 _ids = itertools.count(1)
+_FIRST, _SECOND = itemgetter(0), itemgetter(1)
+_ROW, _TABLE = attrgetter("_row"), attrgetter("_table")
+
+
+class _Probe:
+    """Never a component of any entity: esper hands out a new (empty) list for it after every
+    structural change, so its identity tells in one call whether anything was added or removed."""
+
+
+class ScheduleError(ValueError):
+    """Systems that cannot be ordered as asked (a cycle, an unknown name, a frame/step mix-up)."""
 
 
 def _describe(comp) -> str:
@@ -44,8 +77,44 @@ def _describe(comp) -> str:
     return repr(sorted(fields.items())) if fields else ""
 
 
+def system_name(system) -> str:
+    """A system's ``name`` attribute, or its class name in snake case without "System"."""
+    name = getattr(system, "name", None)
+    if isinstance(name, str) and name:
+        return name
+    base = type(system).__name__
+    base = base[:-6] if base.endswith("System") and len(base) > 6 else base
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", base).lower()
+
+
+def _access(system, attr: str) -> tuple:
+    value = getattr(system, attr, ())
+    if isinstance(value, (type, str)):
+        value = (value,)
+    try:
+        value = tuple(value)
+    except TypeError:
+        raise TypeError(f"{type(system).__name__}.{attr} must be a tuple of component classes, "
+                        f"got {value!r}") from None
+    for v in value:
+        if not isinstance(v, (type, str)):
+            raise TypeError(f"{type(system).__name__}.{attr} must hold component classes (or names), "
+                            f"got {v!r}")
+    return value
+
+
+class _Entry:
+    """One scheduled system: its name, phase, stage and constraints."""
+
+    __slots__ = ("system", "name", "phase", "stage", "after", "before", "seq")
+
+    def __init__(self, system, name, phase, stage, after, before, seq):
+        self.system, self.name, self.phase, self.stage = system, name, phase, stage
+        self.after, self.before, self.seq = after, before, seq
+
+
 class World:
-    """A simulation: entities (esper), systems in stage order, a fixed time step.
+    """A simulation: entities (esper), their component tables, systems in order, a fixed time step.
 
     ``dt`` is the fixed step in seconds (default 1/60 s). The simulation never
     reads the wall clock; ``time`` is ``step_count * dt``.
@@ -56,34 +125,50 @@ class World:
         self.name = name or f"driftframe-{next(_ids)}"
         if self.name in esper.list_worlds():
             raise ValueError(f"an esper world named {self.name!r} exists already")
-        self.systems: dict[str, list] = {s: [] for s in STEP_STAGES + FRAME_STAGES}
         self.step_count = 0
-        #: Seconds each stage took in the last step / frame (wall time, for profiling only).
-        self.profile: dict[str, float] = {s: 0.0 for s in STEP_STAGES + FRAME_STAGES}
-        #: Seconds each stage took in total since creation.
+        self._entries: list[_Entry] = []
+        self._order: dict[str, list[_Entry]] = {"step": [], "frame": []}
+        self._seq = itertools.count()
+        #: Seconds each stage (or unstaged system) took in the last step / frame (wall time, profiling only).
+        self.profile: dict[str, float] = defaultdict(float, {s: 0.0 for s in STEP_STAGES + FRAME_STAGES})
+        #: Seconds each stage (or unstaged system) took in total since creation.
         self.profile_total: dict[str, float] = defaultdict(float)
-        #: Things that happened this step (collision events, ...): cleared at each step's start.
+        #: Events of every fixed step since the last rendered frame (see :meth:`emit`).
         self.events: list = []
+        #: The events of the frame before (the other half of the double buffer).
+        self.previous_events: list = []
+        self._rendered = False
+        self._subscribers: dict[type, list] = defaultdict(list)
         #: Shared per-world services (a GL context, the model cache, ...) keyed by name.
         self.resources: dict = {}
+        self._tables: dict[type, Table] = {}
+        self._synced: dict[type, list] = {}
+        self._probe = None
+        self._queries: dict[tuple, Query] = {}
+        self.closed = False
         esper.switch_world(self.name)
 
     # -- entities ---------------------------------------------------------------
     def activate(self) -> "World":
         """Make this world the current esper context (for esper's module functions)."""
+        if self.closed:
+            raise RuntimeError(f"world {self.name!r} is closed")
         if esper.current_world != self.name:
             esper.switch_world(self.name)
         return self
 
     def create_entity(self, *components) -> int:
-        """``esper.create_entity`` in this world."""
+        """``esper.create_entity`` in this world; columnar components move into its tables at once."""
         self.activate()
-        return esper.create_entity(*components)
+        ent = esper.create_entity(*components)
+        self._attach_now(ent, components)
+        return ent
 
     def create_entities(self, *columns) -> list[int]:
         """Create ``n`` entities from equally long lists of components (e.g. ``Transform.bulk(n, ...)``).
 
         ``None`` in place of a list skips it. Returns the entity ids in order.
+        Each list moves into its table in one copy per field.
         """
         cols = [c for c in columns if c is not None]
         if not cols:
@@ -94,58 +179,394 @@ class World:
                 raise ValueError(f"create_entities: component lists differ in length ({len(c)} != {n})")
         self.activate()
         create = esper.create_entity
-        return [create(*comps) for comps in zip(*cols)]
+        ents = [create(*comps) for comps in zip(*cols)]
+        self.sync()
+        return ents
+
+    def add_component(self, entity: int, component) -> None:
+        """``esper.add_component`` in this world (a component of that type already there is replaced)."""
+        self.activate()
+        old = esper.try_component(entity, type(component))
+        if old is not None and old is not component and isinstance(old, Columnar) and old._table.world == self.name:
+            old._table.detach([old._row])
+        esper.add_component(entity, component)
+        self._attach_now(entity, (component,))
+
+    def remove_component(self, entity: int, component_type):
+        """``esper.remove_component`` in this world; the component keeps its values, its row is freed."""
+        self.activate()
+        comp = esper.remove_component(entity, component_type)
+        if isinstance(comp, Columnar) and comp._table.world == self.name:
+            comp._table.detach([comp._row])
+        return comp
 
     def delete_entity(self, entity: int) -> None:
+        """Delete ``entity`` now; its columnar rows are freed (its components keep their values)."""
         self.activate()
+        if esper.entity_exists(entity):
+            for comp in esper.components_for_entity(entity):
+                if isinstance(comp, Columnar) and comp._table.world == self.name:
+                    comp._table.detach([comp._row])
         esper.delete_entity(entity, immediate=True)
 
+    def _attach_now(self, ent: int, components) -> None:
+        for comp in components:
+            if isinstance(comp, Columnar):
+                table = self.table(type(comp))
+                if comp._table is table:
+                    if table.entity[comp._row] != ent:
+                        self._shared_error(type(comp), int(table.entity[comp._row]), ent)
+                    continue
+                self._check_free(comp, ent)
+                table.attach(np.array([ent]), [comp])
+
+    # -- storage ----------------------------------------------------------------
+    def table(self, cls) -> Table:
+        """This world's table of columnar component class ``cls`` (made on first use, small)."""
+        t = self._tables.get(cls)
+        if t is None:
+            if not (isinstance(cls, type) and issubclass(cls, Columnar)):
+                raise TypeError(f"{cls!r} is not a columnar component class (Transform, Velocity, ...)")
+            t = self._tables[cls] = Table(cls, 16, world=self.name)
+        return t
+
+    def _shared_error(self, cls, a: int, b: int):
+        raise ValueError(f"the same {cls.__name__} object is on entities {a} and {b}; give each entity its "
+                         f"own (copy.copy(component))")
+
+    def _check_free(self, comp, ent: int) -> None:
+        owner = comp._table.world
+        if owner is not None and owner != self.name:
+            raise ValueError(f"{type(comp).__name__} given to entity {ent} belongs to an entity of world "
+                             f"{owner!r}; a component cannot be in two worlds: copy it (copy.copy)")
+
+    def sync(self) -> None:
+        """Reconcile the tables with esper: attach new components, free the rows of removed ones.
+
+        Cheap when nothing was added or removed (one identity check). Called
+        before every system runs, by every :class:`Query` refresh and by
+        :meth:`columns`, so esper's own ``add_component`` / ``remove_component``
+        / ``delete_entity`` calls are seen before any column is read.
+        """
+        self.activate()
+        probe = esper.get_component(_Probe)
+        if probe is self._probe:
+            return
+        present = [c for c in esper._components if isinstance(c, type) and issubclass(c, Columnar)]
+        for cls in present:
+            lst = esper.get_component(cls)
+            if lst is not self._synced.get(cls):
+                self._reconcile(cls, lst)
+        for cls, table in list(self._tables.items()):
+            if cls not in esper._components and table.live:
+                self._reconcile(cls, [])
+        self._probe = esper.get_component(_Probe)
+
+    def _reconcile(self, cls, lst: list) -> None:
+        table = self.table(cls)
+        n = len(lst)
+        ents = np.fromiter(map(_FIRST, lst), np.int64, n)
+        comps = list(map(_SECOND, lst))
+        tables = list(map(_TABLE, comps))
+        if tables.count(table) == n:
+            mine = np.ones(n, bool)
+        else:
+            mine = np.fromiter((t is table for t in tables), bool, n)
+        k_mine = np.flatnonzero(mine)
+        rows = np.fromiter((comps[k]._row for k in k_mine), np.intp, len(k_mine)) if len(k_mine) < n \
+            else np.fromiter(map(_ROW, comps), np.intp, n)
+        if len(rows) and len(np.unique(rows)) != len(rows):
+            u, first, counts = np.unique(rows, return_index=True, return_counts=True)
+            dup = u[counts > 1][0]
+            a, b = ents[k_mine[rows == dup]][:2]
+            self._shared_error(cls, int(a), int(b))
+        # a component moved to another entity by esper (removed from one, added to another)
+        table.entity[rows] = ents[k_mine]
+        seen = np.zeros(table.size, bool)
+        seen[rows] = True
+        gone = np.flatnonzero((table.entity[: table.size] >= 0) & ~seen)
+        table.detach(gone)
+        if len(k_mine) < n:
+            k_new = np.flatnonzero(~mine)
+            new = [comps[k] for k in k_new]
+            if len({id(c) for c in new}) != len(new):
+                seen_ids: dict[int, int] = {}
+                for k, c in zip(k_new, new):
+                    if id(c) in seen_ids:
+                        self._shared_error(cls, seen_ids[id(c)], int(ents[k]))
+                    seen_ids[id(c)] = int(ents[k])
+            for k, c in zip(k_new, new):
+                self._check_free(c, int(ents[k]))
+            table.attach(ents[k_new], new)
+        self._synced[cls] = lst
+
+    def query(self, *types, optional: tuple = ()) -> Query:
+        """The cached :class:`~driftframe.framework.store.Query` of entities with all of ``types``.
+
+        For systems: ``q.refresh()`` at the top of ``process``, then
+        ``q.entities`` (ascending ids) and ``q.rows(T)`` into ``self.table(T).data``.
+        """
+        key = (types, tuple(optional))
+        q = self._queries.get(key)
+        if q is None:
+            for T in types + tuple(optional):
+                if not isinstance(T, type):
+                    raise TypeError(f"query types must be component classes, got {T!r}")
+            q = self._queries[key] = Query(self, types, tuple(optional))
+        return q
+
+    def columns(self, cls, entities=None) -> Columns:
+        """Read and write field ``f`` of component ``cls`` for many entities at once.
+
+        ``entities``: entity ids in the order you want (a list or array), or
+        None for every entity that has ``cls``, in ascending id order (then
+        ``cols.entities`` says which). ``cols.f`` gathers a copy of shape
+        ``(n, *field shape)``; ``cols.f = array`` validates and scatters it.
+        An entity without ``cls`` is a KeyError naming it.
+        """
+        self.sync()
+        table = self.table(cls)
+        if entities is None:
+            q = self.query(cls)
+            q.refresh()
+            return Columns(table, q.entities, q.rows(cls))
+        ents = np.asarray(entities)
+        if ents.ndim != 1 or not (ents.dtype.kind in "iu" or len(ents) == 0):
+            raise TypeError(f"columns({cls.__name__}, entities): entities must be a 1-D list of entity ids, "
+                            f"got {entities!r}")
+        ents = ents.astype(np.int64)
+        return Columns(table, ents, table.rows_of(ents, " (columns: entity order as given)"))
+
     # -- systems ----------------------------------------------------------------
-    def add_system(self, system, stage: str | None = None):
-        """Add an ``esper.Processor`` to its stage (``system.stage`` unless given). Returns it."""
-        stage = stage or getattr(system, "stage", None)
-        if stage not in self.systems:
-            raise ValueError(f"unknown stage {stage!r}; stages are {STEP_STAGES + FRAME_STAGES}")
+    def add_system(self, system, stage: str | None = None, *, after=(), before=(), name: str | None = None):
+        """Schedule an ``esper.Processor``; returns it.
+
+        ``stage``: one of :data:`STEP_STAGES` or :data:`FRAME_STAGES` (default:
+        ``system.stage``). ``after`` / ``before``: a name or a list of names of
+        systems or stages (or system classes) this one must run after / before.
+        A system with neither a stage nor constraints runs after collision and
+        before camera. ``reads`` / ``writes`` are checked to be tuples of
+        component classes.
+        """
+        stage = stage if stage is not None else getattr(system, "stage", None)
+        if stage is not None and stage not in STEP_STAGES + FRAME_STAGES:
+            raise ScheduleError(f"unknown stage {stage!r}; stages are {STEP_STAGES + FRAME_STAGES}")
         if not callable(getattr(system, "process", None)):
             raise TypeError(f"system {system!r} has no process(dt) method")
+        _access(system, "reads")
+        _access(system, "writes")
+        after = self._refs(after if after else getattr(system, "after", ()))
+        before = self._refs(before if before else getattr(system, "before", ()))
+        if stage is None and not after and not before:
+            after, before = (DEFAULT_AFTER,), (DEFAULT_BEFORE,)
+        nm = name or system_name(system)
+        phase = "frame" if stage in FRAME_STAGES else "step"
+        if stage is None:
+            phases = {self._phase_of(r) for r in after + before} - {None}
+            if len(phases) > 1:
+                raise ScheduleError(f"system {nm!r}: after={after} / before={before} mix per-step and per-frame "
+                                    "systems")
+            phase = phases.pop() if phases else "step"
+        entry = _Entry(system, nm, phase, stage, after, before, next(self._seq))
+        self._entries.append(entry)
+        try:
+            self._schedule()
+        except ScheduleError:
+            self._entries.remove(entry)
+            self._schedule()
+            raise
         system.world = self
-        self.systems[stage].append(system)
         return system
 
-    def get_system(self, cls):
-        """The first added system that is an instance of ``cls``, or None."""
-        for stage in self.systems.values():
-            for s in stage:
-                if isinstance(s, cls):
-                    return s
+    def remove_system(self, system) -> None:
+        """Take ``system`` out of the schedule (its ``release()`` is called when it has one)."""
+        self._entries = [e for e in self._entries if e.system is not system]
+        self._schedule()
+        release = getattr(system, "release", None)
+        if callable(release):
+            release()
+
+    @staticmethod
+    def _refs(value) -> tuple:
+        if isinstance(value, (str, type)):
+            value = (value,)
+        out = []
+        for v in value:
+            if isinstance(v, str) or isinstance(v, type):
+                out.append(v)
+            else:
+                raise TypeError(f"after/before take system or stage names or system classes, got {v!r}")
+        return tuple(out)
+
+    def _phase_of(self, ref):
+        if isinstance(ref, str):
+            if ref in STEP_STAGES:
+                return "step"
+            if ref in FRAME_STAGES:
+                return "frame"
+        for e in self._entries:
+            if self._matches(e, ref):
+                return e.phase
         return None
 
-    def _run(self, stages, dt) -> None:
+    @staticmethod
+    def _matches(entry: _Entry, ref) -> bool:
+        if isinstance(ref, type):
+            return isinstance(entry.system, ref)
+        return entry.name == ref or entry.stage == ref
+
+    def _schedule(self) -> None:
+        """Topological order of each phase: stage order, then after/before, ties by (stage, adding order)."""
+        names = {e.name for e in self._entries}
+        for e in self._entries:
+            for ref in e.after + e.before:
+                if isinstance(ref, str) and ref not in names and ref not in STEP_STAGES + FRAME_STAGES:
+                    raise ScheduleError(f"system {e.name!r}: no system or stage named {ref!r}; systems: "
+                                        f"{', '.join(sorted(names))}; stages: {', '.join(STEP_STAGES + FRAME_STAGES)}")
+        for phase, stages in (("step", STEP_STAGES), ("frame", FRAME_STAGES)):
+            entries = [e for e in self._entries if e.phase == phase]
+            rank = {}
+            for e in entries:
+                if e.stage is not None:
+                    rank[e.seq] = float(stages.index(e.stage))
+            for e in entries:
+                if e.stage is None:
+                    ranks = [stages.index(r) + 0.5 for r in e.after if isinstance(r, str) and r in stages]
+                    ranks += [rank[o.seq] + 0.5 for o in entries for r in e.after
+                              if o is not e and o.seq in rank and self._matches(o, r)]
+                    if not ranks:
+                        ranks = [stages.index(r) - 0.5 for r in e.before if isinstance(r, str) and r in stages]
+                    rank[e.seq] = max(ranks) if ranks else len(stages) - 0.5
+            edges: dict[int, set[int]] = {e.seq: set() for e in entries}
+            by_seq = {e.seq: e for e in entries}
+            for a in entries:
+                for b in entries:
+                    if a is b:
+                        continue
+                    if a.stage is not None and b.stage is not None and stages.index(a.stage) < stages.index(b.stage):
+                        edges[a.seq].add(b.seq)
+                    if any(self._matches(a, r) for r in b.after) or any(self._matches(b, r) for r in a.before):
+                        edges[a.seq].add(b.seq)
+            indeg = {s: 0 for s in edges}
+            for s, outs in edges.items():
+                for o in outs:
+                    indeg[o] += 1
+            ready = [(rank[s], s) for s, d in indeg.items() if d == 0]
+            heapq.heapify(ready)
+            order = []
+            while ready:
+                _, s = heapq.heappop(ready)
+                order.append(by_seq[s])
+                for o in edges[s]:
+                    indeg[o] -= 1
+                    if indeg[o] == 0:
+                        heapq.heappush(ready, (rank[o], o))
+            if len(order) != len(entries):
+                left = {s for s, d in indeg.items() if d > 0}
+                raise ScheduleError("systems cannot be ordered, they form a cycle: "
+                                    + " -> ".join(self._cycle(left, edges, by_seq)))
+            self._order[phase] = order
+
+    @staticmethod
+    def _cycle(left, edges, by_seq) -> list[str]:
+        start = min(left)
+        path, seen = [start], {start: 0}
+        while True:
+            nxt = min(o for o in edges[path[-1]] if o in left)
+            if nxt in seen:
+                cyc = path[seen[nxt]:] + [nxt]
+                return [by_seq[s].name for s in cyc]
+            seen[nxt] = len(path)
+            path.append(nxt)
+
+    @property
+    def systems(self) -> dict[str, list]:
+        """Systems by stage (unstaged ones under their own name), in running order."""
+        out: dict[str, list] = {s: [] for s in STEP_STAGES + FRAME_STAGES}
+        for phase in ("step", "frame"):
+            for e in self._order[phase]:
+                out.setdefault(e.stage or e.name, []).append(e.system)
+        return out
+
+    def get_system(self, cls):
+        """The first scheduled system that is an instance of ``cls``, or None."""
+        for phase in ("step", "frame"):
+            for e in self._order[phase]:
+                if isinstance(e.system, cls):
+                    return e.system
+        return None
+
+    def describe(self) -> str:
+        """The schedule as text: each system in running order with its stage, reads and writes."""
+        out = io.StringIO()
+
+        def names(ts):
+            return ", ".join(t if isinstance(t, str) else t.__name__ for t in ts) or "-"
+
+        for phase, title in (("step", f"every fixed step (dt = {self.dt:g} s)"), ("frame", "every presented frame")):
+            out.write(f"{title}:\n")
+            for k, e in enumerate(self._order[phase], 1):
+                s = e.system
+                out.write(f"  {k:2d}. {e.name:<14} {type(s).__name__:<22} stage: {e.stage or '-'}\n"
+                          f"      reads:  {names(_access(s, 'reads'))}\n"
+                          f"      writes: {names(_access(s, 'writes'))}\n")
+        return out.getvalue()
+
+    def _run(self, phase: str, dt: float) -> None:
         self.activate()
         esper.clear_dead_entities()
         clock = time.perf_counter
-        for stage in stages:
-            systems = self.systems[stage]
-            if not systems:
-                self.profile[stage] = 0.0
-                continue
+        profile, total = self.profile, self.profile_total
+        order = self._order[phase]
+        for key in STEP_STAGES if phase == "step" else FRAME_STAGES:
+            profile[key] = 0.0
+        for e in order:
+            profile[e.stage or e.name] = 0.0
+        for e in order:
+            self.sync()
             t0 = clock()
-            for s in systems:
-                s.process(dt)
+            e.system.process(dt)
             took = clock() - t0
-            self.profile[stage] = took
-            self.profile_total[stage] += took
+            key = e.stage or e.name
+            profile[key] += took
+            total[key] += took
+        self.sync()
 
+    # -- events -----------------------------------------------------------------
+    def emit(self, event) -> None:
+        """Record ``event`` in :attr:`events` and call every subscriber of its type at once."""
+        self.events.append(event)
+        for fn in self._subscribers.get(type(event), ()):
+            fn(event)
+
+    def subscribe(self, event_type: type, callback):
+        """Call ``callback(event)`` for every emitted event of ``event_type``; returns an unsubscribe function."""
+        if not isinstance(event_type, type):
+            raise TypeError(f"subscribe: event_type must be a class (e.g. CollisionEvent), got {event_type!r}")
+        if not callable(callback):
+            raise TypeError(f"subscribe: callback must be callable, got {callback!r}")
+        subs = self._subscribers[event_type]
+        subs.append(callback)
+
+        def unsubscribe():
+            if callback in subs:
+                subs.remove(callback)
+        return unsubscribe
+
+    # -- stepping ---------------------------------------------------------------
     def step(self, n: int = 1) -> None:
         """Advance the simulation by ``n`` fixed steps of ``dt``."""
+        if self._rendered or not self._order["frame"]:
+            self.previous_events, self.events = self.events, []
+            self._rendered = False
         for _ in range(n):
-            self.events.clear()
-            self._run(STEP_STAGES, self.dt)
+            self._run("step", self.dt)
             self.step_count += 1
 
     def render(self) -> None:
-        """Run the per-frame stages (render, record) once."""
-        self._run(FRAME_STAGES, self.dt)
+        """Run the per-frame systems (render, record) once; the frame's events are then consumed."""
+        self._run("frame", self.dt)
+        self._rendered = True
 
     @property
     def time(self) -> float:
@@ -154,42 +575,66 @@ class World:
 
     # -- determinism ------------------------------------------------------------
     def state_hash(self) -> str:
-        """BLAKE2 hash of every entity's components (exact bytes of the numbers).
+        """BLAKE2 hash of the simulation's state (exact bytes of the numbers).
 
         Two runs of the same scene with the same inputs give the same hash;
-        any difference in any bit of any component changes it. Entity order
-        and table row placement do not matter: values are gathered per entity
-        id, in ascending order.
+        any difference in any bit of any simulated component changes it.
+        Entity order and table row placement do not matter: values are
+        gathered per entity id, in ascending order. Presentation is left out:
+        components whose class says ``presentation = True`` (a Camera) and
+        every component of their entities (the camera's eye), so a headless
+        run and a rendered run of the same bodies hash the same.
         """
-        self.activate()
+        self.sync()
         h = hashlib.blake2b(digest_size=16)
         h.update(str(self.step_count).encode())
         kinds = sorted(esper._components, key=lambda c: (c.__module__, c.__qualname__))
+        skip: set[int] = set()
         for cls in kinds:
-            pairs = sorted(esper.get_component(cls), key=lambda p: p[0])
+            if getattr(cls, "presentation", False):
+                skip.update(esper._components[cls])
+        for cls in kinds:
+            if getattr(cls, "presentation", False):
+                continue
+            ents = np.array(sorted(e for e in esper._components[cls] if e not in skip), np.int64)
             h.update(cls.__qualname__.encode())
-            ents = np.fromiter((e for e, _ in pairs), np.int64, len(pairs))
             h.update(ents.tobytes())
             if issubclass(cls, Columnar):
-                rows = np.fromiter((c._row for _, c in pairs), np.intp, len(pairs))
+                table = self.table(cls)
+                rows = table.rows_of(ents)
                 for name in cls._fields:
-                    h.update(np.ascontiguousarray(cls._table.data[name][rows]).tobytes())
+                    h.update(np.ascontiguousarray(table.data[name][rows]).tobytes())
             else:
-                for _, comp in pairs:
-                    h.update(_describe(comp).encode())
+                for e in ents.tolist():
+                    h.update(_describe(esper.component_for_entity(e, cls)).encode())
         return h.hexdigest()
 
     def close(self) -> None:
-        """Delete the esper world context and drop the world's resources."""
+        """Release what every system and resource holds (GL objects included), free the tables,
+        and delete the esper world context. Components keep their values."""
+        if self.closed:
+            return
+        for phase in ("frame", "step"):
+            for e in reversed(self._order[phase]):
+                release = getattr(e.system, "release", None)
+                if callable(release):
+                    release()
         for res in list(self.resources.values()):
             release = getattr(res, "release", None)
             if callable(release):
                 release()
         self.resources.clear()
+        for table in self._tables.values():
+            table.detach_all()
+            table.world = None
+        self._tables.clear()
+        self._queries.clear()
+        self._subscribers.clear()
         if esper.current_world == self.name:
             esper.switch_world("default")
         if self.name in esper.list_worlds():
             esper.delete_world(self.name)
+        self.closed = True
 
     def __enter__(self):
         return self.activate()

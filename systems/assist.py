@@ -51,6 +51,10 @@ class RotationAssistSystem(esper.Processor):
     """
 
     stage = "control"
+    name = "assist"
+    after = ("control",)        # it brakes what the pilot's input left
+    reads = (RotationAssist, FlightInput, Transform, AngularVelocity)
+    writes = (AngularVelocity,)
 
     def process(self, dt: float) -> None:
         for ent, (assist, tf, spin) in esper.get_components(RotationAssist, Transform, AngularVelocity):

@@ -98,17 +98,13 @@ def slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
 
 
 # -- the system -----------------------------------------------------------------------
-def _target_transform(ent: int, cam: Camera) -> Transform:
+def _target_transform(ent: int, cam: Camera) -> Transform | None:
+    """The target's Transform, or None when the target is gone (deleted, or without a Transform)."""
     if cam.target == ent:
         raise ValueError(f"Camera on entity {ent} targets itself; give the entity id of the body to follow")
     if not esper.entity_exists(cam.target):
-        raise ValueError(f"Camera on entity {ent}: target entity {cam.target} does not exist "
-                         "(a camera without a target)")
-    tf = esper.try_component(cam.target, Transform)
-    if tf is None:
-        raise ValueError(f"Camera on entity {ent}: target entity {cam.target} has no Transform "
-                         "(a camera without a target); give the target a Transform")
-    return tf
+        return None
+    return esper.try_component(cam.target, Transform)
 
 
 def chase_direction(cam: Camera, q_target: np.ndarray, velocity) -> np.ndarray:
@@ -126,12 +122,23 @@ def update_camera(ent: int, cam: Camera, dt: float, *, snap: bool = False) -> Tr
 
     The esper world of the camera must be current. Adds a Transform to the
     camera entity the first time (snapped). Returns the camera's Transform.
+    When the target is gone (in a game, targets die) the eye holds its last
+    pose and ``cam.target_lost`` is set; a camera that never saw its target
+    is a clear error.
     """
     check_mode(cam.mode)
     tt = _target_transform(ent, cam)
-    p_t = tt.position.copy()
-    q_t = tt.orientation.copy()
     tf = esper.try_component(ent, Transform)
+    if tt is None:
+        if tf is None:
+            why = "has no Transform" if esper.entity_exists(cam.target) else "does not exist"
+            raise ValueError(f"Camera on entity {ent}: target entity {cam.target} {why} (a camera without a "
+                             "target); give the entity id of a body with a Transform")
+        cam.target_lost = True
+        return tf
+    cam.target_lost = False
+    p_t = tt.position
+    q_t = tt.orientation
     if tf is None:
         tf = Transform()
         esper.add_component(ent, tf)
@@ -149,7 +156,7 @@ def update_camera(ent: int, cam: Camera, dt: float, *, snap: bool = False) -> Tr
     else:
         # first-order lag with time constant tau: exact for any dt, so frame-rate independent
         alpha = 1.0 - math.exp(-dt / cam.smoothing)
-        q = slerp(tf.orientation.copy(), q_goal, alpha)
+        q = slerp(tf.orientation, q_goal, alpha)
     tf.orientation = q
     # behind (-forward) and above (+up) the target, in the eye's own smoothed frame
     tf.position = p_t + fr.rotate(q, np.array([0.0, cam.chase_height, -cam.chase_distance]))
@@ -167,6 +174,8 @@ class CameraSystem(esper.Processor):
     """
 
     stage = "camera"
+    reads = (Camera, Transform, Velocity)
+    writes = (Transform, Camera)
 
     def process(self, dt: float) -> None:
         for ent, cam in list(esper.get_component(Camera)):

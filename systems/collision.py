@@ -159,6 +159,8 @@ class CollisionSystem(esper.Processor):
     """
 
     stage = "collision"
+    reads = (Transform, Velocity, Acceleration, Mass, SphereCollider)
+    writes = (Transform, Velocity)
 
     def __init__(self, method: str = "continuous", *, broadphase: str = "auto",
                  skin_steps: float = 8.0, events: bool = True):
@@ -205,18 +207,18 @@ class CollisionSystem(esper.Processor):
     # -- shared gathers -------------------------------------------------------
     def _velocities(self, lay: _Layout, dt: float) -> np.ndarray:
         """Path velocity u as (3, n): v1 for free bodies, v1 - a dt/2 (the step's average) with thrust."""
-        vel = Velocity._table.data["linear"]
+        vel = self.world.table(Velocity).data["linear"]
         if lay.all_v and not len(lay.a_sel):
             return np.ascontiguousarray(vel[lay.v_rows].T)   # a copy: the solver changes it
         u = np.zeros((lay.n, 3))
         u[lay.v_sel] = vel[lay.v_rows]
         if len(lay.a_sel):
-            u[lay.a_sel] -= (0.5 * dt) * Acceleration._table.data["linear"][lay.a_rows]
+            u[lay.a_sel] -= (0.5 * dt) * self.world.table(Acceleration).data["linear"][lay.a_rows]
         return np.ascontiguousarray(u.T)
 
     def _inverse_mass(self, lay: _Layout) -> np.ndarray:
         """1/kg per collider: 0 for infinite mass or no Velocity; 1 (1 kg) with no Mass."""
-        kg = Mass._table.data["kg"]
+        kg = self.world.table(Mass).data["kg"]
         if lay.all_m:
             inv = 1.0 / kg[lay.m_rows]
         else:
@@ -229,19 +231,19 @@ class CollisionSystem(esper.Processor):
     # -- continuous -----------------------------------------------------------
     def _continuous(self, lay: _Layout, dt: float) -> None:
         n = lay.n
-        x1 = Transform._table.data["position"][lay.t_rows]
+        x1 = self.world.table(Transform).data["position"][lay.t_rows]
         us = self._velocities(lay, dt)                       # (3, n): 1-D gathers are fast
         vmax = max(float(us.max()), -float(us.min())) * math.sqrt(3.0)   # >= the fastest speed
         if vmax == 0.0:
             return                                           # nothing moves: nothing can approach
         x1 = x1.T
         xr = x1 - us * dt                                    # start of step; p(t) = xr + u t
-        r = SphereCollider._table.data["radius"][lay.c_rows]
+        r = self.world.table(SphereCollider).data["radius"][lay.c_rows]
         inv = self._inverse_mass(lay)
         self._xr, self._us, self._r, self._inv, self._dt = xr, us, r, inv, dt
         self._eps_v = APPROACH * vmax
         self._static = not inv.all()
-        self._e = SphereCollider._table.data["restitution"][lay.c_rows]
+        self._e = self.world.table(SphereCollider).data["restitution"][lay.c_rows]
 
         # -- broad phase: candidate pairs --
         if self.broadphase == "all" or (self.broadphase == "auto" and n <= bp.ALL_PAIRS_MAX):
@@ -431,7 +433,7 @@ class CollisionSystem(esper.Processor):
         last_t = -1.0
         jam_after = JAM_WAVES + 4 * lay.n
         t0 = self._now()
-        out = self.world.events if (self.events and self.world is not None) else None
+        out = self.world if (self.events and self.world is not None) else None
         while pending:
             first = min(pending, key=lambda p: pending[p][0])
             t = pending[first][0]
@@ -519,9 +521,9 @@ class CollisionSystem(esper.Processor):
                 acc = lay.a_idx[ch]
                 thrust = acc >= 0
                 if thrust.any():                              # give back the a dt/2 of the average
-                    v_end[thrust] += (0.5 * dt) * Acceleration._table.data["linear"][acc[thrust]]
-            Transform._table.data["position"][lay.t_idx[ch]] = x_end
-            Velocity._table.data["linear"][lay.v_idx[ch]] = v_end
+                    v_end[thrust] += (0.5 * dt) * self.world.table(Acceleration).data["linear"][acc[thrust]]
+            self.world.table(Transform).data["position"][lay.t_idx[ch]] = x_end
+            self.world.table(Velocity).data["linear"][lay.v_idx[ch]] = v_end
 
     def _extend(self, moved, body, t, dt) -> np.ndarray:
         """Sweep the changed bodies whose rest-of-step path left their cover; the new pairs."""
@@ -562,22 +564,22 @@ class CollisionSystem(esper.Processor):
                 i, j, a, b, nx, ny, nz = j, i, b, a, -nx, -ny, -nz
             s, ri = body(i), float(r[i])
             point = (s[0] + s[3] * t + ri * nx, s[1] + s[4] * t + ri * ny, s[2] + s[5] * t + ri * nz)
-            out.append(CollisionEvent(a, b, t0 + t, t, point, (nx, ny, nz), lam))
+            out.emit(CollisionEvent(a, b, t0 + t, t, point, (nx, ny, nz), lam, step=self.world.step_count))
 
     # -- the articles' method (baseline) --------------------------------------
     def _articles(self, lay: _Layout, dt: float) -> None:
-        pos_t = Transform._table.data["position"]
-        vel_t = Velocity._table.data["linear"]
+        pos_t = self.world.table(Transform).data["position"]
+        vel_t = self.world.table(Velocity).data["linear"]
         x = pos_t[lay.t_idx].tolist()
         v = np.zeros((lay.n, 3))
         v[lay.v_sel] = vel_t[lay.v_idx[lay.v_sel]]
         v = v.tolist()
         inv = self._inverse_mass(lay).tolist()
-        r = SphereCollider._table.data["radius"][lay.c_idx].tolist()
+        r = self.world.table(SphereCollider).data["radius"][lay.c_idx].tolist()
         ents = lay.entities.tolist()
         n = lay.n
         touched = set()
-        out = self.world.events if (self.events and self.world is not None) else None
+        out = self.world if (self.events and self.world is not None) else None
         t0 = self._now()
         count = 0
         for i in range(n):
@@ -624,9 +626,9 @@ class CollisionSystem(esper.Processor):
                     a_, b_, sign = (i, j, 1.0) if ents[i] < ents[j] else (j, i, -1.0)
                     nn = (sign * nx, sign * ny, sign * nz)
                     pa = x[a_]
-                    out.append(CollisionEvent(ents[a_], ents[b_], t0 + dt - s, dt - s,
-                                              (pa[0] + r[a_] * nn[0], pa[1] + r[a_] * nn[1], pa[2] + r[a_] * nn[2]),
-                                              nn, impulse, "articles"))
+                    out.emit(CollisionEvent(ents[a_], ents[b_], t0 + dt - s, dt - s,
+                                            (pa[0] + r[a_] * nn[0], pa[1] + r[a_] * nn[1], pa[2] + r[a_] * nn[2]),
+                                            nn, impulse, "articles", step=self.world.step_count))
         self.stats["pairs"] = n * (n - 1) // 2
         self.stats["contacts"] = count
         if touched:

@@ -10,7 +10,7 @@ from driftframe.framework import frame as fr
 
 
 class ControlSystem(esper.Processor):
-    """Reads FlightInput, FlightControl, Transform; writes Acceleration, AngularVelocity.
+    """Reads FlightInput, FlightControl, Transform, AngularVelocity; writes Acceleration, AngularVelocity.
 
     Thrust: ``a = throttle * thrust * forward_mid`` (world frame), held for
     the step and integrated exactly by the movement system. ``forward_mid``
@@ -34,6 +34,8 @@ class ControlSystem(esper.Processor):
     """
 
     stage = "control"
+    reads = (FlightInput, FlightControl, Transform, AngularVelocity)
+    writes = (Acceleration, AngularVelocity)
 
     def process(self, dt: float) -> None:
         for _, (inp, ctl, tf, acc, spin) in esper.get_components(

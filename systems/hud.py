@@ -5,7 +5,7 @@ import esper
 import moderngl
 import numpy as np
 
-from driftframe.components.body import AngularVelocity, Velocity
+from driftframe.components.body import AngularVelocity, Transform, Velocity
 from driftframe.components.camera import Camera
 from driftframe.components.control import FlightInput, Player, RotationAssist
 
@@ -140,6 +140,8 @@ class HudSystem(esper.Processor):
     """
 
     stage = "render"
+    reads = (Player, Camera, Transform, Velocity, AngularVelocity, RotationAssist, FlightInput)
+    writes = ()
 
     def __init__(self, render, *, font_px: int | None = None):
         self.render = render
@@ -157,7 +159,10 @@ class HudSystem(esper.Processor):
         players = sorted(e for e, _ in esper.get_component(Player))
         if players:
             return players[0]
-        return self.render.camera_entity and esper.component_for_entity(self.render.camera_entity, Camera).target
+        cam = esper.try_component(self.render.camera_entity, Camera) if self.render.camera_entity else None
+        if cam is None or cam.target_lost or not esper.entity_exists(cam.target):
+            return None
+        return cam.target
 
     def lines(self, ent) -> list[str]:
         """The text lines for subject entity ``ent`` (the Player, or the camera's target)."""
@@ -165,6 +170,8 @@ class HudSystem(esper.Processor):
         vel = esper.try_component(ent, Velocity) if ent is not None else None
         spin = esper.try_component(ent, AngularVelocity) if ent is not None else None
         out = [f"CAMERA  {cam.mode if cam else '-'}"]
+        if cam is not None and cam.target_lost:
+            out.append(f"TARGET LOST (entity {cam.target}): holding the last view")
         if vel is not None:                  # a fixed viewpoint (billiards, cradle) has no speed to show
             out.append(f"SPEED   {np.linalg.norm(vel.linear):7.2f} m/s")
         if spin is not None:
@@ -200,6 +207,8 @@ class HudSystem(esper.Processor):
         self.prog["atlas"].value = 0
 
         ent = self._subject()
+        if ent is not None and not esper.entity_exists(ent):
+            ent = None
         vel = esper.try_component(ent, Velocity) if ent is not None else None
         markers = {}
         radius = max(6.0, h / 60)
@@ -218,6 +227,10 @@ class HudSystem(esper.Processor):
         self.last = {"markers": markers, "text": text}
 
     def release(self) -> None:
+        """Release the program, buffers and font texture (``world.close()`` calls it; idempotent)."""
+        if self.prog is None:
+            return
         for obj in (self.vao, self.vbo, self.prog):
             obj.release()
         self.font.release()
+        self.vao = self.vbo = self.prog = None

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import esper
 
+from driftframe.components.body import Transform
+from driftframe.components.camera import Camera
 from driftframe.components.control import FlightInput, Player
 from driftframe.framework.input import PRESSED, Track, intent_from_held
 
@@ -26,6 +28,10 @@ class InputSystem(esper.Processor):
     """
 
     stage = "input"
+    reads = (Player,)
+    # FlightInput of the Player; the handlers of pressed actions may write more (switch_camera:
+    # the camera's mode and its eye's Transform)
+    writes = (FlightInput, Camera, Transform)
 
     def __init__(self, track: Track | None = None):
         if track is not None and not isinstance(track, Track):

@@ -4,7 +4,6 @@ from __future__ import annotations
 import esper
 
 from driftframe.components.body import Acceleration, Transform, Velocity
-from driftframe.framework.store import RowCache
 
 
 class MovementSystem(esper.Processor):
@@ -22,27 +21,24 @@ class MovementSystem(esper.Processor):
     """
 
     stage = "movement"
-
-    def __init__(self):
-        self._free = RowCache()
-        self._thrust = RowCache()
+    reads = (Velocity, Acceleration)
+    writes = (Transform, Velocity)
 
     def process(self, dt: float) -> None:
-        free = self._free
-        free.update(esper.get_components(Transform, Velocity))
-        if len(free.entities):
-            t_rows, v_rows = free.rows
-            pos = Transform._table.data["position"]
-            vel = Velocity._table.data["linear"]
-            pos[t_rows] += vel[v_rows] * dt
+        world = self.world
+        free = world.query(Transform, Velocity)
+        free.refresh()
+        if len(free):
+            pos = world.table(Transform).data["position"]
+            vel = world.table(Velocity).data["linear"]
+            pos[free.rows(Transform)] += vel[free.rows(Velocity)] * dt
 
-        acc = self._thrust
-        acc.update(esper.get_components(Transform, Velocity, Acceleration))
-        if len(acc.entities):
-            t_rows, v_rows, a_rows = acc.rows
-            pos = Transform._table.data["position"]
-            vel = Velocity._table.data["linear"]
-            a = Acceleration._table.data["linear"][a_rows]
+        acc = world.query(Transform, Velocity, Acceleration)
+        acc.refresh()
+        if len(acc):
+            pos = world.table(Transform).data["position"]
+            vel = world.table(Velocity).data["linear"]
+            a = world.table(Acceleration).data["linear"][acc.rows(Acceleration)]
             # the v dt part was added above; add the constant-acceleration term, then update v
-            pos[t_rows] += (0.5 * dt * dt) * a
-            vel[v_rows] += dt * a
+            pos[acc.rows(Transform)] += (0.5 * dt * dt) * a
+            vel[acc.rows(Velocity)] += dt * a

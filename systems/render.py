@@ -57,7 +57,7 @@ from driftframe.framework import frame as fr
 from driftframe.framework import validate
 from driftframe.framework.gl import ContextHandle, RenderTarget, create_context
 from driftframe.framework.model_cache import ModelCache, check_colour
-from driftframe.framework.store import RowCache, to_indices
+from driftframe.framework.store import to_indices
 from driftframe.systems import camera as camera_sys
 
 VERTEX_SHADER = """
@@ -150,6 +150,9 @@ class RenderSystem(esper.Processor):
     """
 
     stage = "render"
+    reads = (Transform, ModelRef, Camera)
+    # the camera's eye Transform, placed here when the camera system has not run yet
+    writes = (Transform,)
 
     def __init__(self, ctx, cache: ModelCache, target: RenderTarget, *, lod: bool = True, cull: bool = True,
                  instanced: bool = True, lod_tolerance_px: float = 0.5,
@@ -172,7 +175,7 @@ class RenderSystem(esper.Processor):
         self._prog = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
         self._prog_draw = ctx.program(vertex_shader=_with_define(VERTEX_SHADER, "PER_DRAW"),
                                       fragment_shader=FRAGMENT_SHADER)
-        self._rows = RowCache()
+        self._rows = None                # the world's Query of (Transform, ModelRef), once added
         self._groups: list[_Group] = []
         self._stale = False
         # (id(mesh_set), level) -> [instance buffer, capacity in instances, vao]; per-draw vaos apart
@@ -203,12 +206,12 @@ class RenderSystem(esper.Processor):
 
     # -- per-entity constants, rebuilt only when esper's query changes ---------------------
     def _regroup(self) -> None:
-        ents = self._rows.entities
+        q = self._rows
+        ents = q.entities
         if not len(ents):
             self._groups = []
             return
-        t_rows, refs = self._rows.rows
-        t_rows = to_indices(t_rows)
+        t_rows, refs = to_indices(q.rows(Transform)), q.rows(ModelRef)
         models = {}
         for ent, ref in zip(ents.tolist(), refs):
             if ref.name not in models:
@@ -334,7 +337,9 @@ class RenderSystem(esper.Processor):
             prog["u_to_light"].value = tuple(self.light_direction)
             prog["u_ambient"].value = self.ambient
 
-        if self._rows.update(esper.get_components(Transform, ModelRef)) or self._stale:
+        if self._rows is None:
+            self._rows = self.world.query(Transform, ModelRef)
+        if self._rows.refresh() or self._stale:
             self._stale = True           # stays set if _regroup raises (an unknown model): retried next frame
             self._regroup()
             self._stale = False
@@ -342,8 +347,9 @@ class RenderSystem(esper.Processor):
         r_eye = fr.quat_to_matrix(q_eye)                          # columns right, up, forward
         f_px = 0.5 * h / cam.tan_half_fov                         # pixels per metre at 1 m depth
         stats = {"draw_calls": 0, "instances": 0, "culled": 0, "levels": {}}
-        pos_all = Transform._table.data["position"]
-        q_all = Transform._table.data["orientation"]
+        table = self.world.table(Transform)
+        pos_all = table.data["position"]
+        q_all = table.data["orientation"]
         for g in self._groups:
             rel = pos_all[g.t_rows] - eye                         # eye-relative, float64, m
             keep = np.ones(len(rel), bool) if skip is None else g.entities != skip
@@ -480,11 +486,10 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
     world.resources["gl"] = handle
     if world.get_system(camera_sys.CameraSystem) is None:
         world.add_system(camera_sys.CameraSystem())
+    # world.close() calls release() on every system (this one, the skybox, the HUD) before the resources
     render = world.add_system(RenderSystem(ctx, cache, target, **options))
-    handle.on_release(render.release)
     if skybox:
-        sky = world.add_system(SkyboxSystem(ctx, cache, render))
-        handle.on_release(sky.release)
+        world.add_system(SkyboxSystem(ctx, cache, render))
     world.activate()
     if any(True for _ in esper.get_component(Camera)):
         camera_sys.update_cameras(world, snap=True)

@@ -46,6 +46,8 @@ class SkyboxSystem(esper.Processor):
     """
 
     stage = "render"
+    reads = ()          # the render system's view (no components)
+    writes = ()
 
     def __init__(self, ctx, cache: ModelCache, render, *, model: str = "skybox", colour=None):
         self.ctx = ctx

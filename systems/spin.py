@@ -5,7 +5,7 @@ import esper
 import numpy as np
 
 from driftframe.components.body import AngularVelocity, Transform
-from driftframe.framework.store import RowCache, to_indices
+from driftframe.framework.store import to_indices
 
 
 class SpinSystem(esper.Processor):
@@ -23,25 +23,27 @@ class SpinSystem(esper.Processor):
     """
 
     stage = "spin"
+    reads = (AngularVelocity,)
+    writes = (Transform,)
 
     def __init__(self):
-        self._rows = RowCache()
         self._scratch = np.empty((16, 0))    # work rows, reused every step (see _rotate)
 
     def process(self, dt: float) -> None:
-        c = self._rows
-        c.update(esper.get_components(Transform, AngularVelocity))
-        if not len(c.entities):
+        world = self.world
+        c = world.query(Transform, AngularVelocity)
+        c.refresh()
+        if not len(c):
             return
-        t_rows, w_rows = c.rows
-        w = AngularVelocity._table.data["angular"][w_rows]
+        t_rows, w_rows = c.rows(Transform), c.rows(AngularVelocity)
+        w = world.table(AngularVelocity).data["angular"][w_rows]
         spinning = (w[:, 0] != 0.0) | (w[:, 1] != 0.0) | (w[:, 2] != 0.0)
         if not spinning.any():
             return
         if not spinning.all():
             w = w[spinning]
             t_rows = to_indices(t_rows)[spinning]
-        q_all = Transform._table.data["orientation"]
+        q_all = world.table(Transform).data["orientation"]
         q_all[t_rows] = self._rotate(q_all[t_rows], w, dt).T
 
     def _rotate(self, q: np.ndarray, w: np.ndarray, dt: float) -> np.ndarray:

@@ -67,7 +67,7 @@ def test_a_plain_per_entity_system_sees_and_changes_the_same_data(world):
 
         def process(self, dt):
             for _, (vel,) in esper.get_components(Velocity):
-                vel.linear[0] += 1.0          # in-place on the component's view
+                vel.linear = vel.linear + (1.0, 0.0, 0.0)   # per entity, through the component
 
     world.add_system(Bump())
     world.add_system(MovementSystem())
