@@ -74,20 +74,19 @@ class LoopSpin(esper.Processor):
 
 
 class LeanLoopMovement(esper.Processor):
-    """Reads Velocity; writes Transform.position.  x += v dt, in place in the row view, no validation."""
+    """Reads Velocity; writes Transform.position.  x += v dt, plain floats, one field write per body."""
 
     stage = "movement"
 
     def process(self, dt):
         for _, (tf, vel) in esper.get_components(Transform, Velocity):
-            p = tf.position                            # a view of this body's row
             vx, vy, vz = vel.linear.tolist()
-            px, py, pz = p.tolist()
-            p[0], p[1], p[2] = px + vx * dt, py + vy * dt, pz + vz * dt
+            px, py, pz = tf.position.tolist()
+            tf.position = (px + vx * dt, py + vy * dt, pz + vz * dt)
 
 
 class LeanLoopSpin(LoopSpin):
-    """Reads AngularVelocity; writes Transform.orientation.  As LoopSpin, written in place, no validation."""
+    """Reads AngularVelocity; writes Transform.orientation.  As LoopSpin, plain floats throughout."""
 
     def process(self, dt):
         sqrt, sin, cos = math.sqrt, math.sin, math.cos
@@ -99,14 +98,13 @@ class LeanLoopSpin(LoopSpin):
             half = 0.5 * rate * dt
             k = sin(half) / rate
             ax, ay, az, aw = wx * k, wy * k, wz * k, cos(half)
-            q = tf.orientation
-            bx, by, bz, bw = q.tolist()
+            bx, by, bz, bw = tf.orientation.tolist()
             x = aw * bx + ax * bw + ay * bz - az * by
             y = aw * by - ax * bz + ay * bw + az * bx
             z = aw * bz + ax * by - ay * bx + az * bw
             w = aw * bw - ax * bx - ay * by - az * bz
             n = sqrt(x * x + y * y + z * z + w * w)
-            q[0], q[1], q[2], q[3] = x / n, y / n, z / n, w / n
+            tf.orientation = (x / n, y / n, z / n, w / n)
 
 
 VARIANTS = {

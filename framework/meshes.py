@@ -168,7 +168,7 @@ def sphere_lods(levels=SPHERE_LEVELS) -> tuple[Mesh, ...]:
     return tuple(icosphere(level) for level in levels)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.lru_cache(maxsize=16)           # bounded: a cache, never a leak
 def pyramid(length: float = 2.0, width: float = 1.2, height: float = 0.5) -> Mesh:
     """The player ship: apex (nose) on local +z, rectangular base ``width`` x ``height`` (m) behind it.
 
@@ -197,7 +197,7 @@ def pyramid(length: float = 2.0, width: float = 1.2, height: float = 0.5) -> Mes
     return Mesh("pyramid", np.array(verts), np.array(norms), np.arange(len(verts)), "triangles")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.lru_cache(maxsize=16)
 def line_cube(divisions: int = 1) -> Mesh:
     """A cube of side 1 centred on the origin, as line segments.
 
