@@ -18,4 +18,4 @@ def load(name: str):
     """The demo module called ``name``; a clear error listing the demos otherwise."""
     if name not in NAMES:
         raise LookupError(f"unknown demo {name!r}; demos: {', '.join(NAMES)}")
-    return importlib.import_module(f"demos.{name}")
+    return importlib.import_module(f"{__name__}.{name}")

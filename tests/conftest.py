@@ -2,8 +2,18 @@
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 import pytest
+
+# `python -m pytest` puts the repository root on sys.path, where framework/, systems/, ... would
+# import as bare top-level names (a second copy of every module). driftframe is one package:
+# tests see it only as installed, exactly as a user's game does.
+_ROOT = Path(__file__).resolve().parent.parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _ROOT]
+for _bare in ("framework", "components", "systems", "demos"):
+    assert _bare not in sys.modules, f"{_bare!r} was imported as a top-level module"
 
 from driftframe.framework.world import World
 
