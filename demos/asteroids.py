@@ -1,25 +1,29 @@
-"""asteroids — the ship among fifty asteroids that share one sphere mesh (Framework 0.0.5)."""
-from driftframe.demos.parts import asteroid_field, chase_camera, ship
+"""asteroids — the ship flies into a cluster of fifty asteroids that share one sphere mesh (Framework 0.0.5)."""
+import numpy as np
+
+from driftframe.demos.parts import asteroid_field, balls, chase_camera, ship
 from driftframe.framework.input import Hold, Press, Track
 
 TITLE = "Asteroids"
 DESCRIPTION = "fifty scaled asteroids, elastic collisions, skybox, chase and cockpit cameras"
 SECONDS = 20.0
+FIELD = (0.0, 0.0, 70.0)      # centre of the cluster, m: straight ahead of the ship
+PEBBLE = (0.0, 0.0, 36.0)     # a small rock on the ship's path, m
+DENSITY = 2000.0              # rock, kg/m^3
 
-# Into the field in the chase view; a 90-degree yaw (spin up, coast, counter-spin) while the ship
-# keeps drifting the old way; switch to the cockpit and burn along the new nose (the prograde
-# marker swings over); pitch up; back to the chase view; a roll that the kill-rotation assist
-# takes out; a last turn and burn.
+# A burn towards the cluster (collisions in it are in view from the start); a 90-degree yaw while
+# drifting: the chase camera keeps looking where the ship goes, the ship turns side-on; yaw back;
+# the cockpit view along the nose as the ship knocks the pebble into the cluster; back to the chase
+# view; a roll that the kill-rotation assist takes out; a pitch and a last burn.
 SCRIPT = Track((
-    Hold(0.5, 1.1, throttle=1.0),
-    Hold(2.0, 2.5, yaw=1.0), Hold(4.1, 4.6, yaw=-1.0),
-    Press(5.0, "switch_camera"),
-    Hold(5.5, 6.0, throttle=1.0),
-    Hold(7.0, 7.5, pitch=-1.0), Hold(8.5, 9.0, pitch=1.0),
-    Press(10.0, "switch_camera"),
-    Hold(10.5, 11.2, roll=1.0),
-    Hold(11.5, 13.5, kill_rotation=True),
-    Hold(14.0, 14.5, yaw=-1.0), Hold(16.1, 16.6, yaw=1.0),
+    Hold(0.5, 1.2, throttle=1.0),
+    Hold(1.5, 2.0, yaw=1.0), Hold(3.6, 4.1, yaw=-1.0),
+    Hold(5.5, 6.0, yaw=-1.0), Hold(7.6, 8.1, yaw=1.0),
+    Press(8.3, "switch_camera"),
+    Press(11.0, "switch_camera"),
+    Hold(11.5, 12.2, roll=1.0),
+    Hold(12.5, 14.5, kill_rotation=True),
+    Hold(15.0, 15.5, pitch=-1.0), Hold(15.9, 16.4, pitch=1.0),
     Hold(17.0, 17.6, throttle=1.0),
 ))
 
@@ -27,4 +31,8 @@ SCRIPT = Track((
 def build(world, rng):
     me = ship(world, mode="momentum")
     chase_camera(world, me, mode="chase")
-    asteroid_field(world, rng, 50, inner=12.0, outer=70.0, radii=(0.6, 3.5), speed=1.5)
+    # 1.8 t against the ship's 10 t: the ship slows from 4.2 to 2.9 m/s, the pebble leaves at 7.1 m/s
+    balls(world, [PEBBLE], [(0.0, 0.0, 0.0)], 0.6, mass=DENSITY * 4 / 3 * np.pi * 0.6 ** 3, colour=(0.7, 0.62, 0.5))
+    # dense enough (50 rocks in 30 m) for a collision every second or two, all in front of the ship
+    asteroid_field(world, rng, 50, inner=0.0, outer=30.0, radii=(0.6, 3.5), speed=1.5, centre=FIELD,
+                   density=DENSITY, keep_clear=[(PEBBLE, 3.0), ((0.0, 0.0, 0.0), 12.0)])

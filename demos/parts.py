@@ -55,11 +55,13 @@ def balls(world, positions, velocities, radius: float, *, mass: float = 1.0, col
 
 
 def asteroid_field(world, rng, n: int, *, inner: float, outer: float, radii=(0.5, 3.0),
-                   speed: float = 1.0, spin: float = 0.4, variants: int = 50, density: float = 2000.0) -> list[int]:
-    """``n`` asteroids in a spherical shell, random sizes drawn from ``variants`` scaled spheres.
+                   speed: float = 1.0, spin: float = 0.4, variants: int = 50, density: float = 2000.0,
+                   centre=(0.0, 0.0, 0.0), keep_clear=()) -> list[int]:
+    """``n`` asteroids in a spherical shell about ``centre`` (m), sizes drawn from ``variants`` scaled spheres.
 
     Mass = density * 4/3 pi r^3 (kg); random drift velocity (~``speed`` m/s)
-    and spin (~``spin`` rad/s). Asteroids never overlap each other at spawn.
+    and spin (~``spin`` rad/s). Asteroids never overlap each other, nor the
+    spheres ``keep_clear`` (``((x, y, z), radius), ...``), at spawn.
     """
     from driftframe.framework.model_cache import declare_variant
 
@@ -69,11 +71,15 @@ def asteroid_field(world, rng, n: int, *, inner: float, outer: float, radii=(0.5
     kind = rng.integers(0, variants, n)
     r = sizes[kind]
     pos = np.empty((n, 3))
+    centre = np.asarray(centre, dtype=float)
+    clear_at = np.array([c for c, _ in keep_clear], float).reshape(-1, 3)
+    clear_r = np.array([cr for _, cr in keep_clear], float)
     placed = 0
     while placed < n:                            # rejection sampling: no overlaps at spawn
         d = rng.normal(size=3)
-        p = d / np.linalg.norm(d) * rng.uniform(inner, outer)
-        if placed == 0 or np.all(np.linalg.norm(pos[:placed] - p, axis=1) > r[:placed] + r[placed] + 0.1):
+        p = centre + d / np.linalg.norm(d) * rng.uniform(inner, outer)
+        if (np.all(np.linalg.norm(pos[:placed] - p, axis=1) > r[:placed] + r[placed] + 0.1)
+                and np.all(np.linalg.norm(clear_at - p, axis=1) > clear_r + r[placed] + 0.1)):
             pos[placed] = p
             placed += 1
     vel = rng.normal(0.0, speed / np.sqrt(3), (n, 3))

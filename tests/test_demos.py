@@ -10,11 +10,13 @@ from driftframe.components.collision import SphereCollider
 from driftframe.components.control import Player
 from driftframe.components.render import ModelRef
 from driftframe.app import make_world
+from driftframe.framework import frame as fr
+from driftframe.systems import camera as cs
 
 EXPECTED = {   # (bodies with a collider, players, cameras)
     "rotation": (18, 1, 1),
     "spin": (12, 1, 1),
-    "asteroids": (51, 1, 1),
+    "asteroids": (52, 1, 1),     # the ship, a pebble on its path, fifty asteroids
     "billiards": (16, 0, 1),
     "cradle": (6, 0, 1),
     "swarm": (3001, 1, 1),
@@ -112,3 +114,94 @@ def test_cradle_demo_passes_the_impulse_to_the_last_ball():
         np.testing.assert_allclose(v[-1, 1], 3.0, rtol=1e-12)
     finally:
         world.close()
+
+
+# -- what the asteroids recording shows: collisions projected into the camera of their frame ----------
+SHOT = (1280, 720)          # the recording's default size, px
+
+
+def _visible(points, eye, vp, centres, radii, parties):
+    """Which ``points`` a frame shows: in front, inside the frame, and not behind another sphere.
+
+    A sphere hides a point when the segment from the eye to the point passes
+    through it (spheres in ``parties[i]``, the bodies at point ``i``, do not count).
+    """
+    px, front = cs.world_to_pixels(points, vp, SHOT)
+    inside = front & (px[:, 0] >= 0) & (px[:, 0] < SHOT[0]) & (px[:, 1] >= 0) & (px[:, 1] < SHOT[1])
+    out = []
+    for i, p in enumerate(points):
+        seg = p - eye
+        length = np.linalg.norm(seg)
+        t = np.clip((centres - eye) @ seg / max(length, 1e-12) ** 2, 0.0, 1.0)      # closest point on the segment
+        gap = np.linalg.norm(eye + t[:, None] * seg - centres, axis=1) - radii
+        blocked = (gap < 0) & ~np.isin(np.arange(len(centres)), parties[i])
+        out.append(bool(inside[i] and not blocked.any()))
+    return np.array(out, bool)
+
+
+def watch_asteroids(seed=0):
+    """Run the asteroids demo headless with its cameras, as the recorder would frame it at 1280x720.
+
+    Returns (fraction of frames with at least one field body in view, on-screen rock-rock
+    collisions, on-screen ship-rock collisions, all collisions).
+    """
+    world, demo = make_world("asteroids", seed=seed)
+    world.add_system(cs.CameraSystem())
+    cs.update_cameras(world)
+    from driftframe.app import player
+    me = player(world)
+    seen = {}
+    frames_with_field = 0
+    steps = round(demo.SECONDS / world.dt)
+    try:
+        for _ in range(steps):
+            world.step()
+            ent, cam = cs.active_camera(world)
+            tf = esper.component_for_entity(ent, Transform)
+            vp = cs.perspective(cam.fov, SHOT[0] / SHOT[1], cam.near, cam.far) @ cs.view_matrix(
+                tf.position, tf.orientation)
+            f_px = 0.5 * SHOT[1] / cam.tan_half_fov
+            bodies = sorted(esper.get_component(SphereCollider))
+            ids = np.array([e for e, _ in bodies])
+            radii = np.array([c.radius for _, c in bodies])
+            centres = np.array([esper.component_for_entity(e, Transform).position for e in ids])
+            field = ids != me
+            drawn = radii.copy()
+            if cam.mode == "cockpit":
+                drawn[ids == cam.target] = 0.0     # the eye sits inside the ship, which is not drawn
+            px_r = radii * f_px / np.maximum(np.linalg.norm(centres - tf.position, axis=1), 1e-9)
+            shown = _visible(centres, tf.position, vp, centres, drawn, [[k] for k in range(len(ids))])
+            frames_with_field += bool((shown & field & (px_r >= 1.0)).any())
+            # events of this step only; a world that keeps several steps' events repeats them: key by contact
+            new = [ev for ev in world.events if (ev.a, ev.b, ev.time) not in seen]
+            if new:
+                pts = np.array([ev.point for ev in new])
+                parties = [np.flatnonzero(np.isin(ids, (ev.a, ev.b))) for ev in new]
+                vis = _visible(pts, tf.position, vp, centres, drawn, parties)
+                for ev, v, pa in zip(new, vis, parties):
+                    dist = np.linalg.norm(np.asarray(ev.point) - tf.position)
+                    big_enough = radii[pa].min() * f_px / max(dist, 1e-9) >= 2.0     # a few pixels across
+                    seen[(ev.a, ev.b, ev.time)] = (me in (ev.a, ev.b), bool(v and big_enough))
+    finally:
+        world.close()
+    rock = sum(1 for ship_hit, on in seen.values() if on and not ship_hit)
+    ship_hits = sum(1 for ship_hit, on in seen.values() if on and ship_hit)
+    return frames_with_field / steps, rock, ship_hits, len(seen)
+
+
+def test_asteroids_recording_keeps_the_field_in_view_and_shows_collisions_on_screen():
+    in_view, rock, ship_hits, total = watch_asteroids(seed=0)
+    assert in_view >= 0.9, f"field in view in {in_view:.0%} of frames"
+    assert rock >= 3, f"{rock} of {total} asteroid-asteroid collisions on screen"
+    assert ship_hits >= 1, f"{ship_hits} ship-asteroid collisions on screen"
+
+
+def test_the_visibility_check_sees_off_screen_and_hidden_points():
+    """The projection used above rejects points behind the eye, outside the frame, and behind a sphere."""
+    eye = np.zeros(3)
+    vp = cs.perspective(60.0, SHOT[0] / SHOT[1], 0.1, 1000.0) @ cs.view_matrix(eye, fr.look_rotation((0, 0, 1)))
+    pts = np.array([[0.0, 0.0, 20.0], [0.0, 0.0, -20.0], [50.0, 0.0, 10.0], [0.0, 0.0, 40.0]])
+    centres = np.array([[0.0, 0.0, 30.0]])        # a 2 m sphere between the eye and the last point
+    got = _visible(pts, eye, vp, centres, np.array([2.0]), [[], [], [], []])
+    assert got.tolist() == [True, False, False, False]
+    assert _visible(pts[3:], eye, vp, centres, np.array([2.0]), [[0]]).tolist() == [True]   # its own body
