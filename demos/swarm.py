@@ -9,7 +9,7 @@ COUNT = 3000
 
 SCRIPT = Track((
     Hold(0.5, 3.0, throttle=1.0),
-    Hold(3.0, 4.0, yaw=1.0),
+    Hold(3.0, 3.5, yaw=1.0), Hold(4.5, 5.0, yaw=-1.0),     # a 65-degree turn: spin up, coast, counter-spin
     Press(6.0, "switch_camera"),
     Hold(6.5, 9.0, throttle=1.0),
 ))

@@ -39,8 +39,14 @@ grouped by mesh):
   (see :mod:`framework.meshes`);
 * one instanced draw call per (mesh, level) for all its entities; per-instance
   data (mat4 model + RGB) is one float32 array uploaded at once;
-* light: ``colour (ambient + (1 - ambient) max(n . l, 0))``, with ``l`` the
-  unit direction *towards* a distant light (world frame).
+* light: ``colour (ambient + fill (1 - n . l) / 2 + (1 - ambient) max(n . l, 0))``,
+  with ``l`` the unit direction *towards* a distant light (world frame): a
+  diffuse key light plus a hemisphere ambient term that is ``ambient`` on
+  normals facing the light and ``ambient + fill`` on normals facing straight
+  away from it (light scattered back from the far side). Without ``fill`` a
+  body seen against the light is a near-black disc; with it its dark side is
+  brightest at the centre and darkens to the outline, so it still reads as a
+  sphere, and the lit side is unchanged (1 where ``n = l``).
 """
 from __future__ import annotations
 
@@ -92,6 +98,7 @@ FRAGMENT_SHADER = """
 #version 330
 uniform vec3 u_to_light;           // unit vector towards the light, world frame
 uniform float u_ambient;           // fraction of light everywhere
+uniform float u_fill;              // hemisphere fill: extra light on normals facing away from the light
 uniform int u_lit;                 // 0 for lines: flat colour
 in vec3 v_normal;
 in vec3 v_colour;
@@ -100,7 +107,9 @@ void main() {
     float shade = 1.0;
     if (u_lit != 0) {
         vec3 n = normalize(v_normal);
-        shade = u_ambient + (1.0 - u_ambient) * max(dot(n, u_to_light), 0.0);
+        float nl = dot(n, u_to_light);
+        // hemisphere ambient (u_ambient towards the light, u_ambient + u_fill away from it) + diffuse
+        shade = u_ambient + u_fill * (0.5 - 0.5 * nl) + (1.0 - u_ambient) * max(nl, 0.0);
     }
     f_colour = vec4(v_colour * shade, 1.0);
 }
@@ -139,8 +148,9 @@ class RenderSystem(esper.Processor):
     and view culling, on by default), ``instanced`` (False: one draw call per
     entity — the baseline the benchmark compares with), ``lod_tolerance_px``
     (largest allowed outline error of a level, pixels), ``light_direction``
-    (towards the light, world frame), ``ambient`` (0..1), ``clear_colour``
-    (RGB). ``camera``: a camera entity to use instead of the first active one.
+    (towards the light, world frame), ``ambient`` (0..1), ``fill`` (0..1,
+    hemisphere fill on the side away from the light; 0 = the plain
+    ambient + diffuse model), ``clear_colour`` (RGB). ``camera``: a camera entity to use instead of the first active one.
 
     After each frame: ``view``, ``projection``, ``view_projection`` (4x4
     float64, world -> clip), ``view_rotation_only`` (the same without the
@@ -156,7 +166,7 @@ class RenderSystem(esper.Processor):
 
     def __init__(self, ctx, cache: ModelCache, target: RenderTarget, *, lod: bool = True, cull: bool = True,
                  instanced: bool = True, lod_tolerance_px: float = 0.5,
-                 light_direction=(-0.45, 0.65, -0.6), ambient: float = 0.12,
+                 light_direction=(-0.45, 0.65, -0.6), ambient: float = 0.12, fill: float = 0.3,
                  clear_colour=(0.0, 0.0, 0.0), camera: int | None = None):
         self.ctx = ctx
         self.cache = cache
@@ -170,6 +180,7 @@ class RenderSystem(esper.Processor):
             raise ValueError(f"light_direction must be a non-zero vector, got {light.tolist()}")
         self.light_direction = light / np.linalg.norm(light)
         self.ambient = validate.scalar("ambient", ambient, lo=0.0, hi=1.0)
+        self.fill = validate.scalar("fill", fill, lo=0.0, hi=1.0)
         self.clear_colour = tuple(check_colour("clear_colour", clear_colour).tolist())
         self.camera = camera
         self._prog = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
@@ -336,6 +347,7 @@ class RenderSystem(esper.Processor):
             prog["u_view_proj"].write(vp_rot.T.tobytes())          # GL wants column-major
             prog["u_to_light"].value = tuple(self.light_direction)
             prog["u_ambient"].value = self.ambient
+            prog["u_fill"].value = self.fill
 
         if self._rows is None:
             self._rows = self.world.query(Transform, ModelRef)

@@ -57,6 +57,20 @@ def sphere_mask(centre, radius, size=(W, H), f_px=F_PX):
     return (miss2 < radius * radius) & (t > 0)
 
 
+def sphere_normals(centre, radius, size=(W, H), f_px=F_PX):
+    """Unit surface normal where each pixel's centre ray first hits the sphere (NaN where it misses)."""
+    w, h = size
+    xs = (np.arange(w) + 0.5 - w / 2) / f_px
+    ys = -(np.arange(h) + 0.5 - h / 2) / f_px
+    d = np.stack(np.broadcast_arrays(xs[None, :], ys[:, None], np.ones((h, w))), -1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    c = np.asarray(centre, float)
+    t = d @ c
+    with np.errstate(invalid="ignore"):
+        t_hit = t - np.sqrt(radius * radius - (c @ c - t * t))
+    return (t_hit[..., None] * d - c) / radius
+
+
 def centroid(mask):
     ys, xs = np.nonzero(mask)
     return np.array([xs.mean() + 0.5, ys.mean() + 0.5])
@@ -94,7 +108,7 @@ def test_off_axis_sphere_lands_where_the_projection_says(make, centre):
 
 def test_sphere_is_shaded_by_the_directional_light(make):
     to_light = np.array([-1.0, 1.0, -1.0]) / math.sqrt(3)      # up, left, towards the eye
-    w, _, render = make(light_direction=to_light, ambient=0.1)
+    w, _, render = make(light_direction=to_light, ambient=0.1, fill=0.0)
     w.create_entity(Transform((0.0, 0.0, 10.0)), ModelRef("sphere", colour=(1.0, 1.0, 1.0)))
     img = frame(w, render)[..., 0].astype(float)
     mask = lit(frame(w, render))
@@ -107,6 +121,44 @@ def test_sphere_is_shaded_by_the_directional_light(make):
     assert xs.mean() < c[0] - 5 and ys.mean() < c[1] - 5
     assert img[mask].max() == pytest.approx(255, abs=2)
     assert img[mask].min() == pytest.approx(25.5, abs=2)
+
+
+def test_hemisphere_fill_keeps_a_sphere_seen_against_the_light_readable(make):
+    """Light straight from behind the sphere: without the fill it is one flat ambient disc."""
+    to_light = np.array([0.0, 0.0, 1.0])                       # behind the sphere, as seen from the eye
+    shots = {}
+    for fill in (0.0, 0.3):
+        w, _, render = make(light_direction=to_light, ambient=0.12, fill=fill)
+        w.create_entity(Transform((0.0, 0.0, 10.0)), ModelRef("sphere", colour=(1.0, 1.0, 1.0)))
+        shots[fill] = frame(w, render)[..., 0].astype(float)
+    truth = sphere_mask((0, 0, 10), 1.0)
+    inner = sphere_mask((0, 0, 10), 0.97)                       # away from the outline's partial pixels
+    flat, filled = shots[0.0], shots[0.3]
+    np.testing.assert_allclose(flat[inner], 255 * 0.12, atol=1.5)   # no shape at all
+    # with the fill: n . l = -1 at the centre (ambient + fill), rising to 0 at the outline (ambient + fill/2)
+    cy, cx = H // 2, W // 2
+    assert filled[cy - 1:cy + 1, cx - 1:cx + 1].mean() == pytest.approx(255 * (0.12 + 0.3), abs=3.0)
+    n = sphere_normals((0, 0, 10), 1.0)
+    expected = 255 * (0.12 + 0.3 * (0.5 - 0.5 * n[..., 2]))
+    np.testing.assert_allclose(filled[inner], expected[inner], atol=3.0)
+    ring = inner & ~sphere_mask((0, 0, 10), 0.9)
+    assert filled[ring].mean() < filled[cy, cx] - 15            # darker towards the outline: it reads round
+    assert (filled[~truth] == 0).all()
+
+
+def test_fill_leaves_the_lit_side_alone(make):
+    to_light = np.array([0.0, 0.0, -1.0])                      # from the eye: the visible side faces the light
+    shots = []
+    for fill in (0.0, 0.3):
+        w, _, render = make(light_direction=to_light, ambient=0.12, fill=fill)
+        w.create_entity(Transform((0.0, 0.0, 10.0)), ModelRef("sphere", colour=(1.0, 1.0, 1.0)))
+        shots.append(frame(w, render)[..., 0].astype(float))
+    cy, cx = H // 2, W // 2
+    assert shots[0][cy, cx] == pytest.approx(255, abs=1) and shots[1][cy, cx] == pytest.approx(255, abs=1)
+    inner = sphere_mask((0, 0, 10), 0.9)
+    # n . l = c near the centre: the fill adds 0.3 (1 - c) / 2, at most 0.3 * (1 - 0.43) / 2 = 0.09 inside r = 0.9
+    diff = shots[1][inner] - shots[0][inner]
+    assert diff.min() >= -1 and diff.max() <= 255 * 0.09 + 2
 
 
 def test_entity_colour_overrides_the_model_colour(make):
