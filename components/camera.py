@@ -15,12 +15,13 @@ import numpy as np
 from driftframe.framework import validate
 
 #: "cockpit": the target's own frame. "chase": behind and above, looking along the velocity.
-MODES = ("cockpit", "chase")
+#: "overhead": straight down on the target from above, fixed in world orientation (table tops, maps).
+MODES = ("cockpit", "chase", "overhead")
 
 
 @dataclass
 class Camera:
-    """A cockpit or chase camera on a target body.
+    """A cockpit, chase or overhead camera on a target body.
 
     ``target``: entity id of the followed body; it must have a Transform (a
     Velocity, when present, steers the chase camera).
@@ -35,6 +36,13 @@ class Camera:
       follows with time constant ``smoothing`` s (0 = no lag), so it does not
       jitter and is the same at any frame rate.
 
+    * ``overhead``: the eye sits ``overhead_height`` m above the target along
+      world +y and looks straight down (-y); the top of the picture points
+      along ``overhead_up`` (world frame, made perpendicular to y). It follows
+      the target's position, never its rotation: a plan view.
+
+    ``cycle``: the modes :func:`systems.camera.switch_camera` steps through
+    for this camera (a camera whose mode is not in it goes to the first).
     ``fov``: vertical field of view, degrees; ``near``/``far``: clip planes, m.
     The aspect ratio comes from the render target's size.
     """
@@ -56,6 +64,12 @@ class Camera:
     rest_speed: float = 0.5
     #: Cockpit: eye position in the target's local axes, m.
     cockpit_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: Overhead: height of the eye above the target along world +y, m (> 0).
+    overhead_height: float = 20.0
+    #: Overhead: the world direction that points to the top of the picture (not along y).
+    overhead_up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    #: Modes a switch steps through, in order.
+    cycle: tuple[str, ...] = ("cockpit", "chase")
     #: The render system draws from the first active camera.
     active: bool = True
     #: Set by the camera system while the target entity is gone (deleted, or lost its Transform):
@@ -83,6 +97,19 @@ class Camera:
         self.smoothing = validate.scalar("Camera.smoothing", self.smoothing, nonnegative=True)
         self.rest_speed = validate.scalar("Camera.rest_speed", self.rest_speed, nonnegative=True)
         self.cockpit_offset = tuple(validate.vector("Camera.cockpit_offset", self.cockpit_offset).tolist())
+        self.overhead_height = validate.scalar("Camera.overhead_height", self.overhead_height, positive=True)
+        up = validate.vector("Camera.overhead_up", self.overhead_up)
+        if not np.hypot(up[0], up[2]) > 1e-6 * max(np.linalg.norm(up), 1e-300):
+            raise ValueError(f"Camera.overhead_up must have a part across world y (the overhead view looks "
+                             f"along -y), got {up.tolist()}")
+        self.overhead_up = tuple(up.tolist())
+        cycle = (self.cycle,) if isinstance(self.cycle, str) else tuple(self.cycle)
+        if not cycle:
+            raise ValueError("Camera.cycle must name at least one mode")
+        bad = [m for m in cycle if m not in MODES]
+        if bad:
+            raise ValueError(f"Camera.cycle: modes must be among {MODES}, got {bad[0]!r} in {cycle!r}")
+        self.cycle = cycle
         self.active = bool(self.active)
         self.target_lost = bool(self.target_lost)
 

@@ -59,7 +59,7 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
 def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = None, hud: bool = True, **options):
     """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.
 
-    ``camera``: start in ``"cockpit"`` or ``"chase"`` (default: as the demo
+    ``camera``: start in ``"cockpit"``, ``"chase"`` or ``"overhead"`` (default: as the demo
     built it). Returns the :class:`~systems.render.RenderSystem`.
     """
     from driftframe.systems import camera as camera_sys

@@ -13,7 +13,7 @@ import sys
 
 from driftframe.framework import __version__
 
-CAMERAS = ("cockpit", "chase")
+CAMERAS = ("cockpit", "chase", "overhead")
 
 
 class UsageError(Exception):

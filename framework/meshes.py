@@ -7,18 +7,27 @@ wound counter-clockwise seen from outside, so ``(b - a) x (c - a)`` points
 out) or ``"lines"`` (M = 2 per segment). :mod:`framework.model_cache` turns
 them into GPU buffers once.
 
-The three meshes the framework needs:
+The meshes the framework builds itself:
 
 * :func:`icosphere` — a unit sphere at several levels of detail. Level ``L``
   subdivides an icosahedron ``L`` times: ``20 * 4**L`` triangles, every vertex
   on the sphere, normal = position. :func:`sphere_lods` returns levels
   ``0..4`` (20 .. 5,120 triangles) with each level's geometric error.
-* :func:`pyramid` — the player ship: a four-sided pyramid whose apex (the
-  nose) points along local +z (the body's forward vector), centred on its
-  centre of mass (a solid pyramid's centroid is 1/4 of the way from base to
-  apex), flat-shaded.
+* :func:`ship_hull` — the player ship: a swept-wing dart lofted through five
+  cross-sections (a canopy hump, delta wings, a tail fin), nose along local
+  +z (the body's forward vector), flat-shaded so each facet catches the
+  light on its own, and centred on its centre of mass (:func:`volume_centroid`).
+* :func:`pyramid` — the articles' ship: a four-sided pyramid whose apex (the
+  nose) points along local +z, centred on its centre of mass (a solid
+  pyramid's centroid is 1/4 of the way from base to apex), flat-shaded.
+* :func:`box` — a flat-shaded cuboid centred on the origin (a table top, a
+  wall); its scaled variants share its buffers.
 * :func:`line_cube` — the skybox: the edges of a unit cube (side 1, centred),
   optionally with a grid of lines on each face.
+
+:func:`flat_shaded` turns any closed triangle list into a flat-shaded
+:class:`Mesh`, and :func:`volume_centroid` gives a closed surface's volume
+and centre of mass (uniform density) from signed tetrahedra.
 
 Level of detail: a flat triangle lies inside the sphere; its largest gap to
 the true surface, relative to the radius, is ``eps = 1 - min over faces of the
@@ -195,6 +204,102 @@ def pyramid(length: float = 2.0, width: float = 1.2, height: float = 0.5) -> Mes
         verts += [a, b, c]
         norms += [n / np.linalg.norm(n)] * 3
     return Mesh("pyramid", np.array(verts), np.array(norms), np.arange(len(verts)), "triangles")
+
+
+def volume_centroid(vertices, faces) -> tuple[float, np.ndarray]:
+    """Volume (m^3) and centre of mass of the solid a closed, outward-wound triangle surface bounds.
+
+    Each triangle ``(a, b, c)`` and the origin span a tetrahedron of signed
+    volume ``a . (b x c) / 6`` and centroid ``(a + b + c) / 4``; their
+    volume-weighted sum is the solid's centroid (uniform density), wherever
+    the origin is. A negative volume means the faces are wound inwards.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    t = v[np.asarray(faces).reshape(-1, 3)]
+    vol = np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])) / 6.0
+    total = float(vol.sum())
+    if not abs(total) > 0:
+        raise ValueError("volume_centroid: the surface encloses no volume (not closed, or flat)")
+    return total, (vol[:, None] * t.sum(axis=1)).sum(axis=0) / (4.0 * total)
+
+
+def flat_shaded(name: str, vertices, faces, *, recentre: bool = False) -> Mesh:
+    """A flat-shaded :class:`Mesh` from shared vertices and (F, 3) CCW-from-outside faces.
+
+    Every face gets its own three vertices, each with the face's unit normal.
+    ``recentre``: shift the vertices so the solid's centre of mass (see
+    :func:`volume_centroid`) is the origin.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if recentre:
+        v = v - volume_centroid(v, f)[1]
+    t = v[f]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    if not (length > 0).all():
+        raise ValueError(f"Mesh {name!r}: {int((length == 0).sum())} faces have no area")
+    n = np.repeat(n / length, 3, axis=0)
+    return Mesh(name, t.reshape(-1, 3), n, np.arange(3 * len(f)), "triangles")
+
+
+@functools.lru_cache(maxsize=16)           # bounded: a cache, never a leak
+def box(sx: float = 1.0, sy: float = 1.0, sz: float = 1.0) -> Mesh:
+    """A cuboid ``sx`` x ``sy`` x ``sz`` (m) centred on the origin, faces along the axes, flat-shaded."""
+    for name, val in (("sx", sx), ("sy", sy), ("sz", sz)):
+        if not (np.isfinite(val) and val > 0):
+            raise ValueError(f"box {name} must be a finite number > 0, got {val!r}")
+    corners = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]) * [sx, sy, sz]
+    # corner k has x = bit 2, y = bit 1, z = bit 0; each face's quad in CCW order seen from outside
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5),      # -x, +x
+             (0, 4, 5, 1), (2, 3, 7, 6),      # -y, +y
+             (0, 2, 6, 4), (1, 5, 7, 3)]      # -z, +z
+    faces = [(a, b, c) for a, b, c, d in quads] + [(a, c, d) for a, b, c, d in quads]
+    return flat_shaded("box", corners, faces)
+
+
+#: The ship's cross-sections, nose to tail: (z, [(x, y), ...] right half from the top round to the bottom), m.
+#: The left half mirrors it. Top: a canopy hump, then a tail fin; the widest point of each: the wing tip.
+_HULL = (
+    (0.95, [(0.0, 0.16), (0.13, 0.08), (0.20, 0.0), (0.12, -0.07), (0.0, -0.11)]),
+    (0.25, [(0.0, 0.36), (0.24, 0.16), (0.50, 0.0), (0.22, -0.11), (0.0, -0.19)]),
+    (-0.40, [(0.0, 0.30), (0.28, 0.13), (0.95, -0.02), (0.28, -0.11), (0.0, -0.19)]),
+    (-0.75, [(0.0, 0.62), (0.22, 0.11), (1.00, -0.02), (0.24, -0.09), (0.0, -0.16)]),
+)
+_NOSE_Z = 1.65
+
+
+@functools.lru_cache(maxsize=1)
+def ship_hull() -> Mesh:
+    """The player ship: a swept-wing dart 2.4 m long, 2 m across the wings, nose along +z, centred on its mass.
+
+    Lofted through :data:`_HULL`'s cross-sections (each the same number of
+    points round the long axis, so consecutive sections join with quads and
+    the surface is closed), a point at the nose and a flat tail plate;
+    flat-shaded; the origin moved to the solid's centre of mass.
+    """
+    rings = []
+    for z, half in _HULL:
+        right = [(x, y) for x, y in half]
+        left = [(-x, y) for x, y in reversed(half[1:-1])]
+        rings.append([(x, y, z) for x, y in right + left])        # top, right side down to the bottom, left up
+    k = len(rings[0])
+    verts = [(0.0, 0.0, _NOSE_Z)] + [p for ring in rings for p in ring]
+    tail = len(verts)
+    verts.append((0.0, 0.0, rings[-1][0][2]))
+    ring = lambda r, i: 1 + r * k + (i % k)                          # noqa: E731
+    faces = [(0, ring(0, i + 1), ring(0, i)) for i in range(k)]      # nose cone
+    for r in range(len(rings) - 1):
+        for i in range(k):
+            a, b, c, d = ring(r, i), ring(r, i + 1), ring(r + 1, i + 1), ring(r + 1, i)
+            # split each quad along the mirror image of its partner's diagonal: the hull stays symmetric
+            faces += [(a, b, c), (a, c, d)] if i < k // 2 else [(a, b, d), (b, c, d)]
+    faces += [(tail, ring(len(rings) - 1, i), ring(len(rings) - 1, i + 1)) for i in range(k)]
+    v = np.array(verts)
+    f = np.array(faces)
+    if volume_centroid(v, f)[0] < 0:                                  # make the winding outward, whichever it was
+        f = f[:, ::-1]
+    return flat_shaded("ship", v, f, recentre=True)
 
 
 @functools.lru_cache(maxsize=16)

@@ -18,7 +18,10 @@ asked for a mesh set, and never again: each level gets one vertex buffer
 Built-in models (defined by every cache unless ``builtins=False``):
 
 * ``"sphere"`` — unit-radius icosphere, levels 0..4 (20 .. 5,120 triangles), grey;
-* ``"ship"`` — the pyramid ship, nose along +z (forward), light blue;
+* ``"ship"`` — the swept-wing ship (:func:`framework.meshes.ship_hull`), nose
+  along +z (forward), light blue;
+* ``"box"`` — a unit cube (side 1 m), grey: scaled variants make table tops,
+  walls, slabs;
 * ``"skybox"`` — the unit line cube with a 4 x 4 grid on each face, green.
 """
 from __future__ import annotations
@@ -125,7 +128,8 @@ class ModelCache:
         self.buffers_created = 0
         if builtins:
             self.define("sphere", meshes.sphere_lods(), colour=GREY)
-            self.define("ship", meshes.pyramid(), colour=SHIP_BLUE)
+            self.define("ship", meshes.ship_hull(), colour=SHIP_BLUE)
+            self.define("box", meshes.box(), colour=GREY)
             self.define("skybox", meshes.line_cube(4), colour=SKY_GREEN)
 
     # -- entries -----------------------------------------------------------------

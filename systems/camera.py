@@ -1,4 +1,4 @@
-"""Cockpit and chase cameras, and the view / projection matrices drawn from them.
+"""Cockpit, chase and overhead cameras, and the view / projection matrices drawn from them.
 
 The camera system runs every fixed step (stage ``"camera"``, after
 collision), so the chase camera's smoothing is part of the deterministic
@@ -19,8 +19,9 @@ Matrix conventions (shared with :mod:`systems.render` and a HUD):
 * :func:`world_to_pixels` projects world points to pixel coordinates, x from
   the left edge, y from the *top* edge, as in :meth:`RenderTarget.read_rgba`.
 
-Run-time switch: :func:`switch_camera` (``world``, ``mode=None`` cycles
-cockpit <-> chase) is what keyboard input and scripted input call.
+Run-time switch: :func:`switch_camera` (``world``, ``mode=None`` steps
+through the camera's ``cycle``, cockpit <-> chase by default) is what
+keyboard input and scripted input call.
 """
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ import esper
 import numpy as np
 
 from driftframe.components.body import Transform, Velocity
-from driftframe.components.camera import MODES, Camera, check_mode
+from driftframe.components.camera import Camera, check_mode
 from driftframe.framework import frame as fr
 
 _FLIP_Z = np.diag([1.0, 1.0, -1.0])
@@ -117,6 +118,11 @@ def chase_direction(cam: Camera, q_target: np.ndarray, velocity) -> np.ndarray:
     return fr.rotate(q_target, fr.FORWARD)
 
 
+def overhead_rotation(up) -> np.ndarray:
+    """Quaternion of an eye looking straight down (world -y) with ``up`` (made perpendicular) to the top."""
+    return fr.look_rotation((0.0, -1.0, 0.0), (up[0], 0.0, up[2]))
+
+
 def update_camera(ent: int, cam: Camera, dt: float, *, snap: bool = False) -> Transform:
     """Move camera entity ``ent`` for one step of ``dt`` s; ``snap`` skips the smoothing.
 
@@ -147,6 +153,10 @@ def update_camera(ent: int, cam: Camera, dt: float, *, snap: bool = False) -> Tr
         tf.orientation = q_t
         tf.position = p_t + fr.rotate(q_t, np.asarray(cam.cockpit_offset))
         return tf
+    if cam.mode == "overhead":
+        tf.orientation = overhead_rotation(cam.overhead_up)
+        tf.position = p_t + np.array([0.0, cam.overhead_height, 0.0])
+        return tf
     vel = esper.try_component(cam.target, Velocity)
     d = chase_direction(cam, q_t, None if vel is None else vel.linear)
     # the eye's up stays as close as possible to the target's up: it rolls with the ship
@@ -169,7 +179,8 @@ class CameraSystem(esper.Processor):
     cockpit: eye = target frame (plus ``cockpit_offset``). chase: viewing
     direction -> velocity direction (nose below ``rest_speed``), smoothed by
     ``q <- slerp(q, q_goal, 1 - exp(-dt / smoothing))``; eye at
-    ``target + R_eye (0, chase_height, -chase_distance)``. A handful of
+    ``target + R_eye (0, chase_height, -chase_distance)``. overhead: eye at
+    ``target + (0, overhead_height, 0)`` looking down -y, fixed orientation. A handful of
     cameras: a per-camera loop.
     """
 
@@ -202,8 +213,9 @@ def active_camera(world) -> tuple[int, Camera]:
 def switch_camera(world, mode: str | None = None, *, camera: int | None = None) -> str:
     """Switch a camera's mode at run time; returns the new mode.
 
-    ``mode=None`` cycles cockpit -> chase -> cockpit; ``"cockpit"`` or
-    ``"chase"`` sets it. ``camera`` is the camera entity (default: the active
+    ``mode=None`` steps to the next mode in the camera's ``cycle`` (cockpit ->
+    chase -> cockpit by default); a mode name (``"cockpit"``, ``"chase"``,
+    ``"overhead"``) sets it. ``camera`` is the camera entity (default: the active
     one). The camera is placed for the new mode at once (no smoothing from the
     old view), so the next rendered frame already shows it.
     """
@@ -215,7 +227,11 @@ def switch_camera(world, mode: str | None = None, *, camera: int | None = None) 
         cam = esper.try_component(ent, Camera) if esper.entity_exists(ent) else None
         if cam is None:
             raise ValueError(f"switch_camera: entity {ent!r} has no Camera")
-    new = MODES[(MODES.index(cam.mode) + 1) % len(MODES)] if mode is None else check_mode(mode)
+    if mode is None:
+        cycle = cam.cycle
+        new = cycle[(cycle.index(cam.mode) + 1) % len(cycle)] if cam.mode in cycle else cycle[0]
+    else:
+        new = check_mode(mode)
     cam.mode = new
     update_camera(ent, cam, world.dt, snap=True)
     return new

@@ -1,4 +1,4 @@
-"""Cockpit and chase cameras, the run-time switch, and the view / projection matrices."""
+"""Cockpit, chase and overhead cameras, the run-time switch, and the view / projection matrices."""
 from __future__ import annotations
 
 import math
@@ -12,6 +12,7 @@ from driftframe.components.camera import Camera
 from driftframe.framework import frame as fr
 from driftframe.framework.world import World
 from driftframe.systems import camera as cs
+from driftframe.systems.movement import MovementSystem
 
 
 def fwd(q):
@@ -130,6 +131,50 @@ def test_switch_camera_cycles_cockpit_and_chase_and_changes_the_view():
     w.close()
 
 
+def test_overhead_camera_looks_straight_down_on_the_target_with_its_up_at_the_top():
+    w, ship, eye = ship_world((1.0, 0.0, 0.5), mode="overhead", overhead_height=16.0, overhead_up=(1.0, 0.0, 0.0))
+    w.add_system(MovementSystem())
+    start = esper.component_for_entity(ship, Transform).position.copy()
+    w.step(30)
+    st = esper.component_for_entity(ship, Transform)
+    et = esper.component_for_entity(eye, Transform)
+    np.testing.assert_allclose(st.position, start + np.array([1.0, 0.0, 0.5]) * 0.5, atol=1e-12)   # it moved
+    np.testing.assert_allclose(et.position, st.position + [0.0, 16.0, 0.0], atol=1e-12)           # and the eye too
+    np.testing.assert_allclose(fwd(et.orientation), [0.0, -1.0, 0.0], atol=1e-12)
+    # the target projects to the centre of the picture; world +x (overhead_up) is up on screen, +z to the left
+    vp = cs.perspective(60.0, 4 / 3, 0.1, 100.0) @ cs.view_matrix(et.position, et.orientation)
+    px, front = cs.world_to_pixels(np.array([st.position, st.position + [1.0, 0, 0], st.position + [0, 0, 1.0]]),
+                                   vp, (320, 240))
+    assert front.all()
+    np.testing.assert_allclose(px[0], [160.0, 120.0], atol=1e-9)
+    assert px[1, 1] < 110 and abs(px[1, 0] - 160) < 1e-9            # +x: towards the top
+    assert px[2, 0] < 150 and abs(px[2, 1] - 120) < 1e-9            # +z: to the left (seen from above)
+    # turning the target does not turn the view
+    before = cs.view_matrix(et.position, et.orientation)
+    st.orientation = fr.quat_from_rotvec(np.array([0.0, 1.2, 0.4]))
+    w.step()
+    after = cs.view_matrix(et.position, et.orientation)
+    np.testing.assert_allclose(after[:3, :3], before[:3, :3], atol=1e-12)
+    w.close()
+
+
+def test_switch_steps_through_the_cameras_own_cycle():
+    w, ship, eye = ship_world(mode="overhead", cycle=("overhead", "chase"))
+    assert cs.switch_camera(w) == "chase"
+    assert cs.switch_camera(w) == "overhead"
+    et = esper.component_for_entity(eye, Transform)
+    np.testing.assert_allclose(fwd(et.orientation), [0.0, -1.0, 0.0], atol=1e-12)   # placed at once
+    w.close()
+    # the default cycle is cockpit <-> chase: an overhead camera switched without a mode goes to cockpit
+    w, ship, eye = ship_world(mode="overhead")
+    assert [cs.switch_camera(w) for _ in range(3)] == ["cockpit", "chase", "cockpit"]
+    assert cs.switch_camera(w, "overhead") == "overhead"
+    w.close()
+    w, ship, eye = ship_world(mode="overhead", cycle=("overhead",))
+    assert cs.switch_camera(w) == "overhead"           # a one-mode cycle stays put
+    w.close()
+
+
 def test_camera_without_a_target_is_a_clear_error(world):
     with pytest.raises(ValueError, match="a camera without a target"):
         Camera()
@@ -157,6 +202,11 @@ def test_no_active_camera_is_a_clear_error(world):
     ({"near": 0.0}, "Camera.near must be > 0"), ({"near": 10.0, "far": 5.0}, "Camera.far must be > Camera.near"),
     ({"mode": "orbit"}, "Camera.mode must be one of"), ({"smoothing": -1.0}, "Camera.smoothing must be >= 0"),
     ({"chase_height": math.nan}, "Camera.chase_height must not be NaN"), ({"target": True}, "entity id"),
+    ({"overhead_height": 0.0}, "Camera.overhead_height must be > 0"),
+    ({"overhead_up": (0.0, 2.0, 0.0)}, r"Camera.overhead_up must have a part across world y.*\[0.0, 2.0, 0.0\]"),
+    ({"overhead_up": (0.0, 0.0, 0.0)}, "Camera.overhead_up must have a part across world y"),
+    ({"cycle": ()}, "Camera.cycle must name at least one mode"),
+    ({"cycle": ("cockpit", "orbit")}, r"Camera.cycle: modes must be among .* got 'orbit'"),
 ])
 def test_camera_rejects_bad_settings(kw, msg):
     kw = {"target": 1, **kw}

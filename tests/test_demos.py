@@ -205,3 +205,46 @@ def test_the_visibility_check_sees_off_screen_and_hidden_points():
     got = _visible(pts, eye, vp, centres, np.array([2.0]), [[], [], [], []])
     assert got.tolist() == [True, False, False, False]
     assert _visible(pts[3:], eye, vp, centres, np.array([2.0]), [[0]]).tolist() == [True]   # its own body
+
+
+def test_billiards_is_seen_from_an_overhead_camera_above_a_table_under_every_ball():
+    world, demo = make_world("billiards", seed=0)
+    try:
+        world.add_system(cs.CameraSystem())
+        world.step()
+        ent, cam = cs.active_camera(world)
+        assert cam.mode == "overhead" and cs.switch_camera(world) == "overhead"     # it stays overhead
+        eye = esper.component_for_entity(ent, Transform)
+        np.testing.assert_allclose(fr.rotate(eye.orientation, fr.FORWARD), [0.0, -1.0, 0.0], atol=1e-12)
+        variants = world.resources["model_variants"]
+        slabs = [(esper.component_for_entity(e, Transform).position, variants[ref.name][1])
+                 for e, ref in esper.get_component(ModelRef) if variants.get(ref.name, ("",))[0] == "box"]
+        assert slabs, "no table"
+        top = max(p[1] + s[1] / 2 for p, s in slabs)
+        balls = np.array([esper.component_for_entity(e, Transform).position for e, _ in esper.get_component(SphereCollider)])
+        np.testing.assert_allclose(top, balls[:, 1].min() - demo.R, atol=1e-12)       # the balls rest on it
+        (p, s), = [(p, s) for p, s in slabs if np.isclose(p[1] + s[1] / 2, top)]
+        assert (np.abs(balls[:, [0, 2]] - p[[0, 2]]) < np.array(s)[[0, 2]] / 2 - demo.R).all()
+    finally:
+        world.close()
+
+
+@pytest.mark.gl
+def test_billiards_frame_shows_felt_between_the_balls(ctx):
+    from driftframe.app import attach_rendering
+    world, demo = make_world("billiards", seed=0)
+    try:
+        render = attach_rendering(world, ctx, size=(320, 180), hud=False)
+        world.step()
+        world.render()
+        img = render.read_rgba()[..., :3].astype(int)
+        # a point on the table between the cue ball and the rack, and the corners of the view inside the table
+        pts = np.array([[-4.0, -demo.R, 0.0], [1.5 - 12.0, -demo.R, -6.0], [1.5 + 12.0, -demo.R, 6.0]])
+        px, front = cs.world_to_pixels(pts, render.view_projection, render.size)
+        assert front.all()
+        for x, y in px.astype(int):
+            r, g, b = img[y, x]
+            assert g > 2 * r and g > 2 * b and g > 60, (x, y, img[y, x])
+        assert render.stats["levels"].get("box[0]") == 2          # the felt and the frame: one box mesh
+    finally:
+        world.close()

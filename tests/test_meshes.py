@@ -1,4 +1,4 @@
-"""Meshes: vertex lists + indices with normals; sphere levels of detail, the pyramid ship, the line cube."""
+"""Meshes: vertex lists + indices with normals; sphere levels of detail, the ships, the box, the line cube."""
 from __future__ import annotations
 
 import numpy as np
@@ -64,6 +64,66 @@ def test_pyramid_nose_points_along_local_forward_and_its_centre_of_mass_is_the_o
     fn = m.face_normals()
     fn /= np.linalg.norm(fn, axis=1, keepdims=True)
     np.testing.assert_allclose(m.normals.reshape(-1, 3, 3), np.repeat(fn[:, None], 3, 1), atol=1e-6)
+
+
+def edges_shared_twice(m):
+    """True when every edge of the (flat-shaded) triangle list is used by exactly two faces, once each way."""
+    v = np.round(m.vertices.astype(np.float64), 6)
+    keys = {tuple(p): k for k, p in enumerate(map(tuple, v))}
+    ids = np.array([keys[tuple(p)] for p in v])[m.indices].reshape(-1, 3)
+    directed = {}
+    for a, b, c in ids:
+        for e in ((a, b), (b, c), (c, a)):
+            directed[e] = directed.get(e, 0) + 1
+    return all(n == 1 and directed.get((b, a)) == 1 for (a, b), n in directed.items())
+
+
+def test_ship_hull_is_a_closed_outward_solid_centred_on_its_centre_of_mass_with_the_nose_forward():
+    m = meshes.ship_hull()
+    assert m.mode == "triangles" and m.primitive_count >= 48              # more than a wedge
+    assert edges_shared_twice(m)                                           # closed, consistently wound
+    vol, com = meshes.volume_centroid(m.vertices, m.indices)
+    assert vol > 0                                                         # outward
+    np.testing.assert_allclose(com, 0.0, atol=1e-6)
+    v = m.vertices.astype(np.float64)
+    nose = v[np.argmax(v[:, 2])]
+    np.testing.assert_allclose(nose[0], 0.0, atol=1e-9)                   # on the centre line, ahead
+    assert nose[2] > 1.5 and v[:, 2].min() > -1.0
+    np.testing.assert_allclose([v[:, 0].min(), v[:, 0].max()], [-1.0, 1.0], atol=1e-6)   # 2 m across the wings
+    # mirror-symmetric about x = 0: the mirrored vertex set is the same set
+    a = np.round(v, 5)
+    assert {tuple(p) for p in a} == {tuple(p) for p in a * [-1, 1, 1]}
+    fn = m.face_normals()
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    np.testing.assert_allclose(m.normals.reshape(-1, 3, 3), np.repeat(fn[:, None], 3, 1), atol=1e-6)
+
+
+def test_box_is_a_flat_shaded_cuboid_and_volume_centroid_finds_an_offset_solid():
+    m = meshes.box(2.0, 0.5, 3.0)
+    assert m.primitive_count == 12 and edges_shared_twice(m)
+    np.testing.assert_allclose(m.vertices.min(axis=0), [-1.0, -0.25, -1.5])
+    np.testing.assert_allclose(m.vertices.max(axis=0), [1.0, 0.25, 1.5])
+    vol, com = meshes.volume_centroid(m.vertices, m.indices)
+    assert vol == pytest.approx(3.0) and np.allclose(com, 0.0)
+    # every normal is one of the six axis directions and points away from the centre
+    n = m.normals.reshape(-1, 3, 3)[:, 0]
+    centres = m.vertices.reshape(-1, 3, 3).mean(axis=1)
+    assert (np.abs(n).max(axis=1) == 1.0).all() and (np.einsum("ij,ij->i", n, centres) > 0).all()
+    # the same box moved: the centroid moves with it, the volume does not; recentre brings it back
+    shifted = m.vertices + np.array([4.0, -1.0, 2.5], np.float32)
+    vol2, com2 = meshes.volume_centroid(shifted, m.indices)
+    assert vol2 == pytest.approx(3.0) and np.allclose(com2, [4.0, -1.0, 2.5], atol=1e-6)
+    back = meshes.flat_shaded("moved", shifted, m.indices.reshape(-1, 3), recentre=True)
+    np.testing.assert_allclose(meshes.volume_centroid(back.vertices, back.indices)[1], 0.0, atol=1e-6)
+    # a tetrahedron off the origin: volume 1/6, centroid the mean of its corners
+    wedge = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    vol3, com3 = meshes.volume_centroid(wedge, faces)
+    assert vol3 == pytest.approx(1 / 6) and np.allclose(com3, 0.25)
+    with pytest.raises(ValueError, match="encloses no volume"):
+        meshes.volume_centroid(wedge, faces[:1])
+    with pytest.raises(ValueError, match="sy must be a finite number > 0"):
+        meshes.box(1.0, -1.0, 1.0)
 
 
 def test_line_cube_is_the_twelve_edges_of_a_unit_cube():

@@ -172,6 +172,8 @@ def test_entity_colour_overrides_the_model_colour(make):
 
 
 def test_ship_nose_points_along_its_forward_vector(make):
+    from driftframe.framework.meshes import ship_hull
+    hull = ship_hull()
     w, eye, render = make()
     eye_tf = esper.component_for_entity(eye, Transform)
     eye_tf.position = (0.0, 12.0, 0.0)                                  # above, looking down
@@ -180,8 +182,8 @@ def test_ship_nose_points_along_its_forward_vector(make):
     for nose in ([1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [-0.6, 0.0, 0.8]):
         ship = w.create_entity(Transform((0.0, 0.0, 0.0), fr.look_rotation(nose)), ModelRef("ship"))
         mask = lit(frame(w, render))
-        tip = np.array([nose]) * 1.5                                     # the apex: 3/4 of the length ahead
-        tail = -np.array([nose]) * 0.5
+        tip = np.array([nose]) * hull.vertices[:, 2].max()              # the nose, ahead of the centre of mass
+        tail = np.array([nose]) * hull.vertices[:, 2].min()
         (tip_px, tail_px), _ = cs.world_to_pixels(np.vstack([tip, tail]), render.view_projection, render.size)
         axis = (tip_px - tail_px) / np.linalg.norm(tip_px - tail_px)
         ys, xs = np.nonzero(mask)
