@@ -6,7 +6,7 @@ import pytest
 from driftframe import demos
 from driftframe.components.body import AngularVelocity, Transform, Velocity
 from driftframe.components.camera import Camera
-from driftframe.components.collision import SphereCollider
+from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.control import Player
 from driftframe.components.render import ModelRef
 from driftframe.app import make_world
@@ -150,21 +150,23 @@ def watch_asteroids(seed=0):
     cs.update_cameras(world)
     from driftframe.app import player
     me = player(world)
-    seen = {}
+    pending = []
+    world.subscribe(CollisionEvent, pending.append)          # every contact, as the collision stage emits it
+    seen = []                                                # (involves the ship, on screen)
     frames_with_field = 0
     steps = round(demo.SECONDS / world.dt)
     try:
         for _ in range(steps):
             world.step()
+            # the frame after this step: the active camera as the camera stage left it
             ent, cam = cs.active_camera(world)
             tf = esper.component_for_entity(ent, Transform)
             vp = cs.perspective(cam.fov, SHOT[0] / SHOT[1], cam.near, cam.far) @ cs.view_matrix(
                 tf.position, tf.orientation)
             f_px = 0.5 * SHOT[1] / cam.tan_half_fov
-            bodies = sorted(esper.get_component(SphereCollider))
-            ids = np.array([e for e, _ in bodies])
-            radii = np.array([c.radius for _, c in bodies])
-            centres = np.array([esper.component_for_entity(e, Transform).position for e in ids])
+            cols = world.columns(SphereCollider)
+            ids, radii = cols.entities, cols.radius
+            centres = world.columns(Transform, ids).position
             field = ids != me
             drawn = radii.copy()
             if cam.mode == "cockpit":
@@ -172,20 +174,19 @@ def watch_asteroids(seed=0):
             px_r = radii * f_px / np.maximum(np.linalg.norm(centres - tf.position, axis=1), 1e-9)
             shown = _visible(centres, tf.position, vp, centres, drawn, [[k] for k in range(len(ids))])
             frames_with_field += bool((shown & field & (px_r >= 1.0)).any())
-            # events of this step only; a world that keeps several steps' events repeats them: key by contact
-            new = [ev for ev in world.events if (ev.a, ev.b, ev.time) not in seen]
-            if new:
-                pts = np.array([ev.point for ev in new])
-                parties = [np.flatnonzero(np.isin(ids, (ev.a, ev.b))) for ev in new]
+            if pending:
+                pts = np.array([ev.point for ev in pending])
+                parties = [np.flatnonzero(np.isin(ids, (ev.a, ev.b))) for ev in pending]
                 vis = _visible(pts, tf.position, vp, centres, drawn, parties)
-                for ev, v, pa in zip(new, vis, parties):
+                for ev, v, pa in zip(pending, vis, parties):
                     dist = np.linalg.norm(np.asarray(ev.point) - tf.position)
                     big_enough = radii[pa].min() * f_px / max(dist, 1e-9) >= 2.0     # a few pixels across
-                    seen[(ev.a, ev.b, ev.time)] = (me in (ev.a, ev.b), bool(v and big_enough))
+                    seen.append((me in (ev.a, ev.b), bool(v and big_enough)))
+                pending.clear()
     finally:
         world.close()
-    rock = sum(1 for ship_hit, on in seen.values() if on and not ship_hit)
-    ship_hits = sum(1 for ship_hit, on in seen.values() if on and ship_hit)
+    rock = sum(1 for ship_hit, on in seen if on and not ship_hit)
+    ship_hits = sum(1 for ship_hit, on in seen if on and ship_hit)
     return frames_with_field / steps, rock, ship_hits, len(seen)
 
 
