@@ -53,20 +53,24 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
         world.close()
         raise
     world.resources["demo"] = demo
+    world.resources["seed"] = int(seed)        # later generation steps (the starfield's texture) derive from it
     return world, demo
 
 
-def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = None, hud: bool = True, **options):
+def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = None, hud: bool = True,
+                     sky: str = "lines", **options):
     """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.
 
     ``camera``: start in ``"cockpit"``, ``"chase"`` or ``"overhead"`` (default: as the demo
-    built it). Returns the :class:`~systems.render.RenderSystem`.
+    built it). ``sky``: ``"lines"`` (the green line cube, the default) or
+    ``"starfield"`` (a star cube map made from the world's seed), or False
+    for none. Returns the :class:`~systems.render.RenderSystem`.
     """
     from driftframe.systems import camera as camera_sys
     from driftframe.systems.render import attach
 
     size = parse_size(size) if isinstance(size, str) else size
-    render = attach(world, ctx, size, **options)
+    render = attach(world, ctx, size, skybox=sky, **options)
     cache = world.resources["model_cache"]
     for vname, (base, scale, colour) in world.resources.get("model_variants", {}).items():
         if vname not in cache:

@@ -75,6 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("--seed", type=_seed, default=0, metavar="N", help="random seed of the scene (default 0)")
     common.add_argument("--camera", choices=CAMERAS, default=None,
                         help="camera to start with (default: the demo's own)")
+    common.add_argument("--sky", choices=("lines", "starfield"), default="lines",
+                        help="skybox: the green line cube (default) or a starfield made from the seed")
 
     rec = sub.add_parser("record", parents=[common], help="record a demo off-screen to MP4, GIF or PNG frames",
                          description="Render DEMO off-screen, one frame per simulated frame, following the "
@@ -140,7 +142,7 @@ def cmd_record(args) -> int:
     try:
         k = steps_per_frame(args.fps, world.dt)
         frames = max(1, round(seconds * args.fps))
-        attach_rendering(world, size=args.size, camera=args.camera)
+        attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
         result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet)
     finally:
         world.close()
@@ -160,7 +162,7 @@ def cmd_play(args) -> int:
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
     try:
         return play(args.demo, size=args.size, seed=args.seed, camera=args.camera, state_out=args.state_out,
-                    screenshot_dir=args.screenshots)
+                    screenshot_dir=args.screenshots, sky=args.sky)
     except PlayError as e:
         raise UsageError(str(e)) from None
 

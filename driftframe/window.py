@@ -90,7 +90,7 @@ def state_summary(world) -> dict:
 
 
 def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
-         state_out: str | None = None, screenshot_dir: str = ".") -> int:
+         state_out: str | None = None, screenshot_dir: str = ".", sky: str = "lines") -> int:
     """Open a window and fly demo ``name`` until Esc or the window is closed. Returns an exit code."""
     from driftframe.app import attach_rendering, make_world
     from driftframe.framework.gl import RenderTarget, wrap_current_context
@@ -109,7 +109,7 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
         world, demo = make_world(name, seed=seed, scripted=False)
         fb = glfw.get_framebuffer_size(win)
         target = RenderTarget.screen(ctx, fb)
-        render = attach_rendering(world, ctx, target=target, camera=camera)
+        render = attach_rendering(world, ctx, target=target, camera=camera, sky=sky)
         inputs = world.get_system(InputSystem)
         loop = FixedStepLoop(world, time.perf_counter)
         keys = key_table(glfw)

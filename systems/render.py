@@ -456,7 +456,10 @@ class RenderSystem(esper.Processor):
         return out
 
 
-def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = None, skybox: bool = True,
+SKIES = ("lines", "starfield")
+
+
+def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = None, skybox=True,
            own_context: bool | None = None, **options) -> RenderSystem:
     """Set up rendering for ``world`` in one call; returns the :class:`RenderSystem`.
 
@@ -464,7 +467,9 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
     create an off-screen one with :func:`framework.gl.create_context`).
     ``size``: (width, height) of a new off-screen target; ``target``: an
     existing :class:`RenderTarget` instead (a window: ``RenderTarget.screen``).
-    ``skybox``: add the green line-cube skybox. ``own_context``: release the
+    ``skybox``: ``True`` or ``"lines"`` adds the green line-cube skybox,
+    ``"starfield"`` the procedural starfield (its texture made from
+    ``world.resources["seed"]``, 0 if unset), ``False`` none. ``own_context``: release the
     context with the world (default: only if created here). Other keyword
     arguments go to :class:`RenderSystem` (``lod``, ``cull``, ``instanced``,
     ``light_direction``, ...).
@@ -474,8 +479,11 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
     the cameras, and sets ``world.resources["model_cache"]``,
     ``["render_target"]`` and ``["gl"]``.
     """
-    from driftframe.systems.skybox import SkyboxSystem
+    from driftframe.systems.skybox import SkyboxSystem, StarfieldSystem
 
+    sky = "lines" if skybox is True else skybox
+    if sky not in (False, None) + SKIES:
+        raise ValueError(f"skybox must be one of {SKIES}, True or False, got {skybox!r}")
     if "render_target" in world.resources:
         raise ValueError("rendering is attached to this world already")
     handle = world.resources.pop("gl", None)
@@ -500,8 +508,10 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
         world.add_system(camera_sys.CameraSystem())
     # world.close() calls release() on every system (this one, the skybox, the HUD) before the resources
     render = world.add_system(RenderSystem(ctx, cache, target, **options))
-    if skybox:
+    if sky == "lines":
         world.add_system(SkyboxSystem(ctx, cache, render))
+    elif sky == "starfield":
+        world.add_system(StarfieldSystem(ctx, render, seed=world.resources.get("seed", 0)))
     world.activate()
     if any(True for _ in esper.get_component(Camera)):
         camera_sys.update_cameras(world, snap=True)

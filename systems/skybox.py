@@ -1,13 +1,22 @@
-"""The skybox: a cube of green lines around the eye, fixed in world orientation.
+"""The skybox: a cube of green lines around the eye (the default), or a procedural starfield.
 
-It is drawn with the view's *rotation only* (no translation), so turning the
-camera shows in it and moving the camera does not: it stands for things
-infinitely far away. Each vertex is pushed to the far plane
-(``gl_Position = clip.xyww``: depth ``z/w = 1``) and drawn with depth test
-``<=`` and depth writes off, after the models: the lines appear only where
-nothing else was drawn, and the fragments hidden behind models cost nothing.
+Both are fixed in world orientation and drawn with the view's *rotation
+only* (no translation), so turning the camera shows in them and moving the
+camera does not: they stand for things infinitely far away. Both are drawn
+at the far plane (depth ``z/w = 1``) with depth test ``<=`` and depth writes
+off, after the models: the sky appears only where nothing else was drawn.
+
+* :class:`SkyboxSystem` — the articles' cube of green lines: each vertex is
+  pushed to the far plane (``gl_Position = clip.xyww``).
+* :class:`StarfieldSystem` — a cube-map texture of stars and a faint galactic
+  band, made once at start by :func:`starfield_faces` from the scene's seed
+  (its own ``"textures"`` stream, :func:`texture_rng`, so it never changes
+  the scene's own random numbers), then sampled along each pixel's view
+  direction by one full-screen triangle. Same seed, same sky, byte for byte.
 """
 from __future__ import annotations
+
+import zlib
 
 import esper
 import moderngl
@@ -92,3 +101,192 @@ class SkyboxSystem(esper.Processor):
             self._vao.release()
             self._prog.release()
         self._prog = self._vao = None
+
+
+# -- the procedural starfield ----------------------------------------------------------------
+def texture_rng(seed: int) -> np.random.Generator:
+    """The scene seed's ``"textures"`` stream: independent of ``default_rng(seed)``, which builds the scene."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+    return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(zlib.crc32(b"textures"),)))
+
+
+def face_directions(size: int) -> np.ndarray:
+    """(6, size, size, 3) unit view directions of every cube-map texel centre, OpenGL face order.
+
+    Faces +x, -x, +y, -y, +z, -z; texel ``(row i, column j)`` has
+    ``s = (j + 0.5)/size``, ``t = (i + 0.5)/size`` and ``(sc, tc) = (2s - 1, 2t - 1)``
+    map to directions as the OpenGL cube-map table says (e.g. +x: ``(1, -tc, -sc)``).
+    """
+    c = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    tc, sc = np.meshgrid(c, c, indexing="ij")
+    one = np.ones_like(sc)
+    d = np.stack([
+        np.stack([one, -tc, -sc], -1), np.stack([-one, -tc, sc], -1),
+        np.stack([sc, one, tc], -1), np.stack([sc, -one, -tc], -1),
+        np.stack([sc, -tc, one], -1), np.stack([-sc, -tc, -one], -1)])
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def direction_to_texel(d: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Face index, row and column (floats, texel units) where unit directions ``d`` (N, 3) land."""
+    d = np.asarray(d, dtype=np.float64)
+    ax = np.argmax(np.abs(d), axis=1)
+    neg = d[np.arange(len(d)), ax] < 0
+    face = 2 * ax + neg
+    x, y, z = d.T
+    ma = np.abs(d[np.arange(len(d)), ax])
+    # (sc, tc) per face, the inverse of face_directions
+    sc = np.select([face == 0, face == 1, face == 2, face == 3, face == 4], [-z, z, x, x, x], -x)
+    tc = np.select([face == 0, face == 1, face == 2, face == 3, face == 4], [-y, -y, z, -z, -y], -y)
+    col = (sc / ma + 1.0) * 0.5 * size - 0.5
+    row = (tc / ma + 1.0) * 0.5 * size - 0.5
+    return face, row, col
+
+
+def starfield_faces(rng: np.random.Generator, size: int = 512, stars: int = 9000) -> np.ndarray:
+    """(6, size, size, 3) uint8 cube-map faces: ``stars`` stars and a faint galactic band.
+
+    Stars: directions uniform on the sphere, plus a third as many again
+    crowded towards a random great circle (the band); brightness from a
+    power law (few bright, many faint); colour from blue-white to orange.
+    Each is a small Gaussian splat (sigma 0.6 texel) added to its face.
+    The band: a soft glow ``exp(-(d . n)^2 / 2w^2)`` broken up by a few dozen
+    broad random patches, very dim against the stars. Only numpy and ``rng``:
+    the same generator state gives the same bytes.
+    """
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or not 16 <= size <= 4096:
+        raise ValueError(f"starfield size must be an int in [16, 4096], got {size!r}")
+    if isinstance(stars, bool) or not isinstance(stars, (int, np.integer)) or not 0 <= stars <= 1_000_000:
+        raise ValueError(f"starfield stars must be an int in [0, 1000000], got {stars!r}")
+    size, stars = int(size), int(stars)
+    band = rng.normal(size=3)
+    band /= np.linalg.norm(band)                     # the band's pole
+    # glow: band profile times patchiness (von Mises lumps centred near the band)
+    d = face_directions(size)
+    across = d @ band
+    lumps = rng.normal(size=(40, 3))
+    lumps -= np.outer(lumps @ band, band) * 0.9       # mostly in the band's plane
+    lumps /= np.linalg.norm(lumps, axis=1, keepdims=True)
+    weight = rng.uniform(0.3, 1.0, len(lumps))
+    # the patches are broad (about 25 degrees): work them out on a 4x coarser grid, repeat each value 4x4
+    k = 4 if size % 4 == 0 else 1
+    coarse = face_directions(size // k)
+    patch = np.zeros(coarse.shape[:-1])
+    for c, wgt in zip(lumps, weight):
+        patch += wgt * np.exp(6.0 * (coarse @ c - 1.0))
+    patch = patch.repeat(k, axis=1).repeat(k, axis=2)
+    glow = np.exp(-0.5 * (across / 0.16) ** 2) * (0.35 + patch / max(patch.max(), 1e-12))
+    img = glow[..., None] * np.array([0.030, 0.032, 0.045])          # a faint blue-grey haze
+    # stars: uniform ones, and extra faint ones crowded towards the band
+    n_band = stars // 3
+    u = rng.normal(size=(stars, 3))
+    v = rng.normal(size=(n_band, 3))
+    v -= np.outer(v @ band, band) * (1.0 - rng.uniform(0.0, 0.25, n_band))[:, None]
+    dirs = np.vstack([u, v])
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    bright = np.concatenate([rng.pareto(2.2, stars) * 0.10 + 0.05, rng.pareto(3.0, n_band) * 0.06 + 0.03])
+    bright = np.minimum(bright, 3.0)
+    warm = rng.uniform(0.0, 1.0, len(dirs)) ** 2                        # most stars white-blue, a few orange
+    tint = np.column_stack([0.80 + 0.20 * warm, 0.85 + 0.05 * warm, 1.0 - 0.45 * warm])
+    face, row, col = direction_to_texel(dirs, size)
+    r0, c0 = np.floor(row).astype(int), np.floor(col).astype(int)
+    flat = img.reshape(-1, 3)
+    for di in (-1, 0, 1, 2):
+        for dj in (-1, 0, 1, 2):
+            rr, cc = r0 + di, c0 + dj
+            ok = (rr >= 0) & (rr < size) & (cc >= 0) & (cc < size)
+            wgt = np.exp(-((rr - row) ** 2 + (cc - col) ** 2) / (2 * 0.6 ** 2)) * bright
+            idx = (face * size + rr) * size + cc
+            for ch in range(3):
+                np.add.at(flat[:, ch], idx[ok], (wgt * tint[:, ch])[ok])
+    return (np.clip(img, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+STAR_VERTEX_SHADER = """
+#version 330
+uniform mat4 u_inv_view_proj;  // (projection * view rotation)^-1: clip -> direction
+out vec3 v_dir;
+void main() {
+    // one triangle covering the screen: (-1,-1), (3,-1), (-1,3)
+    vec2 p = vec2(float((gl_VertexID & 1) << 2) - 1.0, float((gl_VertexID & 2) << 1) - 1.0);
+    vec4 far = u_inv_view_proj * vec4(p, 1.0, 1.0);
+    v_dir = far.xyz / far.w;
+    gl_Position = vec4(p, 1.0, 1.0);   // depth 1: at infinity, behind everything
+}
+"""
+
+STAR_FRAGMENT_SHADER = """
+#version 330
+uniform samplerCube u_sky;
+in vec3 v_dir;
+out vec4 f_colour;
+void main() {
+    f_colour = vec4(texture(u_sky, normalize(v_dir)).rgb, 1.0);
+}
+"""
+
+
+class StarfieldSystem(esper.Processor):
+    """Reads the render system's view rotation and projection; writes the starfield into its target.
+
+    The cube map (:func:`starfield_faces` with :func:`texture_rng` of
+    ``seed``, ``size`` texels a face; or ``faces``, any (6, N, N, 3) uint8
+    array in OpenGL face order) is made and uploaded once, here. Each
+    frame one full-screen triangle at depth 1 looks up the sky along
+    ``(P V_rot)^-1 (x, y, 1, 1)``, the pixel's view direction, behind every
+    model. Must run after the :class:`~systems.render.RenderSystem` it is
+    given (``attach(..., skybox="starfield")`` adds it so).
+    """
+
+    stage = "render"
+    reads = ()          # the render system's view (no components)
+    writes = ()
+
+    def __init__(self, ctx, render, *, seed: int = 0, size: int = 512, stars: int = 9000, faces=None):
+        self.ctx = ctx
+        self.render = render
+        self.seed = seed
+        if faces is None:
+            faces = starfield_faces(texture_rng(seed), size, stars)
+        faces = np.ascontiguousarray(faces)
+        if faces.dtype != np.uint8 or faces.ndim != 4 or faces.shape[0] != 6 or faces.shape[1] != faces.shape[2] \
+                or faces.shape[3] != 3:
+            raise ValueError(f"StarfieldSystem faces must be (6, N, N, 3) uint8, got {faces.dtype} {faces.shape}")
+        self._tex = ctx.texture_cube((faces.shape[1], faces.shape[1]), 3, faces.tobytes())
+        self._tex.build_mipmaps()
+        self._tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        self._prog = ctx.program(vertex_shader=STAR_VERTEX_SHADER, fragment_shader=STAR_FRAGMENT_SHADER)
+        self._vao = ctx.vertex_array(self._prog, [])
+        self._drawn_frame = 0
+
+    def process(self, dt: float) -> None:
+        if self._prog is None:
+            raise RuntimeError("StarfieldSystem was released (world closed)")
+        r = self.render
+        if r.frame == self._drawn_frame:
+            raise RuntimeError("StarfieldSystem must run after its RenderSystem in the render stage "
+                               "(systems.render.attach adds them in that order)")
+        self._drawn_frame = r.frame
+        inv = np.linalg.inv(r.projection @ r.view_rotation_only)
+        self._prog["u_inv_view_proj"].write(inv.astype(np.float32).T.tobytes())
+        ctx = self.ctx
+        r.target.use()
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<="
+        fbo = r.target.fbo
+        fbo.depth_mask = False
+        self._tex.use(0)
+        try:
+            self._vao.render(moderngl.TRIANGLES, vertices=3)
+        finally:
+            fbo.depth_mask = True
+            ctx.depth_func = "<"
+
+    def release(self) -> None:
+        """Free the texture, program and vertex array."""
+        if self._prog is not None:
+            self._vao.release()
+            self._prog.release()
+            self._tex.release()
+        self._prog = self._vao = self._tex = None

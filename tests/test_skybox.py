@@ -1,4 +1,4 @@
-"""The skybox: green lines at infinity, turned by the view's rotation, untouched by its translation."""
+"""The skybox: green lines (or a starfield) at infinity, turned by the view's rotation, untouched by its translation."""
 from __future__ import annotations
 
 import esper
@@ -117,3 +117,144 @@ def test_skybox_is_drawn_behind_every_model(sky):
     assert (img[disc, 1] == 0).all()                    # no green line crosses the sphere
     # but the grid line through the middle of the view is there outside it
     assert (img[~disc, 1] > 100).sum() > 200
+
+
+# -- the starfield ------------------------------------------------------------------------------
+from driftframe.systems import skybox as sb  # noqa: E402
+
+
+def test_starfield_texture_is_the_same_for_a_seed_and_differs_between_seeds():
+    a = sb.starfield_faces(sb.texture_rng(3), 64, 800)
+    b = sb.starfield_faces(sb.texture_rng(3), 64, 800)
+    c = sb.starfield_faces(sb.texture_rng(4), 64, 800)
+    assert a.shape == (6, 64, 64, 3) and a.dtype == np.uint8
+    np.testing.assert_array_equal(a, b)
+    assert (a != c).any(axis=-1).mean() > 0.05
+    # stars: a few bright points on a dark sky, on every face
+    assert np.median(a) < 12 and all((f.max(axis=-1) > 60).sum() >= 3 for f in a)
+
+
+def test_the_textures_stream_is_not_the_scenes_stream():
+    """The sky is made from its own stream: adding it does not change the random numbers a scene is built with."""
+    scene = np.random.default_rng(5).random(8)
+    sky = sb.texture_rng(5).random(8)
+    assert not np.allclose(scene, sky)
+    np.testing.assert_array_equal(sb.texture_rng(5).random(8), sky)
+    with pytest.raises(ValueError, match="seed must be an int >= 0, got -1"):
+        sb.texture_rng(-1)
+
+
+def test_cube_map_directions_and_texels_are_inverse_in_opengl_face_order():
+    d = sb.face_directions(16)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=-1), 1.0)
+    # the centre of face k looks along +x, -x, +y, -y, +z, -z
+    centres = (d[:, 7, 7] + d[:, 8, 8]) / 2
+    np.testing.assert_allclose(centres / np.linalg.norm(centres, axis=1, keepdims=True),
+                               [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], atol=1e-12)
+    face, row, col = sb.direction_to_texel(d.reshape(-1, 3), 16)
+    k, i, j = np.meshgrid(np.arange(6), np.arange(16), np.arange(16), indexing="ij")
+    np.testing.assert_array_equal(face, k.ravel())
+    np.testing.assert_allclose(row, i.ravel(), atol=1e-9)
+    np.testing.assert_allclose(col, j.ravel(), atol=1e-9)
+    with pytest.raises(ValueError, match="starfield size must be an int in"):
+        sb.starfield_faces(sb.texture_rng(0), 8)
+
+
+def test_starfield_shows_each_texel_where_its_direction_projects(ctx):
+    """A test cube map (a dark colour per face and one bright texel) drawn as the sky: GL's lookup agrees."""
+    n = 32
+    faces = np.zeros((6, n, n, 3), np.uint8)
+    faces[..., 2] = (np.arange(6) * 40 + 20)[:, None, None]            # face k: blue 20 + 40 k
+    target = np.array([0.5, 0.3, 0.81])
+    target /= np.linalg.norm(target)
+    f, r, c = sb.direction_to_texel(target[None], n)
+    faces[f[0], int(round(r[0])), int(round(c[0]))] = 255
+    texel_dir = sb.face_directions(n)[f[0], int(round(r[0])), int(round(c[0]))]
+    w = World()
+    try:
+        eye = w.create_entity(Transform(orientation=fr.look_rotation((0.45, 0.25, 0.85))))
+        w.create_entity(Camera(target=eye, mode="cockpit", fov=40.0))
+        render = attach(w, ctx, (W, H), skybox=False)
+        w.add_system(sb.StarfieldSystem(ctx, render, faces=faces))
+        img = shot(w, render).astype(int)
+        vp = render.projection @ render.view_rotation_only
+        (x, y), = cs.world_to_pixels(texel_dir[None], vp, (W, H))[0]
+        bright = np.argwhere(img[..., 0] > 120)                      # only the marked texel has red
+        assert len(bright)
+        assert np.abs(bright.mean(axis=0) - [y, x]).max() < 3.0, (bright.mean(axis=0), (x, y))
+        # elsewhere each pixel shows the blue of the face its direction falls on
+        for px in ([W // 4, H // 4], [3 * W // 4, 3 * H // 4], [10, H - 10]):
+            ndc = np.array([(px[0] + 0.5) / W * 2 - 1, 1 - (px[1] + 0.5) / H * 2, 1.0, 1.0])
+            d = np.linalg.inv(vp) @ ndc
+            face, _, _ = sb.direction_to_texel((d[:3] / d[3])[None] / np.linalg.norm(d[:3] / d[3]), n)
+            assert abs(img[px[1], px[0], 2] - (face[0] * 40 + 20)) <= 2, (px, face, img[px[1], px[0]])
+    finally:
+        w.close()
+
+
+def test_starfield_is_fixed_in_world_orientation_and_drawn_behind_models(ctx):
+    w = World()
+    try:
+        eye = w.create_entity(Transform(orientation=fr.quat_from_rotvec(np.array([0.2, 0.5, 0.1]))))
+        w.create_entity(Camera(target=eye, mode="cockpit", fov=70.0))
+        render = attach(w, ctx, (W, H), skybox=False)
+        w.add_system(sb.StarfieldSystem(ctx, render, seed=2, size=128, stars=3000))
+        tf = esper.component_for_entity(eye, Transform)
+        before = shot(w, render)
+        assert (before[..., :3].max(axis=-1) > 100).sum() >= 5          # stars in view
+        tf.position = [1e4, -3e3, 2e4]
+        np.testing.assert_array_equal(shot(w, render), before)           # moving does not move the sky
+        tf.orientation = fr.quat_from_rotvec(np.array([0.2, 0.6, 0.1]))
+        assert (shot(w, render) != before).any(axis=-1).mean() > 0.005   # turning does
+        tf.position = [0.0, 0.0, 0.0]
+        tf.orientation = fr.IDENTITY_QUAT
+        w.create_entity(Transform((0.0, 0.0, 4.0)), ModelRef("sphere", colour=(1.0, 0.0, 0.0)))
+        img = shot(w, render).astype(int)
+        f_px = 0.5 * H / np.tan(np.radians(35.0))
+        yy, xx = np.mgrid[0:H, 0:W] + 0.5
+        disc = np.hypot(xx - W / 2, yy - H / 2) < f_px / np.sqrt(15.0) - 1.0
+        assert (img[disc, 1] == 0).all() and (img[disc, 0] > 25).all()  # no star shows through the sphere
+    finally:
+        w.close()
+
+
+def test_attach_keeps_the_line_cube_as_the_default_sky_and_makes_the_starfield_from_the_seed(ctx):
+    def systems(**kw):
+        w = World()
+        w.resources["seed"] = 9
+        eye = w.create_entity(Transform())
+        w.create_entity(Camera(target=eye, mode="cockpit"))
+        attach(w, ctx, (64, 48), **kw)
+        got = (w.get_system(sb.SkyboxSystem), w.get_system(sb.StarfieldSystem))
+        w.close()
+        return got
+    lines, stars = systems()
+    assert lines is not None and stars is None
+    lines, stars = systems(skybox="starfield")
+    assert lines is None and stars.seed == 9
+    assert systems(skybox=False) == (None, None)
+    with pytest.raises(ValueError, match="skybox must be one of .*got 'nebula'"):
+        systems(skybox="nebula")
+
+
+def test_record_sky_starfield_is_repeatable_and_the_line_cube_stays_the_default(tmp_path, ctx):
+    from PIL import Image
+
+    from driftframe.cli import main
+
+    def first_frame(*args):
+        out = tmp_path / f"run{len(list(tmp_path.iterdir()))}"
+        assert main(["record", "rotation", "--seconds", "0.05", "--size", "160x90", "--quiet",
+                     "-o", f"{out}/", *args]) == 0
+        return np.asarray(Image.open(sorted(out.glob("*.png"))[0]).convert("RGB")).astype(int)
+
+    default, lines = first_frame(), first_frame("--sky", "lines")
+    stars_a, stars_b = first_frame("--sky", "starfield"), first_frame("--sky", "starfield")
+    other_seed = first_frame("--sky", "starfield", "--seed", "1")
+    np.testing.assert_array_equal(default, lines)
+    np.testing.assert_array_equal(stars_a, stars_b)
+    green = (lines[..., 1] > 2 * lines[..., 0] + 40) & (lines[..., 1] > 2 * lines[..., 2] + 40)
+    assert green.sum() > 50 and not ((stars_a[..., 1] > 2 * stars_a[..., 0] + 40)
+                                     & (stars_a[..., 1] > 2 * stars_a[..., 2] + 40)).any()
+    # the rotation demo has no random parts: only the sky changes with the seed
+    assert (stars_a != other_seed).any(axis=-1).sum() > 20
