@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.model_cache import declare_variant  # noqa: F401  (re-exported)
+from driftframe.framework.model_cache import declare_model_file, declare_variant  # noqa: F401  (re-exported)
 from driftframe.framework.world import World
 
 
@@ -72,6 +72,9 @@ def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = 
     size = parse_size(size) if isinstance(size, str) else size
     render = attach(world, ctx, size, skybox=sky, **options)
     cache = world.resources["model_cache"]
+    for mname, (path, colour, shading) in world.resources.get("model_files", {}).items():
+        if mname not in cache:          # before the variants, which may scale them
+            cache.load(mname, path, shading=shading, **({} if colour is None else {"colour": colour}))
     for vname, (base, scale, colour) in world.resources.get("model_variants", {}).items():
         if vname not in cache:
             cache.variant(vname, base, scale=scale, colour=colour)

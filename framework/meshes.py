@@ -29,6 +29,15 @@ The meshes the framework builds itself:
 :class:`Mesh`, and :func:`volume_centroid` gives a closed surface's volume
 and centre of mass (uniform density) from signed tetrahedra.
 
+Models from files: :func:`load_mesh` reads an OBJ, glTF (``.gltf``) or
+binary glTF (``.glb``) file with trimesh (the optional ``assets`` extra:
+``pip install 'driftframe[assets]'``) and returns a :class:`Mesh` moved so
+that its centre of mass (trimesh's mass properties, uniform density) is the
+origin: a body spins about its centre of mass, so a model that is not
+centred on it would wobble round the point the body turns about. The
+coordinates are taken as they are (metres; +z the model's front, as in
+glTF; +y up).
+
 Level of detail: a flat triangle lies inside the sphere; its largest gap to
 the true surface, relative to the radius, is ``eps = 1 - min over faces of the
 distance from the centre to the face's plane``. A sphere of projected radius
@@ -333,3 +342,78 @@ def line_cube(divisions: int = 1) -> Mesh:
     idx = np.array([[index[a], index[b]] for a, b in sorted(segs)], dtype=np.uint32).ravel()
     v = np.array(points, dtype=np.float64) / d - 0.5
     return Mesh(f"line_cube{d}", v, np.zeros_like(v), idx, "lines")
+
+
+#: File types :func:`load_mesh` reads (trimesh's loaders for them).
+MODEL_FILES = (".obj", ".gltf", ".glb")
+
+
+def load_mesh(path, name: str | None = None, *, shading: str = "smooth") -> Mesh:
+    """A triangle :class:`Mesh` from an OBJ / glTF / GLB file, recentred on its centre of mass.
+
+    All the file's geometry is joined into one mesh (node transforms
+    applied). ``shading``: ``"smooth"`` (trimesh's area-weighted vertex
+    normals on shared vertices) or ``"flat"`` (every face its own normal).
+    The origin becomes the solid's centre of mass when the surface is closed
+    (``trimesh.Trimesh.is_volume``; inward-wound closed files are turned the
+    right way out first), else the area centroid of the surface (an open
+    sheet has no volume to weigh): see :func:`mesh_centre`.
+
+    A missing file, an unknown file type, a file trimesh cannot parse or
+    one without triangles is a clear error that names the file; a missing
+    trimesh says which extra to install.
+    """
+    mesh = _read_trimesh(path)
+    centre = mesh_centre(mesh)
+    v = np.asarray(mesh.vertices, dtype=np.float64) - centre
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    label = name or _stem(path)
+    if shading == "flat":
+        return flat_shaded(label, v, f)
+    if shading != "smooth":
+        raise ValueError(f"load_mesh shading must be 'smooth' or 'flat', got {shading!r}")
+    return Mesh(label, v, np.asarray(mesh.vertex_normals, dtype=np.float64), f.ravel(), "triangles")
+
+
+def mesh_centre(mesh) -> np.ndarray:
+    """Centre of mass of a trimesh mesh (uniform density) if it bounds a volume, else its area centroid."""
+    if mesh.is_watertight and mesh.is_winding_consistent and mesh.volume < 0:
+        mesh.invert()                              # closed but wound inwards: the same solid, outside out
+    if mesh.is_volume:
+        return np.asarray(mesh.center_mass, dtype=np.float64)
+    return np.asarray(mesh.centroid, dtype=np.float64)
+
+
+def _stem(path) -> str:
+    from pathlib import Path
+    return Path(path).stem or "model"
+
+
+def _read_trimesh(path):
+    from pathlib import Path
+
+    p = Path(path)
+    if p.suffix.lower() not in MODEL_FILES:
+        raise ValueError(f"model file {str(p)!r}: unknown type {p.suffix or '(none)'!r}; "
+                         f"driftframe reads {', '.join(MODEL_FILES)}")
+    if not p.is_file():
+        raise FileNotFoundError(f"model file {str(p)!r} not found" if not p.exists()
+                                else f"model file {str(p)!r} is not a file")
+    try:
+        import trimesh
+    except ImportError:
+        raise ImportError(f"loading model file {str(p)!r} needs trimesh, the 'assets' extra: "
+                          "pip install 'driftframe[assets]'") from None
+    try:
+        mesh = trimesh.load(str(p), force="mesh", process=True)
+    except Exception as e:                         # trimesh's parsers raise many kinds; name the file
+        raise ValueError(f"model file {str(p)!r} could not be read as {p.suffix.lower()[1:].upper()}: "
+                         f"{type(e).__name__}: {e}") from None
+    faces = getattr(mesh, "faces", None)
+    if faces is None or len(faces) == 0:
+        raise ValueError(f"model file {str(p)!r} has no triangles (empty, or not a {p.suffix.lower()[1:].upper()} "
+                         "mesh)")
+    v = np.asarray(mesh.vertices)
+    if not np.isfinite(v).all():
+        raise ValueError(f"model file {str(p)!r} has non-finite vertex coordinates")
+    return mesh

@@ -15,6 +15,12 @@ asked for a mesh set, and never again: each level gets one vertex buffer
 (interleaved ``x y z nx ny nz`` float32) and one index buffer (uint32).
 :attr:`ModelCache.buffers_created` counts them.
 
+Models from files: :meth:`ModelCache.load` defines a base model from an OBJ
+or glTF file (:func:`framework.meshes.load_mesh`, the ``assets`` extra),
+recentred on its centre of mass; its variants share its buffers like the
+sphere's. :func:`declare_model_file` names one for a world before any GL
+exists, as :func:`declare_variant` does for variants.
+
 Built-in models (defined by every cache unless ``builtins=False``):
 
 * ``"sphere"`` — unit-radius icosphere, levels 0..4 (20 .. 5,120 triangles), grey;
@@ -149,6 +155,17 @@ class ModelCache:
         self._models[name] = model
         return model
 
+    def load(self, name: str, path, *, colour=GREY, shading: str = "smooth") -> Model:
+        """Define base model ``name`` from a model file (OBJ, glTF, GLB), centred on its centre of mass.
+
+        See :func:`framework.meshes.load_mesh`; errors name the file. Scaled
+        variants of it (:meth:`variant`) share its vertex and index buffers.
+        """
+        name = self._check_name(name)
+        if name in self._models:
+            raise ValueError(f"model {name!r} is defined already")
+        return self.define(name, meshes.load_mesh(path, name, shading=shading), colour=colour)
+
     def variant(self, name: str, base: str, *, scale=1.0, colour=None) -> Model:
         """An entry sharing ``base``'s vertex and index buffers, scaled by ``scale`` (one or three numbers).
 
@@ -232,4 +249,28 @@ def declare_variant(world, name: str, base: str = "sphere", *, scale=1.0, colour
     if colour is not None:
         check_colour(f"variant {name!r} colour", colour)
     world.resources.setdefault("model_variants", {})[name] = (base, scale, colour)
+    return name
+
+
+def declare_model_file(world, name: str, path, *, colour=None, shading: str = "smooth") -> str:
+    """Declare base model ``name`` read from ``path`` (OBJ, glTF, GLB) when rendering is attached; returns ``name``.
+
+    Stored in ``world.resources["model_files"]``; the file is checked to
+    exist now (a clear error naming it), read when the model cache is made.
+    """
+    from pathlib import Path
+
+    if not isinstance(name, str) or not name:
+        raise TypeError(f"model name must be a non-empty str, got {name!r}")
+    p = Path(path)
+    if p.suffix.lower() not in meshes.MODEL_FILES:
+        raise ValueError(f"model file {str(p)!r}: unknown type {p.suffix or '(none)'!r}; "
+                         f"driftframe reads {', '.join(meshes.MODEL_FILES)}")
+    if not p.is_file():
+        raise FileNotFoundError(f"model file {str(p)!r} not found")
+    if colour is not None:
+        check_colour(f"model {name!r} colour", colour)
+    if shading not in ("smooth", "flat"):
+        raise ValueError(f"model {name!r} shading must be 'smooth' or 'flat', got {shading!r}")
+    world.resources.setdefault("model_files", {})[name] = (str(p), colour, shading)
     return name

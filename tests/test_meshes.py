@@ -170,3 +170,94 @@ def test_mesh_arrays_are_read_only_copies():
     assert m.vertices[0, 0] == 1.0
     with pytest.raises(ValueError):
         m.vertices[0, 0] = 2.0
+
+
+# -- models from files (the 'assets' extra: trimesh) ------------------------------------------------
+import os  # noqa: E402
+import sys  # noqa: E402
+
+# a square pyramid off the origin: base 2 x 2 at z = 0, apex 4 m up; its centre of mass is 1/4 of the way up,
+# (not the vertex mean, z = 0.8, nor the box centre, z = 2)
+OFFSET = np.array([5.0, -2.0, 3.0])
+PYR_V = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0], [0, 0, 4.0]]) + OFFSET
+PYR_F = np.array([[0, 2, 1], [0, 3, 2], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+PYR_COM = OFFSET + [0.0, 0.0, 1.0]
+
+
+def need_trimesh():
+    """trimesh, or a skip where the 'assets' extra is not installed (CI installs it: there a failure)."""
+    if os.environ.get("CI"):
+        import trimesh
+        return trimesh
+    return pytest.importorskip("trimesh", reason="the 'assets' extra (trimesh) is not installed")
+
+
+def write_model(path, kind):
+    """The pyramid written by this test: OBJ by hand, glTF and GLB with trimesh's exporters."""
+    if kind == "obj":
+        lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in PYR_V] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in PYR_F]
+        path.write_text("# a pyramid\n" + "\n".join(lines) + "\n")
+        return path
+    trimesh = need_trimesh()
+    mesh = trimesh.Trimesh(PYR_V, PYR_F, process=False)
+    if kind == "glb":
+        path.write_bytes(mesh.export(file_type="glb"))
+    else:
+        (name, data), = trimesh.exchange.gltf.export_gltf(mesh, embed_buffers=True).items()
+        path.write_bytes(data)
+    return path
+
+
+@pytest.mark.parametrize("kind", ["obj", "gltf", "glb"])
+def test_a_model_file_round_trips_recentred_on_its_centre_of_mass(tmp_path, kind):
+    need_trimesh()
+    m = meshes.load_mesh(write_model(tmp_path / f"pyramid.{kind}", kind), "pyr")
+    assert m.name == "pyr" and m.mode == "triangles" and m.primitive_count == 6
+    # the same corners, moved by minus the centre of mass (not the vertex mean, not the bounding-box centre)
+    got = {tuple(p) for p in np.round(m.vertices.astype(np.float64), 5)}
+    assert got == {tuple(p) for p in np.round(PYR_V - PYR_COM, 5)}
+    vol, com = meshes.volume_centroid(m.vertices, m.indices)             # an independent check, without trimesh
+    assert vol == pytest.approx(16.0 / 3.0, rel=1e-6)                      # outward winding kept: base 4 x height 4 / 3
+    np.testing.assert_allclose(com, 0.0, atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(m.normals, axis=1), 1.0, atol=1e-5)
+    flat = meshes.load_mesh(tmp_path / f"pyramid.{kind}", shading="flat")
+    assert flat.name == "pyramid" and len(flat.vertices) == 18
+    np.testing.assert_allclose(meshes.volume_centroid(flat.vertices, flat.indices)[1], 0.0, atol=1e-5)
+
+
+def test_an_inside_out_closed_model_is_turned_the_right_way_and_still_centred(tmp_path):
+    need_trimesh()
+    p = tmp_path / "inside_out.obj"
+    lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in PYR_V] + [f"f {a + 1} {c + 1} {b + 1}" for a, b, c in PYR_F]
+    p.write_text("\n".join(lines) + "\n")
+    m = meshes.load_mesh(p)
+    vol, com = meshes.volume_centroid(m.vertices, m.indices)
+    assert vol == pytest.approx(16.0 / 3.0, rel=1e-6)
+    np.testing.assert_allclose(com, 0.0, atol=1e-5)
+
+
+def test_missing_malformed_and_unknown_model_files_are_errors_that_name_the_file(tmp_path):
+    need_trimesh()
+    with pytest.raises(FileNotFoundError, match=r"model file '.*nowhere\.obj' not found"):
+        meshes.load_mesh(tmp_path / "nowhere.obj")
+    with pytest.raises(ValueError, match=r"model file '.*ship\.fbx': unknown type '\.fbx'; driftframe reads"):
+        meshes.load_mesh(tmp_path / "ship.fbx")
+    junk = tmp_path / "junk.obj"
+    junk.write_text("this is not\nan OBJ file\n")
+    with pytest.raises(ValueError, match=r"model file '.*junk\.obj' has no triangles"):
+        meshes.load_mesh(junk)
+    broken = tmp_path / "broken.glb"
+    broken.write_bytes(write_model(tmp_path / "whole.glb", "glb").read_bytes()[:40])   # cut short
+    with pytest.raises(ValueError, match=r"model file '.*broken\.glb' could not be read as GLB"):
+        meshes.load_mesh(broken)
+    folder = tmp_path / "dir.obj"
+    folder.mkdir()
+    with pytest.raises(FileNotFoundError, match=r"model file '.*dir\.obj' is not a file"):
+        meshes.load_mesh(folder)
+
+
+def test_without_trimesh_loading_says_which_extra_to_install(tmp_path, monkeypatch):
+    p = write_model(tmp_path / "p.obj", "obj")
+    monkeypatch.setitem(sys.modules, "trimesh", None)           # as if it were not installed
+    with pytest.raises(ImportError, match=r"'.*p\.obj' needs trimesh, the 'assets' extra: pip install"):
+        meshes.load_mesh(p)
