@@ -20,6 +20,8 @@ SCRIPT = Track((
 def build(world, rng):
     me = ship(world, mode="direct", collides=False)
     chase_camera(world, me, mode="chase", chase_distance=9.0, chase_height=2.5)
-    # a lattice of beacons, so turning and drifting show against something
-    grid = [(x, y, z) for x in (-40, 0, 40) for y in (-20, 20) for z in (20, 60, 100)]
+    # a lattice of beacons 40 m apart all round the flight (about 100 m), so turning and drifting
+    # always show against something
+    grid = [(x, y, z) for x in range(-120, 121, 40) for y in range(-80, 81, 40) for z in range(-120, 121, 40)
+            if (x, y, z) != (0, 0, 0)]
     balls(world, grid, [(0, 0, 0)] * len(grid), 1.5, mass=float("inf"), colour=(0.9, 0.55, 0.2))

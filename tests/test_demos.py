@@ -14,7 +14,7 @@ from driftframe.framework import frame as fr
 from driftframe.systems import camera as cs
 
 EXPECTED = {   # (bodies with a collider, players, cameras)
-    "rotation": (18, 1, 1),
+    "rotation": (244, 1, 1),     # 7 x 5 x 7 beacons but the one at the ship's start
     "spin": (12, 1, 1),
     "asteroids": (52, 1, 1),     # the ship, a pebble on its path, fifty asteroids
     "billiards": (16, 0, 1),
