@@ -255,7 +255,8 @@ class StarfieldSystem(esper.Processor):
             raise ValueError(f"StarfieldSystem faces must be (6, N, N, 3) uint8, got {faces.dtype} {faces.shape}")
         self._tex = ctx.texture_cube((faces.shape[1], faces.shape[1]), 3, faces.tobytes())
         self._tex.build_mipmaps()
-        self._tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        self._texels = faces.shape[1]
+        self._filter = None
         self._prog = ctx.program(vertex_shader=STAR_VERTEX_SHADER, fragment_shader=STAR_FRAGMENT_SHADER)
         self._vao = ctx.vertex_array(self._prog, [])
         self._drawn_frame = 0
@@ -268,6 +269,14 @@ class StarfieldSystem(esper.Processor):
             raise RuntimeError("StarfieldSystem must run after its RenderSystem in the render stage "
                                "(systems.render.attach adds them in that order)")
         self._drawn_frame = r.frame
+        # texels per pixel mid-screen: (size/2) / f_px, f_px = projection[1, 1] h/2 pixels per unit.
+        # Magnified (< 1, a 1280x720 frame): plain bilinear; minified (small previews): mipmaps, so
+        # stars do not sparkle in and out as the view turns. On llvmpipe the mipmapped lookup costs
+        # about twice the bilinear one, so it is used only where it changes the picture.
+        texels_per_px = 0.5 * self._texels / (0.5 * r.size[1] * r.projection[1, 1])
+        wanted = (moderngl.LINEAR_MIPMAP_LINEAR if texels_per_px > 1.0 else moderngl.LINEAR, moderngl.LINEAR)
+        if wanted != self._filter:
+            self._tex.filter = self._filter = wanted
         inv = np.linalg.inv(r.projection @ r.view_rotation_only)
         self._prog["u_inv_view_proj"].write(inv.astype(np.float32).T.tobytes())
         ctx = self.ctx

@@ -258,3 +258,22 @@ def test_record_sky_starfield_is_repeatable_and_the_line_cube_stays_the_default(
                                      & (stars_a[..., 1] > 2 * stars_a[..., 2] + 40)).any()
     # the rotation demo has no random parts: only the sky changes with the seed
     assert (stars_a != other_seed).any(axis=-1).sum() > 20
+
+
+def test_starfield_uses_mipmaps_only_where_the_view_shrinks_the_texture(ctx):
+    """512 texels across 90 degrees: magnified in a 1280x720 frame (bilinear), shrunk in a 160x90 one (mipmaps)."""
+    filters = {}
+    for size in ((1280, 720), (160, 90)):
+        w = World()
+        try:
+            eye = w.create_entity(Transform())
+            w.create_entity(Camera(target=eye, mode="cockpit", fov=60.0))
+            render = attach(w, ctx, size, skybox=False)
+            stars = w.add_system(sb.StarfieldSystem(ctx, render, seed=0, size=512, stars=500))
+            shot(w, render)
+            filters[size] = stars._tex.filter
+        finally:
+            w.close()
+    import moderngl
+    assert filters[(1280, 720)] == (moderngl.LINEAR, moderngl.LINEAR)
+    assert filters[(160, 90)] == (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
