@@ -33,11 +33,12 @@ def simulation_systems(track=None, *, collision: str = "continuous") -> list:
             CollisionSystem(method=collision)]
 
 
-def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous"):
+def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous", track=None):
     """A world with the standard systems and demo ``name``'s entities; returns ``(world, demo)``.
 
     ``scripted``: drive the player with the demo's input track (recordings,
-    tests); False leaves input to the keyboard.
+    tests); False leaves input to the keyboard. ``track``: a
+    :class:`~framework.input.Track` to fly instead of the demo's (a saved flight).
     """
     from driftframe import demos
 
@@ -46,7 +47,8 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
         raise ValueError(f"seed must be an int >= 0, got {seed!r}")
     world = World(dt=getattr(demo, "DT", 1.0 / 60.0))
     try:
-        for system in simulation_systems(demo.SCRIPT if scripted else None, collision=collision):
+        script = track if track is not None else (demo.SCRIPT if scripted else None)
+        for system in simulation_systems(script, collision=collision):
             world.add_system(system)
         demo.build(world, np.random.default_rng(int(seed)))
     except BaseException:

@@ -32,6 +32,13 @@ def _positive_float(name):
     return parse
 
 
+class _DefaultSeed(int):
+    """The seed when --seed is not given: 0, but recognisable (``record --track`` takes the track's)."""
+
+
+DEFAULT_SEED = _DefaultSeed(0)
+
+
 def _seed(text):
     try:
         v = int(text)
@@ -52,7 +59,33 @@ def _size(text):
 
 def _keys_epilog() -> str:
     from driftframe.framework.input import keys_help
-    return "keys while playing:\n" + keys_help()
+    return ("keys while playing (change them with --bindings FILE; `driftframe keys` prints the defaults):\n"
+            + keys_help())
+
+
+def _positive_int(name):
+    def parse(text):
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {text!r}") from None
+        if v < 1:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {text!r}")
+        return v
+    return parse
+
+
+def _output_file(option: str, path: str | None) -> None:
+    """A UsageError now, before anything runs, if ``path`` cannot be written (its folder missing or read-only)."""
+    if path is None:
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise UsageError(f"{option}: {path!r} is a directory, not a file")
+    if not os.path.isdir(folder):
+        raise UsageError(f"{option}: no such directory: {os.path.dirname(path) or '.'!r} (for {path!r})")
+    if not os.access(folder, os.W_OK):
+        raise UsageError(f"{option}: cannot write into {os.path.dirname(path) or '.'!r} (for {path!r})")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -72,7 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("demo", metavar="DEMO", help=f"one of: {', '.join(demos.NAMES)}")
     common.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH",
                         help="frame size in pixels (default 1280x720)")
-    common.add_argument("--seed", type=_seed, default=0, metavar="N", help="random seed of the scene (default 0)")
+    common.add_argument("--seed", type=_seed, default=DEFAULT_SEED, metavar="N", help="random seed of the scene (default 0)")
     common.add_argument("--camera", choices=CAMERAS, default=None,
                         help="camera to start with (default: the demo's own)")
     common.add_argument("--sky", choices=("lines", "starfield"), default="lines",
@@ -89,6 +122,11 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("-o", "--output", default=None, metavar="FILE",
                      help="FILE.mp4, FILE.gif, or a directory for numbered PNGs (default out/DEMO.mp4)")
     rec.add_argument("--quiet", action="store_true", help="no progress bar")
+    rec.add_argument("--track", default=None, metavar="FILE",
+                     help="fly the track FILE (from `play --save-track`) instead of the demo's script; "
+                          "its seed, camera and length are used unless --seed, --camera, --seconds say otherwise")
+    rec.add_argument("--hash-log", default=None, metavar="FILE",
+                     help="write one 'STEP HASH' line per step (compare two with `driftframe diverge`)")
 
     play = sub.add_parser("play", parents=[common], help="fly a demo in a window with the keyboard",
                           description="Open a window and fly DEMO with the keyboard. The physics runs in "
@@ -97,6 +135,29 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument("--screenshots", default=".", metavar="DIR", help="where F12 saves PNGs (default: here)")
     play.add_argument("--state-out", default=None, metavar="FILE",
                       help="on quit, write the player's state and the camera mode to FILE as JSON")
+    play.add_argument("--save-track", default=None, metavar="FILE",
+                      help="on quit, write the flight (every step's input) to FILE; "
+                           "`driftframe record DEMO --track FILE` re-renders it")
+    play.add_argument("--hash-log", default=None, metavar="FILE",
+                      help="write one 'STEP HASH' line per step (compare two with `driftframe diverge`)")
+    play.add_argument("--bindings", default=None, metavar="FILE",
+                      help="key and gamepad bindings, TOML (`driftframe keys` prints the defaults)")
+    play.add_argument("--frames", type=_positive_int("frames"), default=None, metavar="N",
+                      help="quit after N frames (the closing line gives the frame rate)")
+    play.add_argument("--overlay", action="store_true", help="start with the F3 overlay shown")
+    play.add_argument("--no-interpolation", action="store_true",
+                      help="draw the state after the last step instead of poses between steps")
+
+    keys = sub.add_parser("keys", help="print the key and gamepad bindings as a TOML file",
+                          description="Print the bindings (the defaults, or FILE's) in the TOML format that "
+                                      "`driftframe play --bindings FILE` reads.")
+    keys.add_argument("--bindings", default=None, metavar="FILE", help="show FILE's bindings over the defaults")
+
+    div = sub.add_parser("diverge", help="the first step where two hash logs differ",
+                         description="Compare two --hash-log files line by line; print the first step "
+                                     "where the states differ. Exit status 0 when they agree, 1 when not.")
+    div.add_argument("log_a", metavar="LOG_A")
+    div.add_argument("log_b", metavar="LOG_B")
     return p
 
 
@@ -127,22 +188,45 @@ def steps_per_frame(fps: float, dt: float) -> int:
     return k
 
 
+def _apply_track(args, demo):
+    """``record --track``: load the track, check it is the demo's, take its seed, camera and length."""
+    if args.track is None:
+        return None
+    from driftframe.framework.input import load_track
+    track = load_track(args.track)
+    info = track.info
+    if info.get("demo", args.demo) != args.demo:
+        raise UsageError(f"--track {args.track} was flown in {info['demo']!r}, not {args.demo!r}")
+    if args.seed is DEFAULT_SEED:
+        args.seed = info.get("seed", 0)
+    if args.camera is None:
+        args.camera = info.get("camera")
+    if args.seconds is None:
+        args.seconds = info["steps"] * info["dt"] if "steps" in info and "dt" in info else track.duration
+    return track
+
+
 def cmd_record(args) -> int:
     from driftframe.app import attach_rendering, make_world
     from driftframe.framework.recorder import output_format, record
 
     demo = _load_demo(args.demo)
+    track = _apply_track(args, demo)
+    _output_file("--hash-log", args.hash_log)
     seconds = args.seconds if args.seconds is not None else demo.SECONDS
     out = args.output or os.path.join("out", f"{args.demo}.mp4")
     try:
         output_format(out)
     except ValueError as e:
         raise UsageError(str(e)) from None
-    world, demo = make_world(args.demo, seed=args.seed)
+    world, demo = make_world(args.demo, seed=args.seed, track=track)
     try:
         k = steps_per_frame(args.fps, world.dt)
         frames = max(1, round(seconds * args.fps))
         attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
+        if args.hash_log:
+            from driftframe.framework.hashlog import attach_hash_log
+            attach_hash_log(world, args.hash_log)
         result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet)
     finally:
         world.close()
@@ -156,15 +240,38 @@ def cmd_record(args) -> int:
 
 
 def cmd_play(args) -> int:
+    from driftframe.framework.bindings import load_bindings
     from driftframe.window import PlayError, play
     _load_demo(args.demo)
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
+    for option in ("state_out", "save_track", "hash_log"):     # fail now, not when the session ends
+        _output_file("--" + option.replace("_", "-"), getattr(args, option))
+    bindings = load_bindings(args.bindings) if args.bindings else None
     try:
         return play(args.demo, size=args.size, seed=args.seed, camera=args.camera, state_out=args.state_out,
-                    screenshot_dir=args.screenshots, sky=args.sky)
+                    screenshot_dir=args.screenshots, sky=args.sky, bindings=bindings,
+                    save_track=args.save_track,
+                    hash_log=args.hash_log, frames=args.frames, overlay=args.overlay,
+                    interpolate=not args.no_interpolation)
     except PlayError as e:
         raise UsageError(str(e)) from None
+
+
+def cmd_keys(args) -> int:
+    from driftframe.framework.bindings import bindings_toml, load_bindings
+    print(bindings_toml(load_bindings(args.bindings) if args.bindings else None), end="")
+    return 0
+
+
+def cmd_diverge(args) -> int:
+    from driftframe.framework.hashlog import first_divergence, read_hash_log
+    d = first_divergence(args.log_a, args.log_b)
+    if d is None:
+        print(f"the logs agree for all {len(read_hash_log(args.log_a))} steps")
+        return 0
+    print(d)
+    return 1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -175,7 +282,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     from driftframe.framework.gl import GLUnavailableError
 
-    handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play}
+    handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
+                "diverge": cmd_diverge}
     try:
         return handlers[args.command](args)
     except UsageError as e:

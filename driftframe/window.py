@@ -1,23 +1,37 @@
-"""Fly a demo in a real window (glfw): keyboard in, fixed steps under a variable frame rate.
+"""Fly a demo in a real window (glfw): keyboard and gamepad in, fixed steps under a variable frame rate.
 
 The window's frame rate only decides how often the scene is drawn: a
 :class:`~framework.loop.FixedStepLoop` on the wall clock takes whole steps of
 ``world.dt``, so a slow frame runs more steps, never a longer one, and the
-physics is the one a recording shows. Keys go through the same
-:class:`~systems.input.InputSystem` a scripted track uses; held keys set the
-pilot's intent, pressed keys fire once (see :data:`framework.input.KEYMAP`).
+physics is the one a recording shows. Each frame draws the poses between the
+last two steps by the loop's ``alpha`` (:mod:`systems.interpolation`), so any
+display rate looks smooth; when a step costs more than ``dt`` the loop drops
+time and the overlay says so.
+
+Keys (and a gamepad's buttons and axes, :mod:`framework.bindings`) go
+through the same :class:`~systems.input.InputSystem` a scripted track uses;
+held keys set the pilot's intent, pressed keys fire once. Every step's intent
+can be written down (``save_track``) and re-rendered by ``driftframe record
+--track``; ``hash_log`` writes one state hash per step.
+
+Window keys: F11 fullscreen, F3 the overlay (frame rate, each stage's time),
+F12 a screenshot, P pause, Esc quit. Resizing keeps the picture's aspect
+ratio: the scene is drawn in the largest centred rectangle of the
+``size``'s aspect (black bars around it).
 """
 from __future__ import annotations
 
 import json
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from driftframe.framework.input import HELD, KEYMAP
+from driftframe.framework.gl import RenderTarget
+from driftframe.framework.input import HELD
 
 
 class PlayError(Exception):
@@ -55,21 +69,91 @@ def open_window(glfw, size, title):
     return win
 
 
-def key_table(glfw) -> dict[int, str]:
-    """GLFW key code -> action name, from :data:`KEYMAP`."""
+def key_table(glfw, keymap) -> dict[int, str]:
+    """GLFW key code -> action name, from a keymap (action -> key names)."""
     table = {}
-    for action, keys in KEYMAP.items():
+    for action, keys in keymap.items():
         for k in keys:
             table[getattr(glfw, f"KEY_{k}")] = action
     return table
+
+
+def letterbox(window_size, aspect: float) -> tuple[int, int, int, int]:
+    """``(x, y, w, h)``: the largest rectangle of ``aspect`` (w / h) centred in ``window_size``, pixels.
+
+    Bars go left and right when the window is wider than ``aspect``, above and
+    below when it is taller; the picture is never stretched.
+    """
+    W, H = int(window_size[0]), int(window_size[1])
+    if W < 1 or H < 1:
+        raise ValueError(f"window size must be positive, got {window_size!r}")
+    if W / H > aspect:
+        w, h = max(1, round(H * aspect)), H
+    else:
+        w, h = W, max(1, round(W / aspect))
+    return (W - w) // 2, (H - h) // 2, w, h
+
+
+class LetterboxTarget(RenderTarget):
+    """A window's screen, drawn into a centred rectangle of a fixed aspect ratio.
+
+    ``size`` is the picture's size (what the render system and HUD see),
+    ``viewport`` its place in the window (GL's bottom-left origin).
+    """
+
+    @classmethod
+    def for_window(cls, ctx, window_size, aspect: float) -> "LetterboxTarget":
+        self = cls.screen(ctx, window_size)
+        self.aspect_lock = float(aspect)
+        self.window_size = tuple(window_size)
+        self.fit(window_size)
+        return self
+
+    def fit(self, window_size) -> None:
+        x, y, w, h = letterbox(window_size, self.aspect_lock)
+        self.window_size = (int(window_size[0]), int(window_size[1]))
+        self.offset = (x, y)
+        self.size = (w, h)
+
+    @property
+    def viewport(self) -> tuple[int, int, int, int]:
+        return (*self.offset, *self.size)
+
+
+class Gamepads:
+    """The first connected gamepad, read through GLFW's gamepad API (SDL_GameControllerDB mappings)."""
+
+    def __init__(self, glfw, mappings: Path | None = None):
+        self.glfw = glfw
+        text = os.environ.get("SDL_GAMECONTROLLERCONFIG", "")
+        if mappings is not None:
+            text = Path(mappings).read_text() + "\n" + text
+        if text.strip() and not glfw.update_gamepad_mappings(text):
+            raise PlayError("the gamepad mappings (SDL_GAMECONTROLLERCONFIG or the bindings' gamepad.mappings) "
+                            "could not be parsed")
+        self.name: str | None = None
+
+    def state(self):
+        """``(axes, buttons)`` of the first gamepad (6 floats, 15 ints), or None when there is none."""
+        glfw = self.glfw
+        for jid in range(glfw.JOYSTICK_1, glfw.JOYSTICK_LAST + 1):
+            if glfw.joystick_is_gamepad(jid):
+                st = glfw.get_gamepad_state(jid)
+                if st is None:
+                    continue
+                if self.name is None:
+                    self.name = glfw.get_gamepad_name(jid) or f"gamepad {jid}"
+                    print(f"gamepad: {self.name}", file=sys.stderr)
+                return tuple(st.axes), tuple(st.buttons)
+        return None
 
 
 def state_summary(world) -> dict:
     """The player's state and the camera mode, as plain JSON-able values."""
     import esper
 
-    from driftframe.components.body import AngularVelocity, Transform, Velocity
     from driftframe.app import player
+    from driftframe.components.body import AngularVelocity, Transform, Velocity
     from driftframe.systems.camera import active_camera
 
     world.activate()
@@ -89,15 +173,46 @@ def state_summary(world) -> dict:
     return out
 
 
-def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
-         state_out: str | None = None, screenshot_dir: str = ".", sky: str = "lines") -> int:
-    """Open a window and fly demo ``name`` until Esc or the window is closed. Returns an exit code."""
-    from driftframe.app import attach_rendering, make_world
-    from driftframe.framework.gl import RenderTarget, wrap_current_context
-    from driftframe.framework.loop import FixedStepLoop
-    from driftframe.systems.camera import switch_camera
-    from driftframe.systems.input import InputSystem
+def overlay_lines(stats, loop) -> list[str]:
+    """The F3 overlay: frame rate, steps, what was dropped, and each stage's time."""
+    out = [f"FPS     {stats.fps:6.1f}  (worst {stats.worst_ms:5.1f} ms)",
+           f"STEP    {loop.step_cost * 1e3:6.2f} ms of {loop.world.dt * 1e3:.2f}  speed {loop.speed:4.2f}x",
+           f"DROPPED {loop.dropped_steps} steps"]
+    for stage, ms in stats.stage_ms.items():
+        if ms > 0:
+            out.append(f"  {stage:<9} {ms:6.2f} ms")
+    return out
 
+
+def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
+         state_out: str | None = None, screenshot_dir: str = ".", bindings=None, save_track: str | None = None,
+         hash_log: str | None = None, frames: int | None = None, overlay: bool = False, interpolate: bool = True,
+         loop_options: dict | None = None, setup=None, quiet: bool = False, sky: str = "lines") -> int:
+    """Open a window and fly demo ``name`` until Esc, the window is closed, or ``frames`` frames. Returns 0.
+
+    ``sky``: ``"lines"`` or ``"starfield"`` (see :func:`driftframe.app.attach_rendering`).
+    ``bindings``: a :class:`~framework.bindings.Bindings` (default: the
+    defaults). ``save_track``: on quit, write the flight as a track file.
+    ``hash_log``: one ``STEP HASH`` line per step. ``frames``: quit after so
+    many frames (benchmarks, tests). ``overlay``: start with the F3 overlay
+    shown. ``interpolate``: draw poses between steps (False: the state after
+    the last step). ``loop_options``: keyword arguments for
+    :class:`~framework.loop.FixedStepLoop`. ``setup(world)``: called once the
+    world is built (a benchmark adds a load there). The last line on stderr
+    is a summary of the frame rate; the figures are also in ``play.last_run``.
+    """
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.framework.bindings import Bindings, gamepad_actions, gamepad_channels
+    from driftframe.framework.gl import wrap_current_context
+    from driftframe.framework.hashlog import attach_hash_log
+    from driftframe.framework.input import TrackRecorder, save_track as write_track
+    from driftframe.framework.loop import FixedStepLoop, FrameStats
+    from driftframe.systems.camera import switch_camera
+    from driftframe.systems.hud import HudSystem
+    from driftframe.systems.input import InputSystem
+    from driftframe.systems.interpolation import attach_interpolation
+
+    bindings = bindings or Bindings()
     glfw = _glfw()
     from driftframe import demos
     demo = demos.load(name)
@@ -105,15 +220,62 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
     world = None
     shots: list[str] = []
     try:
+        pads = Gamepads(glfw, bindings.mappings)
         ctx = wrap_current_context()
         world, demo = make_world(name, seed=seed, scripted=False)
-        fb = glfw.get_framebuffer_size(win)
-        target = RenderTarget.screen(ctx, fb)
+        target = LetterboxTarget.for_window(ctx, glfw.get_framebuffer_size(win), size[0] / size[1])
         render = attach_rendering(world, ctx, target=target, camera=camera, sky=sky)
+        hud = world.get_system(HudSystem)
         inputs = world.get_system(InputSystem)
-        loop = FixedStepLoop(world, time.perf_counter)
-        keys = key_table(glfw)
-        pending = {"screenshot": False}
+        interp = attach_interpolation(world, render) if interpolate else None
+        recorder = None
+        if save_track:
+            recorder = inputs.recorder = TrackRecorder(world.dt)
+        if hash_log:
+            attach_hash_log(world, hash_log)
+        if setup is not None:
+            setup(world)
+        loop = FixedStepLoop(world, time.perf_counter, **(loop_options or {}))
+        keys = key_table(glfw, bindings.keys)
+        ui = {"screenshot": False, "overlay": bool(overlay), "fullscreen": False, "windowed": None,
+              "told_behind": False}
+        key_held: set[str] = set()
+        pressed_at: dict[str, int] = {}        # held action -> world.step_count when its key went down
+        release_later: set[str] = set()        # tapped between two steps: released after the next step
+        pad_held: set[str] = set()
+        pad_down: set[str] = set()
+
+        def fire(action):
+            if action == "quit":
+                glfw.set_window_should_close(win, True)
+            elif action == "pause":
+                loop.paused = not loop.paused
+            elif action == "screenshot":
+                ui["screenshot"] = True
+            elif action == "overlay":
+                ui["overlay"] = not ui["overlay"]
+            elif action == "fullscreen":
+                toggle_fullscreen()
+            elif loop.paused:          # switch_camera while paused: at once, and written down for the replay
+                switch_camera(world)
+                if recorder is not None:
+                    recorder.press(world.step_count, action)
+                if interp is not None:
+                    interp.snapshot.take()      # no blending across the jump
+            else:                      # otherwise at the next fixed step
+                inputs.press(action)
+
+        def toggle_fullscreen():
+            if glfw.get_window_monitor(win):
+                x, y, w, h = ui["windowed"]
+                glfw.set_window_monitor(win, None, x, y, w, h, 0)
+                ui["fullscreen"] = False
+            else:
+                ui["windowed"] = (*glfw.get_window_pos(win), *glfw.get_window_size(win))
+                mon = glfw.get_primary_monitor()
+                mode = glfw.get_video_mode(mon)
+                glfw.set_window_monitor(win, mon, 0, 0, mode.size.width, mode.size.height, mode.refresh_rate)
+                ui["fullscreen"] = True
 
         def on_key(_win, key, _scancode, action, _mods):
             name_ = keys.get(key)
@@ -121,41 +283,90 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
                 return
             if name_ in HELD:
                 if action == glfw.PRESS:
-                    inputs.held.add(name_)
+                    key_held.add(name_)
+                    release_later.discard(name_)
+                    pressed_at[name_] = world.step_count
                 elif action == glfw.RELEASE:
-                    inputs.held.discard(name_)
+                    if pressed_at.get(name_) == world.step_count and not loop.paused:
+                        release_later.add(name_)      # a tap shorter than a step still acts for one step
+                    else:
+                        key_held.discard(name_)
             elif action == glfw.PRESS:
-                if name_ == "quit":
-                    glfw.set_window_should_close(win, True)
-                elif name_ == "pause":
-                    loop.paused = not loop.paused
-                elif name_ == "screenshot":
-                    pending["screenshot"] = True
-                elif loop.paused:          # switch_camera while paused: at once
-                    switch_camera(world)
-                else:                      # otherwise at the next fixed step
-                    inputs.press(name_)
+                fire(name_)
 
         def on_resize(_win, w, h):
-            if w > 0 and h > 0:
-                target.size = (w, h)
+            if w > 0 and h > 0:           # 0 x 0 while minimised: keep the last picture size
+                target.fit((w, h))
+
+        def poll_gamepad():
+            st = pads.state()
+            if st is None:
+                inputs.axes = {}
+                pad_held.clear()
+                return
+            axes, buttons = st
+            inputs.axes = gamepad_channels(axes, bindings)
+            down = gamepad_actions(buttons, bindings)
+            pad_held.clear()
+            pad_held.update(a for a in down if a in HELD)
+            for a in sorted(down - pad_down - set(HELD)):
+                fire(a)
+            pad_down.clear()
+            pad_down.update(down)
 
         glfw.set_key_callback(win, on_key)
         glfw.set_framebuffer_size_callback(win, on_resize)
-        print(f"playing {name}: Esc quits, P pauses, C switches camera (driftframe play --help lists the keys)",
-              file=sys.stderr)
+        if not quiet:
+            print(f"playing {name}: Esc quits, P pauses, C switches camera, F11 fullscreen, F3 overlay "
+                  "(`driftframe keys` lists them all)", file=sys.stderr)
+        stats = FrameStats()
+        frame_times = []
+        t_prev = t_start = time.perf_counter()
         while not glfw.window_should_close(win):
             glfw.poll_events()
-            loop.tick()
+            poll_gamepad()
+            inputs.held = key_held | pad_held
+            if loop.tick() and release_later:
+                key_held.difference_update(release_later)
+                release_later.clear()
+            if loop.behind and loop.dropped_steps and not ui["told_behind"]:
+                ui["told_behind"] = True
+                print(f"driftframe: a step takes {loop.step_cost * 1e3:.1f} ms, more than dt = "
+                      f"{world.dt * 1e3:.1f} ms: dropping time to keep the frame rate (one step per frame; "
+                      "F3 shows the speed)", file=sys.stderr)
+            if interp is not None:
+                interp.alpha = loop.alpha
+            if ui["overlay"]:
+                hud.overlay = overlay_lines(stats, loop)
+            elif loop.behind:
+                hud.overlay = [f"SLOW MOTION {loop.speed:4.2f}x: a step takes {loop.step_cost * 1e3:.1f} ms"]
+            else:
+                hud.overlay = None
             world.render()
-            if pending["screenshot"]:
-                pending["screenshot"] = False
-                shots.append(_screenshot(render, ctx, name, world.step_count, screenshot_dir))
+            if ui["screenshot"]:
+                ui["screenshot"] = False
+                shots.append(_screenshot(render, name, world.step_count, screenshot_dir))
             glfw.swap_buffers(win)
+            now = time.perf_counter()
+            stats.frame(now, world)
+            frame_times.append(now - t_prev)
+            t_prev = now
+            if frames is not None and len(frame_times) >= frames:
+                break
+        wall = time.perf_counter() - t_start
+        summary = _summary(frame_times, wall, world, loop)
+        play.last_run = summary
+        print(summary["line"], file=sys.stderr)
+        if save_track:
+            write_track(recorder.to_track(demo=name, seed=int(seed), camera=camera), save_track)
+            print(f"track: {save_track} ({recorder.steps} steps)", file=sys.stderr)
         if state_out:
-            summary = state_summary(world)
-            summary["screenshots"] = shots
-            Path(state_out).write_text(json.dumps(summary, indent=2))
+            out = state_summary(world)
+            out.update(screenshots=shots, fullscreen=ui["fullscreen"], picture=list(target.size),
+                       viewport=list(target.viewport), window=list(target.window_size),
+                       overlay=hud.last.get("overlay"), frames=summary["frames"], fps=summary["fps"],
+                       dropped_steps=loop.dropped_steps)
+            Path(state_out).write_text(json.dumps(out, indent=2))
     finally:
         if world is not None:
             world.close()
@@ -164,11 +375,28 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
     return 0
 
 
-def _screenshot(render, ctx, name: str, step: int, folder: str) -> str:
+play.last_run = None
+
+
+def _summary(frame_times, wall, world, loop) -> dict:
+    """Frame-rate figures of a session (the first frame, with the start-up, left out)."""
+    ft = frame_times[1:] or frame_times
+    med = statistics.median(ft) if ft else float("nan")
+    worst = max(ft) if ft else float("nan")
+    fps = len(ft) / sum(ft) if ft and sum(ft) > 0 else 0.0
+    out = {"frames": len(frame_times), "seconds": wall, "fps": fps, "median_ms": med * 1e3,
+           "worst_ms": worst * 1e3, "steps": world.step_count, "dropped_steps": loop.dropped_steps,
+           "speed": world.time / wall if wall > 0 else 0.0}
+    out["line"] = (f"played {out['frames']} frames in {wall:.1f} s: {fps:.1f} fps (median frame "
+                   f"{out['median_ms']:.1f} ms, worst {out['worst_ms']:.1f} ms); {out['steps']} steps, "
+                   f"{out['dropped_steps']} dropped, simulation at {out['speed']:.2f}x real time")
+    return out
+
+
+def _screenshot(render, name: str, step: int, folder: str) -> str:
     from PIL import Image
 
-    rgba = render.read_rgba()
-    _ = ctx.error          # reading the window's back buffer leaves a pending GL error on Mesa: clear it
+    rgba = render.read_rgba()          # RenderTarget clears the window's pending read error itself
     path = Path(folder) / f"driftframe-{name}-{step:06d}.png"
     Image.fromarray(np.ascontiguousarray(rgba[:, :, :3])).save(path)
     print(f"screenshot: {path}", file=sys.stderr)

@@ -2,9 +2,13 @@
 
 Actions are named once here. *Held* actions set a :class:`FlightInput`
 channel while held; *pressed* actions fire once (switch camera, pause, ...).
-The window layer translates physical keys to action names with
-:data:`KEYMAP`; recordings replay a :class:`Track` of the same actions, so a
-scripted flight and a flown one go through the same code.
+The window layer translates physical keys (and gamepad axes, see
+:mod:`framework.bindings`) to action names with :data:`KEYMAP`; recordings
+replay a :class:`Track` of the same actions, so a scripted flight and a flown
+one go through the same code. A flight flown in a window is written down by a
+:class:`TrackRecorder` (one entry per run of identical steps) and saved with
+:func:`save_track`; :func:`load_track` reads it back (the file format is
+described there).
 
 Sign conventions follow ``framework.frame``: positive pitch is nose *down*
 (right-hand rule about right), positive yaw turns the nose towards right,
@@ -12,8 +16,13 @@ positive roll lifts the right wing. So "pitch up" is ``pitch = -1``.
 """
 from __future__ import annotations
 
+import bisect
+import json
 import math
+import os
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from driftframe.framework import validate
 
@@ -33,7 +42,9 @@ HELD = {
     "kill_rotation": ("kill_rotation", True),
 }
 #: Pressed actions, fired once per press.
-PRESSED = ("switch_camera", "pause", "screenshot", "quit")
+PRESSED = ("switch_camera", "pause", "screenshot", "quit", "fullscreen", "overlay")
+#: Pressed actions that change the simulation (and so go into a saved track); the others act on the window.
+SIM_PRESSED = ("switch_camera",)
 
 #: Default keyboard layout: action -> key names (GLFW key names without the GLFW_KEY_ prefix).
 KEYMAP = {
@@ -49,21 +60,27 @@ KEYMAP = {
     "switch_camera": ("C",),
     "pause": ("P",),
     "screenshot": ("F12",),
+    "fullscreen": ("F11",),
+    "overlay": ("F3",),
     "quit": ("ESCAPE",),
 }
 
+#: What each action does, in words (``driftframe keys``, ``--help``, the README).
+ACTION_HELP = {
+    "thrust_forward": "thrust forward", "thrust_back": "thrust backward",
+    "pitch_up": "pitch up (nose up)", "pitch_down": "pitch down", "yaw_left": "yaw left",
+    "yaw_right": "yaw right", "roll_left": "roll left", "roll_right": "roll right",
+    "kill_rotation": "kill rotation (hold)", "switch_camera": "switch cockpit / chase camera",
+    "pause": "pause / resume", "screenshot": "screenshot (PNG)", "fullscreen": "fullscreen on / off",
+    "overlay": "overlay: frame rate and the time of each stage", "quit": "quit",
+}
 
-def keys_help() -> str:
-    """The key table as text, for ``--help`` and the README."""
-    names = {
-        "thrust_forward": "thrust forward", "thrust_back": "thrust backward",
-        "pitch_up": "pitch up (nose up)", "pitch_down": "pitch down", "yaw_left": "yaw left",
-        "yaw_right": "yaw right", "roll_left": "roll left", "roll_right": "roll right",
-        "kill_rotation": "kill rotation (hold)", "switch_camera": "switch cockpit / chase camera",
-        "pause": "pause / resume", "screenshot": "screenshot (PNG)", "quit": "quit",
-    }
-    width = max(len(" / ".join(k)) for k in KEYMAP.values())
-    return "\n".join(f"  {' / '.join(keys):<{width}}  {names[a]}" for a, keys in KEYMAP.items())
+
+def keys_help(keymap: dict | None = None) -> str:
+    """The key table as text (default :data:`KEYMAP`), for ``--help`` and the README."""
+    keymap = KEYMAP if keymap is None else keymap
+    width = max(len(" / ".join(k)) for k in keymap.values())
+    return "\n".join(f"  {' / '.join(keys) or '-':<{width}}  {ACTION_HELP[a]}" for a, keys in keymap.items())
 
 
 def _blank() -> dict:
@@ -149,37 +166,264 @@ class Press:
             raise ValueError(f"Press.action must be one of {PRESSED}, got {self.action!r}")
 
 
+class _Plan:
+    """A track compiled for one ``dt``: the intent of every run of steps, found by bisection.
+
+    Built once per ``dt`` by a sweep over the holds' step ranges, so a flown
+    track of thousands of holds costs O(log n) per step, not O(n). Within a
+    run the intent is computed exactly as :meth:`Track.intent_at_step`
+    defines it (holds in track order, each added then clamped).
+    """
+
+    def __init__(self, events, dt):
+        holds = [(ev.steps(dt), k, ev) for k, ev in enumerate(events) if isinstance(ev, Hold)]
+        cuts = sorted({r.start for r, _, _ in holds} | {r.stop for r, _, _ in holds})
+        starts = sorted(holds, key=lambda h: h[0].start)
+        self.bounds: list[int] = []
+        self.intents: list[dict] = []
+        active: list = []
+        j = 0
+        for c in cuts:
+            while j < len(starts) and starts[j][0].start <= c:
+                active.append(starts[j])
+                j += 1
+            active = [h for h in active if h[0].stop > c]
+            out = _blank()
+            for _, _, ev in sorted(active, key=lambda h: h[1]):       # track order, as intent_at_step
+                for name, value in ev.channels.items():
+                    out[name] = _clamp(out[name] + value)
+                out["kill_rotation"] |= ev.kill_rotation
+            self.bounds.append(c)
+            self.intents.append(out)
+        self.presses: dict[int, list[str]] = {}
+        hits = sorted((ev for ev in events if isinstance(ev, Press)), key=lambda e: e.time)
+        for ev in hits:
+            self.presses.setdefault(step_index(ev.time, dt), []).append(ev.action)
+
+    def intent(self, step: int) -> dict:
+        i = bisect.bisect_right(self.bounds, step) - 1
+        return dict(self.intents[i]) if i >= 0 else _blank()
+
+
 @dataclass(frozen=True)
 class Track:
     """A scripted input track: holds (may overlap; values add, then clamp to [-1, 1]) and presses.
 
     Times are simulated seconds; the input system asks for a *step* index, so
-    every time is quantised to steps once (:func:`step_index`).
+    every time is quantised to steps once (:func:`step_index`). ``info``
+    says where a saved track was flown (``demo``, ``seed``, ``camera``,
+    ``dt``, ``steps``); it does not change what the track does.
     """
 
     events: tuple = field(default_factory=tuple)
+    info: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self):
+        object.__setattr__(self, "events", tuple(self.events))
         for ev in self.events:
             if not isinstance(ev, (Hold, Press)):
                 raise TypeError(f"Track events must be Hold or Press, got {ev!r}")
+        object.__setattr__(self, "_plans", {})
+
+    def _plan(self, dt: float) -> _Plan:
+        plan = self._plans.get(dt)
+        if plan is None:
+            plan = self._plans[dt] = _Plan(self.events, dt)
+        return plan
 
     def intent_at_step(self, step: int, dt: float) -> dict:
         """The pilot's intent in step ``step``: every hold with ``step`` in ``hold.steps(dt)``."""
-        out = _blank()
-        for ev in self.events:
-            if isinstance(ev, Hold) and step in ev.steps(dt):
-                for name, value in ev.channels.items():
-                    out[name] = _clamp(out[name] + value)
-                out["kill_rotation"] |= ev.kill_rotation
-        return out
+        return self._plan(dt).intent(step)
 
     def presses_at_step(self, step: int, dt: float) -> list[str]:
         """Pressed actions that fire in step ``step`` (the step :func:`step_index` gives the press time)."""
-        hits = [ev for ev in self.events if isinstance(ev, Press) and step_index(ev.time, dt) == step]
-        return [ev.action for ev in sorted(hits, key=lambda e: e.time)]
+        return list(self._plan(dt).presses.get(step, ()))
 
     @property
     def duration(self) -> float:
         ends = [ev.end if isinstance(ev, Hold) else ev.time for ev in self.events]
         return max(ends, default=0.0)
+
+
+class TrackRecorder:
+    """Writes down the intent and presses of every step as they are flown, as a :class:`Track`.
+
+    ``add(step, intent, presses)`` once per step (the input system does it);
+    consecutive steps with the same intent become one :class:`Hold`, so a
+    keyboard flight is a few dozen entries and a gamepad flight at most one
+    per step. Every hold and press lands on whole steps: ``to_track()``
+    checks that each one covers exactly the steps it was recorded in.
+    """
+
+    def __init__(self, dt: float):
+        self.dt = validate.scalar("dt", dt, positive=True)
+        self._runs: list[list] = []          # [first step, number of steps, intent]
+        self._presses: list[tuple[int, str]] = []
+        #: Steps seen so far (the flight's length).
+        self.steps = 0
+
+    def add(self, step: int, intent: dict, presses=()) -> None:
+        if intent["kill_rotation"] or any(intent[c] != 0.0 for c in CHANNELS):
+            last = self._runs[-1] if self._runs else None
+            if last is not None and last[0] + last[1] == step and last[2] == intent:
+                last[1] += 1
+            else:
+                self._runs.append([step, 1, dict(intent)])
+        for action in presses:
+            self.press(step, action)
+        self.steps = max(self.steps, step + 1)
+
+    def press(self, step: int, action: str) -> None:
+        """A pressed action that acted at (the start of) step ``step``."""
+        if action not in SIM_PRESSED:
+            raise ValueError(f"only {SIM_PRESSED} go into a track, got {action!r}")
+        self._presses.append((step, action))
+
+    def to_track(self, **info) -> Track:
+        dt = self.dt
+        events = []
+        for first, n, intent in self._runs:
+            chans = {c: intent[c] for c in CHANNELS if intent[c] != 0.0}
+            hold = Hold(first * dt, (first + n) * dt, kill_rotation=intent["kill_rotation"], **chans)
+            if hold.steps(dt) != range(first, first + n):      # cannot happen below ~10^6 steps
+                raise ValueError(f"a hold of steps {first}..{first + n} does not round-trip at dt={dt!r}")
+            events.append(hold)
+        for step, action in self._presses:
+            events.append(Press(step * dt, action))
+        return Track(tuple(events), info={"dt": dt, "steps": self.steps, **info})
+
+
+# -- track files -------------------------------------------------------------------------------
+#: The version of the track file format that :func:`save_track` writes and :func:`load_track` reads.
+TRACK_VERSION = 1
+_TRACK_FORMAT = "driftframe track"
+_INFO_KEYS = {"demo": str, "seed": int, "camera": (str, type(None)), "dt": float, "steps": int}
+
+
+class TrackFileError(ValueError):
+    """A track file that cannot be read: the message names the file and the entry."""
+
+
+def save_track(track: Track, path) -> Path:
+    """Write ``track`` to ``path`` as JSON (format below); atomically: a complete file or none.
+
+    The format, version 1 (every time in simulated seconds, on whole steps of
+    ``dt`` for a flown track)::
+
+        {"format": "driftframe track", "version": 1,
+         "demo": "asteroids", "seed": 0, "camera": null, "dt": 0.016666666666666666, "steps": 912,
+         "holds": [{"start": 0.5, "end": 1.1, "throttle": 1.0},
+                   {"start": 2.0, "end": 2.5, "yaw": -0.42, "kill_rotation": true}],
+         "presses": [{"time": 3.0, "action": "switch_camera"}]}
+
+    ``demo`` ... ``steps`` (from ``track.info``) are optional; a hold lists
+    only its non-zero channels (:data:`CHANNELS`) and ``kill_rotation``
+    when set. Numbers are written with ``repr``, so they read back exactly.
+    """
+    if not isinstance(track, Track):
+        raise TypeError(f"save_track needs a Track, got {track!r}")
+    path = Path(path)
+    doc = {"format": _TRACK_FORMAT, "version": TRACK_VERSION}
+    doc.update({k: track.info[k] for k in _INFO_KEYS if k in track.info})
+    holds, presses = [], []
+    for ev in track.events:
+        if isinstance(ev, Hold):
+            h = {"start": ev.start, "end": ev.end, **ev.channels}
+            if ev.kill_rotation:
+                h["kill_rotation"] = True
+            holds.append(h)
+        else:
+            presses.append({"time": ev.time, "action": ev.action})
+    doc["holds"], doc["presses"] = holds, presses
+    # one entry per line: a long flight stays readable and diffs line by line
+    lines = [f'  {json.dumps(k)}: {json.dumps(v)},' for k, v in doc.items() if k not in ("holds", "presses")]
+    for key, items in (("holds", holds), ("presses", presses)):
+        body = ",\n".join(f"    {json.dumps(it)}" for it in items)
+        lines.append(f'  "{key}": [\n{body}\n  ],' if items else f'  "{key}": [],')
+    text = "{\n" + "\n".join(lines)[:-1] + "\n}\n"
+    _write_atomically(path, text)
+    return path
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    folder = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def load_track(path) -> Track:
+    """Read a track file written by :func:`save_track` (or by hand, in the same format).
+
+    Every problem is a :class:`TrackFileError` naming the file and the entry,
+    e.g. ``flight.json: holds[3]: FlightInput.yaw must be in [-1.0, 1.0], got 2.0``.
+    """
+    path = Path(path)
+    where = str(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise TrackFileError(f"{where}: cannot read the track ({e.strerror or e})") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise TrackFileError(f"{where}: not JSON: {e.msg} at line {e.lineno} column {e.colno}") from None
+    if not isinstance(doc, dict) or doc.get("format") != _TRACK_FORMAT:
+        raise TrackFileError(f'{where}: not a driftframe track (expected "format": "{_TRACK_FORMAT}")')
+    version = doc.get("version")
+    if version != TRACK_VERSION:
+        raise TrackFileError(f"{where}: track version {version!r} is not supported "
+                             f"(this driftframe reads version {TRACK_VERSION})")
+    unknown = set(doc) - {"format", "version", "holds", "presses", *_INFO_KEYS}
+    if unknown:
+        raise TrackFileError(f"{where}: unknown key(s) {', '.join(sorted(map(repr, unknown)))}")
+    info = {}
+    for key, kind in _INFO_KEYS.items():
+        if key in doc:
+            v = doc[key]
+            ok = isinstance(v, kind) and not isinstance(v, bool)
+            if kind is float:
+                ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+            if key in ("seed", "steps") and ok:
+                ok = v >= 0
+            if not ok:
+                raise TrackFileError(f"{where}: {key} has a bad value {v!r}")
+            info[key] = float(v) if kind is float else v
+    events = []
+    for key, make in (("holds", _hold_entry), ("presses", _press_entry)):
+        items = doc.get(key, [])
+        if not isinstance(items, list):
+            raise TrackFileError(f"{where}: {key} must be a list, got {type(items).__name__}")
+        for i, item in enumerate(items):
+            if not isinstance(item, dict):
+                raise TrackFileError(f"{where}: {key}[{i}] must be an object, got {item!r}")
+            try:
+                events.append(make(item))
+            except (TypeError, ValueError) as e:
+                raise TrackFileError(f"{where}: {key}[{i}]: {e}") from None
+    return Track(tuple(events), info=info)
+
+
+def _hold_entry(item: dict) -> Hold:
+    item = dict(item)
+    for k in ("start", "end"):
+        if k not in item:
+            raise ValueError(f"missing {k!r}")
+    start, end = item.pop("start"), item.pop("end")
+    kill = item.pop("kill_rotation", False)
+    if not isinstance(kill, bool):
+        raise TypeError(f"kill_rotation must be true or false, got {kill!r}")
+    return Hold(start, end, kill_rotation=kill, **item)
+
+
+def _press_entry(item: dict) -> Press:
+    if set(item) != {"time", "action"}:
+        raise ValueError(f"a press has exactly the keys 'time' and 'action', got {sorted(item)}")
+    return Press(item["time"], item["action"])

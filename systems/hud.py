@@ -154,6 +154,8 @@ class HudSystem(esper.Processor):
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, "2f 2f", "in_pos", "in_uv")])
         #: What the last frame showed (for tests and tools): marker pixels and the text lines.
         self.last: dict = {}
+        #: Extra lines drawn in the bottom-left corner (a window's F3 overlay), or None.
+        self.overlay: list[str] | None = None
 
     def _subject(self):
         players = sorted(e for e, _ in esper.get_component(Player))
@@ -222,9 +224,13 @@ class HudSystem(esper.Processor):
         text = self.lines(ent)
         pad = self.font.line_height // 2
         quads = [self.font.quads(line, pad, pad + i * self.font.line_height) for i, line in enumerate(text)]
+        if self.overlay:
+            top = h - pad - len(self.overlay) * self.font.line_height
+            quads += [self.font.quads(line, pad, top + i * self.font.line_height)
+                      for i, line in enumerate(self.overlay)]
         self._draw(np.vstack(quads), TEXT_COLOUR, True)
         ctx.disable(moderngl.BLEND)
-        self.last = {"markers": markers, "text": text}
+        self.last = {"markers": markers, "text": text, "overlay": list(self.overlay or [])}
 
     def release(self) -> None:
         """Release the program, buffers and font texture (``world.close()`` calls it; idempotent)."""

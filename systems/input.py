@@ -1,4 +1,4 @@
-"""Input: the keyboard's held keys, or a scripted track, become the pilot's intent."""
+"""Input: the keyboard's held keys and a gamepad's axes, or a scripted track, become the pilot's intent."""
 from __future__ import annotations
 
 import esper
@@ -6,7 +6,7 @@ import esper
 from driftframe.components.body import Transform
 from driftframe.components.camera import Camera
 from driftframe.components.control import FlightInput, Player
-from driftframe.framework.input import PRESSED, Track, intent_from_held
+from driftframe.framework.input import CHANNELS, PRESSED, SIM_PRESSED, Track, TrackRecorder, intent_from_held
 
 
 def _switch_camera(world) -> None:
@@ -15,13 +15,18 @@ def _switch_camera(world) -> None:
 
 
 class InputSystem(esper.Processor):
-    """Reads a Track (or held keys); writes FlightInput of Player entities; fires pressed actions.
+    """Reads a Track (or held keys and gamepad axes); writes FlightInput of Player entities; fires presses.
 
     * With a ``track`` (recordings, tests) the intent is ``track.intent_at_step(step, dt)``
       and presses fire in the step the track says — the same every run.
     * Without one (a window) the intent comes from ``held`` (action names the
-      window keeps up to date) and presses queued in ``pressed`` fire at the
-      next step, so key timing is quantised to steps, never to frames.
+      window keeps up to date) plus ``axes`` (channel -> value from a gamepad,
+      see :func:`framework.bindings.gamepad_channels`), added and clamped to
+      [-1, 1]; presses queued in ``pressed`` fire at the next step, so key
+      timing is quantised to steps, never to frames.
+    * ``recorder`` (a :class:`~framework.input.TrackRecorder`, or None) writes
+      down the intent and the simulation's presses of every step: the flight,
+      replayable as a track.
 
     Pressed actions go to ``handlers[action](world)``; ``switch_camera`` is
     handled by default, the window adds ``pause``, ``screenshot``, ``quit``.
@@ -38,8 +43,11 @@ class InputSystem(esper.Processor):
             raise TypeError(f"track must be a framework.input.Track, got {track!r}")
         self.track = track
         self.held: set[str] = set()
+        #: Proportional input from a gamepad, channel -> value in [-1, 1] (set by the window each frame).
+        self.axes: dict[str, float] = {}
         self.pressed: list[str] = []
         self.handlers = {"switch_camera": _switch_camera}
+        self.recorder: TrackRecorder | None = None
 
     def press(self, action: str) -> None:
         """Queue a pressed action for the next step."""
@@ -47,16 +55,28 @@ class InputSystem(esper.Processor):
             raise ValueError(f"unknown pressed action {action!r}; known: {', '.join(PRESSED)}")
         self.pressed.append(action)
 
+    def live_intent(self) -> dict:
+        """The intent of the held keys plus the gamepad's axes (each channel added, then clamped)."""
+        intent = intent_from_held(self.held)
+        for name, value in self.axes.items():
+            if name not in CHANNELS:
+                raise ValueError(f"InputSystem.axes: unknown channel {name!r}; channels: {', '.join(CHANNELS)}")
+            intent[name] = max(-1.0, min(1.0, intent[name] + float(value)))
+        return intent
+
     def process(self, dt: float) -> None:
         world = self.world
+        step = world.step_count
         if self.track is not None:
-            intent = self.track.intent_at_step(world.step_count, dt)
-            presses = self.track.presses_at_step(world.step_count, dt)
+            intent = self.track.intent_at_step(step, dt)
+            presses = self.track.presses_at_step(step, dt)
         else:
-            intent = intent_from_held(self.held)
+            intent = self.live_intent()
             presses = []
         presses += self.pressed
         self.pressed.clear()
+        if self.recorder is not None:
+            self.recorder.add(step, intent, [a for a in presses if a in SIM_PRESSED])
         for _, (inp, _) in esper.get_components(FlightInput, Player):
             for name, value in intent.items():       # already clamped to [-1, 1]
                 setattr(inp, name, value)

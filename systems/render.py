@@ -183,6 +183,9 @@ class RenderSystem(esper.Processor):
         self.fill = validate.scalar("fill", fill, lo=0.0, hi=1.0)
         self.clear_colour = tuple(check_colour("clear_colour", clear_colour).tolist())
         self.camera = camera
+        #: Optional hook ``blend(entities, positions, orientations) -> (positions, orientations)``
+        #: giving the poses to draw (a window's interpolation, :mod:`systems.interpolation`); None: as they are.
+        self.poses = None
         self._prog = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
         self._prog_draw = ctx.program(vertex_shader=_with_define(VERTEX_SHADER, "PER_DRAW"),
                                       fragment_shader=FRAGMENT_SHADER)
@@ -321,6 +324,8 @@ class RenderSystem(esper.Processor):
         ent_cam, cam, tf = self._camera()
         eye = tf.position.copy()
         q_eye = tf.orientation.copy()
+        if self.poses is not None:
+            eye, q_eye = self.poses.blend_one(ent_cam, eye, q_eye)
         w, h = self.target.size
         aspect = w / h
         rot = np.eye(4)
@@ -363,7 +368,10 @@ class RenderSystem(esper.Processor):
         pos_all = table.data["position"]
         q_all = table.data["orientation"]
         for g in self._groups:
-            rel = pos_all[g.t_rows] - eye                         # eye-relative, float64, m
+            pos_g, q_g = pos_all[g.t_rows], q_all[g.t_rows]
+            if self.poses is not None:
+                pos_g, q_g = self.poses.blend(g.entities, pos_g, q_g)
+            rel = pos_g - eye                                     # eye-relative, float64, m
             keep = np.ones(len(rel), bool) if skip is None else g.entities != skip
             c = rel @ r_eye                                       # (right, up, forward) coords, m
             r = g.radius
@@ -383,7 +391,7 @@ class RenderSystem(esper.Processor):
                 level = np.minimum(np.searchsorted(limit, r_px, side="left"), n_levels - 1)
             else:
                 level = np.full(len(idx), n_levels - 1)
-            inst = self._instance_data(g, idx, rel, q_all)
+            inst = self._instance_data(g, idx, rel, q_g)
             order = np.argsort(level, kind="stable")
             counts = np.bincount(level, minlength=n_levels)
             inst = inst[order]
@@ -441,9 +449,12 @@ class RenderSystem(esper.Processor):
                 & ((y - zy) * ky < r) & ((-y - zy) * ky < r))
 
     @staticmethod
-    def _instance_data(g: _Group, idx: np.ndarray, rel: np.ndarray, q_all: np.ndarray) -> np.ndarray:
-        """(n, 19) float32: column-major ``T R S`` (eye-relative T) and RGB, for entities ``idx`` of ``g``."""
-        m = fr.quat_to_matrix(q_all[g.t_rows[idx]]) * g.scale[idx][:, None, :]   # R S: column j scaled by s_j
+    def _instance_data(g: _Group, idx: np.ndarray, rel: np.ndarray, q_g: np.ndarray) -> np.ndarray:
+        """(n, 19) float32: column-major ``T R S`` (eye-relative T) and RGB, for entities ``idx`` of ``g``.
+
+        ``rel`` and ``q_g`` are the group's eye-relative positions and orientations, aligned with ``g``.
+        """
+        m = fr.quat_to_matrix(q_g[idx]) * g.scale[idx][:, None, :]   # R S: column j scaled by s_j
         n = len(idx)
         out = np.empty((n, INSTANCE_FLOATS), np.float32)
         out[:, 0:3] = m[:, :, 0]

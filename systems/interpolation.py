@@ -1,0 +1,129 @@
+"""Smooth frames: draw every pose between the last two fixed steps, by the loop's ``alpha``.
+
+A window shows frames at its own rate (75 Hz, 144 Hz, or whatever the GPU
+manages), while the physics moves in fixed steps of ``dt``. Drawing the
+state of the last step shows each pose for one, two, or no frames: judder.
+Instead the window draws the pose ``alpha`` of the way from the state before
+the last step to the state after it (``alpha`` from
+:attr:`framework.loop.FixedStepLoop.alpha`)::
+
+    p = p0 + alpha (p1 - p0)              position, m (exact for v constant over the step)
+    q = slerp(q0, q1, alpha)              orientation: constant rate about one axis, as SpinSystem turns
+
+That is at most one step (1/60 s) behind the simulation; in exchange every
+frame shows a pose the body really passes through. Recordings draw no
+interpolated poses: one frame per step (or per k steps), the state after it.
+
+:class:`PoseSnapshotSystem` (stage ``"input"``: before anything moves)
+copies every Transform's position and orientation at the start of each step;
+:class:`Interpolator` is the render system's ``poses`` hook that blends them
+with the current ones. Entities that did not exist at the start of the step
+are drawn where they are.
+"""
+from __future__ import annotations
+
+import esper
+import numpy as np
+
+from driftframe.components.body import Transform
+from driftframe.framework.store import RowCache, to_indices
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
+    """Spherical interpolation of unit quaternions ``(n, 4)`` (scalar last) by ``t`` in [0, 1].
+
+    Takes the shorter arc (``q`` and ``-q`` are the same rotation). For
+    nearly equal quaternions (angle below 1e-6 rad) it falls back to a
+    normalised lerp, which is exact to rounding there.
+    """
+    q0 = np.asarray(q0, np.float64)
+    q1 = np.asarray(q1, np.float64)
+    d = np.einsum("ij,ij->i", q0, q1)
+    q1 = np.where((d < 0)[:, None], -q1, q1)
+    d = np.abs(d)
+    theta = np.arccos(np.clip(d, -1.0, 1.0))          # half the rotation angle between them
+    s = np.sin(theta)
+    small = s < 1e-6
+    safe = np.where(small, 1.0, s)
+    w0 = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
+    w1 = np.where(small, t, np.sin(t * theta) / safe)
+    q = w0[:, None] * q0 + w1[:, None] * q1
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def _gather(world, cache: RowCache):
+    """Entity ids (ascending), positions (n, 3) and orientations (n, 4) of every Transform (copies)."""
+    world.activate()
+    if cache.update(esper.get_components(Transform)):
+        rows = to_indices(cache.rows[0]) if cache.rows else np.empty(0, np.intp)
+        order = np.argsort(cache.entities, kind="stable")
+        cache.sorted = (cache.entities[order], rows[order])
+    ents, rows = cache.sorted
+    data = Transform._table.data
+    return ents, data["position"][rows], data["orientation"][rows]
+
+
+class PoseSnapshotSystem(esper.Processor):
+    """Reads Transform; writes nothing in the world: keeps every pose as it was at the start of the step."""
+
+    stage = "input"
+
+    def __init__(self):
+        self._rows = RowCache()
+        self.entities = np.empty(0, np.int64)
+        self.positions = np.empty((0, 3))
+        self.orientations = np.empty((0, 4))
+        #: world.step_count when the snapshot was taken (the step it precedes); -1 before the first.
+        self.step = -1
+
+    def take(self) -> None:
+        """Snapshot the current poses (also after a change outside a step, so nothing blends across it)."""
+        self.entities, self.positions, self.orientations = _gather(self.world, self._rows)
+        self.step = self.world.step_count
+
+    def process(self, dt: float) -> None:
+        self.take()
+
+
+class Interpolator:
+    """The render system's ``poses`` hook: blends the snapshot with the current poses by ``alpha``.
+
+    ``alpha`` is set by the window before each frame (0: the pose before the
+    last step, 1: the pose after it).
+    """
+
+    def __init__(self, snapshot: PoseSnapshotSystem):
+        self.snapshot = snapshot
+        self.alpha = 1.0
+
+    def blend(self, entities: np.ndarray, positions: np.ndarray, orientations: np.ndarray):
+        """Poses to draw for ``entities`` whose current poses are given (rows aligned); returns copies."""
+        snap = self.snapshot
+        a = float(self.alpha)
+        if a >= 1.0 or snap.step != snap.world.step_count - 1 or not len(snap.entities) or not len(entities):
+            return positions, orientations          # no step since the snapshot, or nothing to blend from
+        i = np.searchsorted(snap.entities, entities)
+        i = np.minimum(i, len(snap.entities) - 1)
+        found = snap.entities[i] == entities
+        pos = positions.copy()
+        quat = orientations.copy()
+        if found.any():
+            k = np.flatnonzero(found)
+            p0 = snap.positions[i[k]]
+            pos[k] = p0 + a * (positions[k] - p0)
+            quat[k] = slerp(snap.orientations[i[k]], orientations[k], a)
+        return pos, quat
+
+    def blend_one(self, entity: int, position: np.ndarray, orientation: np.ndarray):
+        """:meth:`blend` for one entity (the camera's eye)."""
+        pos, quat = self.blend(np.array([entity], np.int64), position[None], orientation[None])
+        return pos[0], quat[0]
+
+
+def attach_interpolation(world, render) -> Interpolator:
+    """Snapshot poses at every step's start and let ``render`` draw blended ones; returns the hook."""
+    snap = PoseSnapshotSystem()
+    world.add_system(snap)
+    hook = Interpolator(snap)
+    render.poses = hook
+    return hook
