@@ -1,4 +1,6 @@
 """Input mapping and scripted tracks: held actions, presses fired exactly once, bad tracks rejected."""
+import json
+
 import esper
 import numpy as np
 import pytest
@@ -95,3 +97,151 @@ def test_live_keys_and_presses_go_through_the_same_path(world):
 def test_bad_track_entries_are_rejected_by_name(make, match):
     with pytest.raises((ValueError, TypeError), match=match):
         make()
+
+
+# -- compiled tracks, flown tracks, track files ---------------------------------------------------
+from driftframe.framework.input import (CHANNELS, TrackFileError, TrackRecorder, load_track,  # noqa: E402
+                                        save_track, step_index)
+
+
+def _brute_intent(track, step, dt):
+    """intent_at_step as defined: every hold covering the step, in track order, added then clamped."""
+    out = {**dict.fromkeys(CHANNELS, 0.0), "kill_rotation": False}
+    for ev in track.events:
+        if isinstance(ev, Hold) and step in ev.steps(dt):
+            for name, value in ev.channels.items():
+                out[name] = max(-1.0, min(1.0, out[name] + value))
+            out["kill_rotation"] |= ev.kill_rotation
+    return out
+
+
+def test_the_compiled_track_gives_the_defined_intent_for_overlapping_holds():
+    rng = np.random.default_rng(7)
+    holds = []
+    for _ in range(60):
+        s = float(rng.uniform(0, 5))
+        ch = {c: float(rng.uniform(-1, 1)) for c in rng.choice(CHANNELS, rng.integers(1, 4), replace=False)}
+        holds.append(Hold(s, s + float(rng.uniform(0.01, 1.5)), kill_rotation=bool(rng.random() < 0.2), **ch))
+    tr = Track(tuple(holds))
+    for dt in (1 / 60, 1 / 64):
+        for step in range(int(7 / dt)):
+            assert tr.intent_at_step(step, dt) == _brute_intent(tr, step, dt), step
+
+
+def _fly(rng, steps):
+    """A flight: keyboard-like runs of whole values and gamepad-like noisy ones, and some presses."""
+    intents, presses = [], {}
+    k = 0
+    while k < steps:
+        n = int(rng.integers(1, 40))
+        if rng.random() < 0.5:        # keys: constant for a while (or nothing held)
+            v = {c: float(rng.choice([-1.0, 0.0, 0.0, 1.0])) for c in CHANNELS}
+            v["kill_rotation"] = bool(rng.random() < 0.2)
+            intents += [dict(v) for _ in range(n)]
+        else:                         # a stick: a new value every step
+            for _ in range(n):
+                v = {c: float(np.clip(rng.normal(0, 0.5), -1, 1)) for c in CHANNELS}
+                intents.append({**v, "kill_rotation": False})
+        k += n
+        if rng.random() < 0.3:
+            presses.setdefault(k, []).append("switch_camera")
+    return intents[:steps], {s: p for s, p in presses.items() if s < steps}
+
+
+@pytest.mark.parametrize("offset", [0, 1_000_000])
+def test_a_flown_track_saved_and_loaded_gives_every_step_back_exactly(tmp_path, offset):
+    dt = 1 / 60
+    rng = np.random.default_rng(3)
+    intents, presses = _fly(rng, 3000)
+    rec = TrackRecorder(dt)
+    for k, intent in enumerate(intents):
+        rec.add(offset + k, intent, presses.get(k, []))
+    path = save_track(rec.to_track(demo="asteroids", seed=4, camera="cockpit"), tmp_path / "flight.json")
+    back = load_track(path)
+    assert back.info == {"demo": "asteroids", "seed": 4, "camera": "cockpit", "dt": dt, "steps": offset + 3000}
+    for k, intent in enumerate(intents):
+        assert back.intent_at_step(offset + k, dt) == intent, k           # bit for bit
+        assert back.presses_at_step(offset + k, dt) == presses.get(k, [])
+    assert back.intent_at_step(offset + 3000, dt)["throttle"] == 0.0
+    # keyboard runs became one hold each: far fewer entries than steps
+    n_holds = sum(isinstance(e, Hold) for e in back.events)
+    assert n_holds < 0.75 * 3000
+
+
+def test_a_press_at_step_k_fires_in_step_k_at_any_step():
+    dt = 1 / 60
+    for k in list(range(0, 5000, 7)) + [10**6 + 13]:
+        assert step_index(k * dt, dt) == k
+
+
+def _write(tmp_path, doc, name="t.json"):
+    p = tmp_path / name
+    p.write_text(doc if isinstance(doc, str) else json.dumps(doc))
+    return p
+
+
+GOOD = {"format": "driftframe track", "version": 1, "holds": [{"start": 0.0, "end": 1.0, "yaw": 0.5}],
+        "presses": [{"time": 0.5, "action": "switch_camera"}]}
+
+
+@pytest.mark.parametrize("change,match", [
+    ({"version": 2}, r"track version 2 is not supported \(this driftframe reads version 1\)"),
+    ({"format": "something"}, "not a driftframe track"),
+    ({"holds": [{"start": 0, "end": 1}, {"start": 0, "end": 1, "yaw": 2.0}]},
+     r"holds\[1\]: FlightInput.yaw must be in \[-1.0, 1.0\], got 2.0"),
+    ({"holds": [{"start": 0, "end": 1, "warp": 1.0}]}, r"holds\[0\]: .*unknown channel 'warp'"),
+    ({"holds": [{"end": 1}]}, r"holds\[0\]: missing 'start'"),
+    ({"holds": [{"start": 1, "end": 0.5}]}, r"holds\[0\]: Hold.end must be after"),
+    ({"holds": [{"start": 0, "end": 1, "kill_rotation": 1}]}, r"holds\[0\]: kill_rotation must be true or false"),
+    ({"presses": [{"time": 1.0, "action": "fly"}]}, r"presses\[0\]: .*'fly'"),
+    ({"presses": [{"time": 1.0}]}, r"presses\[0\]: a press has exactly"),
+    ({"presses": {"time": 1.0}}, r"presses must be a list"),
+    ({"seed": -1}, r"seed has a bad value -1"),
+    ({"dt": 0}, r"dt has a bad value 0"),
+    ({"speed": 2}, r"unknown key\(s\) 'speed'"),
+])
+def test_malformed_tracks_name_the_file_and_the_entry(tmp_path, change, match):
+    path = _write(tmp_path, {**GOOD, **change})
+    with pytest.raises(TrackFileError, match=match) as e:
+        load_track(path)
+    assert str(e.value).startswith(str(path) + ": ")
+
+
+def test_not_json_and_missing_track_files_are_named(tmp_path):
+    with pytest.raises(TrackFileError, match=r"t.json: not JSON: .* line 1"):
+        load_track(_write(tmp_path, "{nope"))
+    with pytest.raises(TrackFileError, match="missing.json: cannot read the track"):
+        load_track(tmp_path / "missing.json")
+    assert load_track(_write(tmp_path, GOOD)).intent_at_step(30, 1 / 60)["yaw"] == 0.5
+
+
+def test_saving_into_a_missing_folder_fails_and_leaves_nothing(tmp_path):
+    with pytest.raises(OSError):
+        save_track(Track(), tmp_path / "no" / "t.json")
+    # an existing file is replaced whole, never half-written: the temporary sits beside it until complete
+    p = save_track(Track((Hold(0, 1, yaw=1.0),)), tmp_path / "t.json")
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["t.json"]
+    assert load_track(p).events == (Hold(0, 1, yaw=1.0),)
+
+
+def test_the_input_system_adds_gamepad_axes_to_keys_and_records_what_it_applied(world):
+    e, inputs = _piloted(world, None)
+    inputs.recorder = TrackRecorder(world.dt)
+    inputs.held = {"yaw_right"}
+    inputs.axes = {"yaw": 0.5, "throttle": 0.25}
+    world.step(3)
+    inp = esper.component_for_entity(e, FlightInput)
+    assert inp.yaw == 1.0 and inp.throttle == 0.25            # 1 + 0.5 clamped; the stick alone
+    inputs.axes = {"pitch": -0.3}
+    inputs.held = set()
+    inputs.press("switch_camera")
+    inputs.handlers["switch_camera"] = lambda w: None
+    world.step(2)
+    track = inputs.recorder.to_track()
+    assert [tuple(h.steps(world.dt)) for h in track.events if isinstance(h, Hold)] == [(0, 1, 2), (3, 4)]
+    assert [(p.action, step_index(p.time, world.dt)) for p in track.events if isinstance(p, Press)] == \
+        [("switch_camera", 3)]
+    assert track.intent_at_step(4, world.dt)["pitch"] == -0.3
+    with pytest.raises(ValueError, match="unknown channel 'warp'"):
+        inputs.axes = {"warp": 1.0}
+        world.step()

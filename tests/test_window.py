@@ -1,4 +1,5 @@
-"""`driftframe play` in a real window under Xvfb: real key events fly the ship and switch the camera.
+"""`driftframe play` in a real window under Xvfb: real key events fly the ship, switch the camera, toggle
+fullscreen and the overlay; a flight saved with --save-track re-renders byte for byte.
 
 ``./run tests`` installs Xvfb and xdotool; this module starts its own X
 server on a free display, so it needs no display of the user's.
@@ -54,6 +55,24 @@ def _wait_for_window(display, proc, title="driftframe"):
     raise AssertionError("no driftframe window appeared")
 
 
+def _play(display, tmp_path, *extra):
+    env = {**os.environ, "DISPLAY": display}
+    return subprocess.Popen([sys.executable, "-m", "driftframe", "play", "asteroids", "--size", "480x270",
+                             "--state-out", str(tmp_path / "state.json"), "--screenshots", str(tmp_path), *extra],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _finish(proc):
+    try:
+        proc.wait(60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    err = proc.stderr.read()
+    assert proc.returncode == 0, err
+    return err
+
+
 def test_keys_thrust_the_ship_and_switch_the_camera(display, tmp_path):
     state = tmp_path / "state.json"
     env = {**os.environ, "DISPLAY": display}
@@ -93,3 +112,84 @@ def test_keys_thrust_the_ship_and_switch_the_camera(display, tmp_path):
     green = (img[:, :, 1] > 150) & (img[:, :, 0] < 100) & (img[:, :, 2] < 120)
     assert green.sum() > 200
     assert (img[5:60, 5:150].max(axis=2) > 150).sum() > 50     # HUD text in the top-left corner
+
+
+def test_a_flight_saved_in_play_re_renders_as_the_same_flight_byte_for_byte(display, tmp_path):
+    track, log = tmp_path / "flight.json", tmp_path / "play.txt"
+    proc = _play(display, tmp_path, "--save-track", str(track), "--hash-log", str(log))
+    wid = _wait_for_window(display, proc)
+    _xdo(display, "windowfocus", "--sync", wid)
+    time.sleep(0.5)
+    _xdo(display, "keydown", "--window", wid, "w")
+    time.sleep(0.6)
+    _xdo(display, "keydown", "--window", wid, "d")
+    time.sleep(0.4)
+    _xdo(display, "keyup", "--window", wid, "w")
+    _xdo(display, "key", "--window", wid, "c")
+    time.sleep(0.3)
+    _xdo(display, "keyup", "--window", wid, "d")
+    _xdo(display, "key", "--window", wid, "x")          # a tap shorter than a step still acts for a step
+    time.sleep(0.3)
+    _xdo(display, "key", "--window", wid, "Escape")
+    err = _finish(proc)
+    assert f"track: {track}" in err
+    doc = json.loads(track.read_text())
+    assert doc["version"] == 1 and doc["demo"] == "asteroids" and doc["steps"] > 60
+    assert any(h.get("throttle") == 1.0 for h in doc["holds"]) and any(h.get("yaw") == 1.0 for h in doc["holds"])
+    assert any(h.get("kill_rotation") for h in doc["holds"])
+    assert doc["presses"] == [{"time": doc["presses"][0]["time"], "action": "switch_camera"}]
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"replay{k}.mp4"
+        res = subprocess.run([sys.executable, "-m", "driftframe", "record", "asteroids", "--track", str(track),
+                              "--size", "320x180", "--quiet", "-o", str(out), "--hash-log",
+                              str(tmp_path / f"rec{k}.txt")], capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+        assert f"{doc['steps']} frames" in res.stdout
+        outs.append(out.read_bytes())
+    assert outs[0] == outs[1]
+    # the recording flew the flight that was played: the same state after every step
+    from driftframe.framework.hashlog import first_divergence
+    assert first_divergence(log, tmp_path / "rec0.txt") is None
+
+
+def test_f11_fullscreen_f3_overlay_and_a_resize_that_keeps_the_aspect_ratio(display, tmp_path):
+    proc = _play(display, tmp_path)
+    wid = _wait_for_window(display, proc)
+    _xdo(display, "windowfocus", "--sync", wid)
+    time.sleep(0.5)
+
+    def geometry():
+        out = _xdo(display, "getwindowgeometry", wid).stdout
+        return tuple(int(v) for v in out.split("Geometry:")[1].split()[0].split("x"))
+
+    assert geometry() == (480, 270)
+    _xdo(display, "key", "--window", wid, "F11")
+    time.sleep(0.8)
+    assert geometry() == (1280, 720)                    # the whole Xvfb screen
+    _xdo(display, "key", "--window", wid, "F3")
+    time.sleep(0.8)
+    _xdo(display, "key", "--window", wid, "F12")
+    time.sleep(0.5)
+    _xdo(display, "key", "--window", wid, "F11")
+    time.sleep(0.8)
+    assert geometry() == (480, 270)                     # back to the window it was
+    _xdo(display, "windowsize", wid, "600", "500")      # taller than 16:9: bars above and below
+    time.sleep(0.8)
+    _xdo(display, "key", "--window", wid, "F12")
+    time.sleep(0.5)
+    _xdo(display, "key", "--window", wid, "Escape")
+    _finish(proc)
+    s = json.loads((tmp_path / "state.json").read_text())
+    assert s["fullscreen"] is False
+    assert s["window"] == [600, 500] and s["picture"] == [600, 338] and s["viewport"] == [0, 81, 600, 338]
+    assert s["overlay"][0].startswith("FPS") and any("collision" in ln for ln in s["overlay"])
+    assert any("render" in ln for ln in s["overlay"])
+    from PIL import Image
+    full, boxed = (np.asarray(Image.open(p).convert("RGB")).astype(int) for p in s["screenshots"])
+    assert full.shape == (720, 1280, 3)                 # drawn at the fullscreen size
+    assert boxed.shape == (338, 600, 3)                 # the picture, without the bars
+    # the overlay's text sits in the bottom-left corner of both
+    for img in (full, boxed):
+        h = img.shape[0]
+        assert (img[h - h // 3:, :img.shape[1] // 3].max(axis=2) > 150).sum() > 100
