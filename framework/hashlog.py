@@ -19,12 +19,16 @@ import esper
 class HashLogSystem(esper.Processor):
     """Reads every component (``world.state_hash()``); writes one ``STEP HASH`` line per step to a file.
 
-    Add it *last* (after the camera system), so the hash is of the finished
-    step. The file is opened at once (an unwritable path fails before the
-    first step) and closed by ``world.close()`` or :meth:`release`.
+    It runs after the camera stage (after every system of the step, added
+    before or after it), so the hash is of the finished step. The file is
+    opened at once (an unwritable path fails before the first step) and closed
+    by ``world.close()`` or :meth:`release`.
     """
 
-    stage = "camera"
+    stage = None
+    after = ("camera",)
+    reads = ()          # every component, through world.state_hash()
+    writes = ()
 
     def __init__(self, path):
         self.path = Path(path)
@@ -43,10 +47,8 @@ class HashLogSystem(esper.Processor):
 
 
 def attach_hash_log(world, path) -> HashLogSystem:
-    """Add a :class:`HashLogSystem` after every system the world has; the world closes its file."""
-    log = world.add_system(HashLogSystem(path))
-    world.resources["hash_log"] = log
-    return log
+    """Add a :class:`HashLogSystem` after every system of the step; ``world.close()`` closes its file."""
+    return world.add_system(HashLogSystem(path))
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,6 @@ import esper
 import numpy as np
 
 from driftframe.components.body import Transform
-from driftframe.framework.store import RowCache, to_indices
 
 
 def slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
@@ -51,25 +50,20 @@ def slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
     return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def _gather(world, cache: RowCache):
-    """Entity ids (ascending), positions (n, 3) and orientations (n, 4) of every Transform (copies)."""
-    world.activate()
-    if cache.update(esper.get_components(Transform)):
-        rows = to_indices(cache.rows[0]) if cache.rows else np.empty(0, np.intp)
-        order = np.argsort(cache.entities, kind="stable")
-        cache.sorted = (cache.entities[order], rows[order])
-    ents, rows = cache.sorted
-    data = Transform._table.data
-    return ents, data["position"][rows], data["orientation"][rows]
-
-
 class PoseSnapshotSystem(esper.Processor):
-    """Reads Transform; writes nothing in the world: keeps every pose as it was at the start of the step."""
+    """Reads Transform; writes nothing in the world: keeps every pose as it was at the start of the step.
 
-    stage = "input"
+    Runs after input (a camera switch places the eye there, and nothing
+    should blend across that jump) and before control and anything that moves.
+    """
+
+    stage = None
+    after = ("input",)
+    before = ("control",)
+    reads = (Transform,)
+    writes = ()
 
     def __init__(self):
-        self._rows = RowCache()
         self.entities = np.empty(0, np.int64)
         self.positions = np.empty((0, 3))
         self.orientations = np.empty((0, 4))
@@ -78,8 +72,15 @@ class PoseSnapshotSystem(esper.Processor):
 
     def take(self) -> None:
         """Snapshot the current poses (also after a change outside a step, so nothing blends across it)."""
-        self.entities, self.positions, self.orientations = _gather(self.world, self._rows)
-        self.step = self.world.step_count
+        w = self.world
+        q = w.query(Transform)
+        q.refresh()
+        data = w.table(Transform).data
+        rows = q.rows(Transform)
+        self.entities = q.entities.copy()                   # ascending ids: searchsorted in blend()
+        self.positions = data["position"][rows].copy()
+        self.orientations = data["orientation"][rows].copy()
+        self.step = w.step_count
 
     def process(self, dt: float) -> None:
         self.take()
