@@ -90,29 +90,74 @@ class Interpolator:
     """The render system's ``poses`` hook: blends the snapshot with the current poses by ``alpha``.
 
     ``alpha`` is set by the window before each frame (0: the pose before the
-    last step, 1: the pose after it).
+    last step, 1: the pose after it). The blend of every Transform is worked
+    out once per frame, at the first :meth:`blend` (one lerp and one slerp over
+    the whole column); each call then only picks its entities' rows.
     """
 
     def __init__(self, snapshot: PoseSnapshotSystem):
         self.snapshot = snapshot
-        self.alpha = 1.0
+        self._alpha = 1.0
+        self._frame = 0
+        self._key = None
+        self._ents = np.empty(0, np.int64)
+        self._pos = np.empty((0, 3))
+        self._quat = np.empty((0, 4))
+        self._picks: dict = {}
+
+    @property
+    def alpha(self) -> float:
+        return self._alpha
+
+    @alpha.setter
+    def alpha(self, value: float) -> None:
+        self._alpha = float(value)
+        self._frame += 1                   # a new frame: blend afresh
+
+    def _blend_all(self) -> None:
+        snap = self.snapshot
+        w = snap.world
+        q = w.query(Transform)
+        q.refresh()
+        data = w.table(Transform).data
+        rows = q.rows(Transform)
+        ents = q.entities
+        # copies: rows may be a slice, and a slice's view must never be written through
+        pos, quat = np.array(data["position"][rows]), np.array(data["orientation"][rows])
+        a = self._alpha
+        if len(ents) == len(snap.entities) and np.array_equal(ents, snap.entities):
+            k, i = slice(None), slice(None)                                 # the usual case: same bodies
+        else:                                                               # born or gone since the step began
+            j = np.minimum(np.searchsorted(snap.entities, ents), max(len(snap.entities) - 1, 0))
+            found = snap.entities[j] == ents if len(snap.entities) else np.zeros(len(ents), bool)
+            k = np.flatnonzero(found)
+            i = j[k]
+        p0 = snap.positions[i]
+        pos[k] = p0 + a * (pos[k] - p0)
+        quat[k] = slerp(snap.orientations[i], quat[k], a)
+        self._ents, self._pos, self._quat = ents.copy(), pos, quat
+        self._picks.clear()
 
     def blend(self, entities: np.ndarray, positions: np.ndarray, orientations: np.ndarray):
-        """Poses to draw for ``entities`` whose current poses are given (rows aligned); returns copies."""
+        """Poses to draw for ``entities`` (their current poses given, rows aligned): blended copies."""
         snap = self.snapshot
-        a = float(self.alpha)
+        a = self._alpha
         if a >= 1.0 or snap.step != snap.world.step_count - 1 or not len(snap.entities) or not len(entities):
             return positions, orientations          # no step since the snapshot, or nothing to blend from
-        i = np.searchsorted(snap.entities, entities)
-        i = np.minimum(i, len(snap.entities) - 1)
-        found = snap.entities[i] == entities
-        pos = positions.copy()
-        quat = orientations.copy()
-        if found.any():
-            k = np.flatnonzero(found)
-            p0 = snap.positions[i[k]]
-            pos[k] = p0 + a * (positions[k] - p0)
-            quat[k] = slerp(snap.orientations[i[k]], orientations[k], a)
+        key = (self._frame, snap.world.step_count, snap.step)
+        if key != self._key:
+            self._blend_all()
+            self._key = key
+        pick = self._picks.get(id(entities))
+        if pick is None or pick[0] is not entities:
+            j = np.minimum(np.searchsorted(self._ents, entities), len(self._ents) - 1)
+            ok = self._ents[j] == entities
+            pick = self._picks[id(entities)] = (entities, j, bool(ok.all()), ok)
+        _, j, all_ok, ok = pick
+        if all_ok:
+            return self._pos[j], self._quat[j]
+        pos, quat = positions.copy(), orientations.copy()
+        pos[ok], quat[ok] = self._pos[j[ok]], self._quat[j[ok]]
         return pos, quat
 
     def blend_one(self, entity: int, position: np.ndarray, orientation: np.ndarray):

@@ -48,6 +48,7 @@ def test_blended_poses_lie_alpha_of_the_way_through_the_last_step():
     interp = Interpolator(snap)
     w.step(3)
     tf = esper.component_for_entity(a, Transform)
+    before = w.state_hash()
     for alpha in (0.0, 0.3, 0.75):
         interp.alpha = alpha
         pos, quat = interp.blend(np.array([a]), tf.position[None], tf.orientation[None])
@@ -56,6 +57,7 @@ def test_blended_poses_lie_alpha_of_the_way_through_the_last_step():
     interp.alpha = 1.0
     pos, _ = interp.blend(np.array([a]), tf.position[None], tf.orientation[None])
     np.testing.assert_array_equal(pos[0], tf.position)          # alpha 1: the state after the step, bit for bit
+    assert w.state_hash() == before                             # drawing between steps changes no state
     w.close()
 
 
