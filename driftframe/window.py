@@ -322,6 +322,7 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
         stats = FrameStats()
         frame_times = []
         t_prev = t_start = time.perf_counter()
+        cpu_start = time.process_time()
         while not glfw.window_should_close(win):
             glfw.poll_events()
             poll_gamepad()
@@ -355,6 +356,7 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
                 break
         wall = time.perf_counter() - t_start
         summary = _summary(frame_times, wall, world, loop)
+        summary["cpu_ms"] = 1e3 * (time.process_time() - cpu_start) / max(1, len(frame_times))
         play.last_run = summary
         print(summary["line"], file=sys.stderr)
         if save_track:

@@ -89,3 +89,26 @@ def test_bad_bindings_files_name_the_file_and_the_entry(tmp_path, text, match):
 def test_a_missing_bindings_file_is_named(tmp_path):
     with pytest.raises(BindingsError, match="nope.toml: cannot read"):
         load_bindings(tmp_path / "nope.toml")
+
+
+def test_the_window_reads_the_first_connected_gamepad_through_glfws_gamepad_api(monkeypatch):
+    from types import SimpleNamespace
+
+    from driftframe.window import Gamepads
+
+    state = SimpleNamespace(axes=[0.0, -1.0, 0.0, 0.0, -1.0, 1.0], buttons=[1] + [0] * 14)
+    calls = []
+    fake = SimpleNamespace(
+        JOYSTICK_1=0, JOYSTICK_LAST=15,
+        joystick_is_gamepad=lambda jid: jid in (3, 7),           # two pads; the first one counts
+        get_gamepad_state=lambda jid: calls.append(jid) or state,
+        get_gamepad_name=lambda jid: f"pad {jid}",
+        update_gamepad_mappings=lambda text: calls.append(("mappings", text)) or True)
+    monkeypatch.setenv("SDL_GAMECONTROLLERCONFIG", "0300,My Pad,a:b0,platform:Linux,")
+    pads = Gamepads(fake)
+    axes, buttons = pads.state()
+    assert calls == [("mappings", "0300,My Pad,a:b0,platform:Linux,"), 3] and pads.name == "pad 3"
+    assert gamepad_channels(axes)["pitch"] == 1.0 and gamepad_channels(axes)["throttle"] == 1.0
+    assert gamepad_actions(buttons) == {"kill_rotation"}
+    fake.joystick_is_gamepad = lambda jid: False
+    assert pads.state() is None

@@ -114,3 +114,32 @@ def test_the_frame_drawn_at_alpha_is_the_frame_of_the_blended_scene(ctx):
     w2.close()
     assert not np.array_equal(blended, after)
     np.testing.assert_array_equal(blended, mid)
+
+
+@pytest.mark.parametrize("hz", [144.0, 75.0, 50.0])
+def test_a_constant_velocity_is_drawn_moving_evenly_at_any_display_rate(hz):
+    """With the loop's alpha, the drawn position is x(t - dt) at every frame: no judder at 144, 75 or 50 Hz."""
+    from driftframe.framework.loop import FixedStepLoop
+
+    w = World(dt=1 / 60)
+    snap = w.add_system(PoseSnapshotSystem())
+    w.add_system(MovementSystem())
+    body = w.create_entity(Transform(), Velocity((6.0, 0.0, 0.0)))
+    t = [0.0]
+    loop = FixedStepLoop(w, lambda: t[0])
+    interp = Interpolator(snap)
+    err_smooth, err_raw = [], []
+    for k in range(1, 400):
+        t[0] = k / hz
+        loop.tick()
+        if w.step_count < 1:
+            continue
+        interp.alpha = loop.alpha
+        tf = esper.component_for_entity(body, Transform)
+        drawn, _ = interp.blend(np.array([body]), tf.position[None], tf.orientation[None])
+        want = 6.0 * (t[0] - w.dt)                            # one step behind the present, exactly
+        err_smooth.append(abs(drawn[0, 0] - want))
+        err_raw.append(abs(tf.position[0] - 6.0 * t[0]))       # the state after the last step, as drawn before
+    assert max(err_smooth) < 1e-9
+    assert max(err_raw) > 0.5 * 6.0 / 60                      # without it: up to a whole step's jump
+    w.close()

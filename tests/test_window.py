@@ -193,3 +193,12 @@ def test_f11_fullscreen_f3_overlay_and_a_resize_that_keeps_the_aspect_ratio(disp
     for img in (full, boxed):
         h = img.shape[0]
         assert (img[h - h // 3:, :img.shape[1] // 3].max(axis=2) > 150).sum() > 100
+
+
+def test_frames_quits_by_itself_and_reports_the_frame_rate(display, tmp_path):
+    proc = _play(display, tmp_path, "--frames", "40", "--overlay", "--no-interpolation")
+    err = _finish(proc)
+    assert "played 40 frames in " in err and " fps (median frame " in err and "real time" in err
+    s = json.loads((tmp_path / "state.json").read_text())
+    assert s["frames"] == 40 and s["fps"] > 0
+    assert s["overlay"][0].startswith("FPS")
