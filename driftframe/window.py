@@ -177,7 +177,7 @@ def overlay_lines(stats, loop) -> list[str]:
     """The F3 overlay: frame rate, steps, what was dropped, and each stage's time."""
     out = [f"FPS     {stats.fps:6.1f}  (worst {stats.worst_ms:5.1f} ms)",
            f"STEP    {loop.step_cost * 1e3:6.2f} ms of {loop.world.dt * 1e3:.2f}  speed {loop.speed:4.2f}x",
-           f"DROPPED {loop.dropped_steps} steps"]
+           f"DROPPED {loop.dropped_steps} steps" + ("  (slow motion)" if loop.behind else "")]
     for stage, ms in stats.stage_ms.items():
         if ms > 0:
             out.append(f"  {stage:<9} {ms:6.2f} ms")
@@ -330,17 +330,19 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
             if loop.tick() and release_later:
                 key_held.difference_update(release_later)
                 release_later.clear()
-            if loop.behind and loop.dropped_steps and not ui["told_behind"]:
+            if loop.behind and not ui["told_behind"]:
                 ui["told_behind"] = True
-                print(f"driftframe: a step takes {loop.step_cost * 1e3:.1f} ms, more than dt = "
-                      f"{world.dt * 1e3:.1f} ms: dropping time to keep the frame rate (one step per frame; "
-                      "F3 shows the speed)", file=sys.stderr)
+                n = loop.step_limit
+                print(f"driftframe: the simulation cannot keep real time here (a step takes "
+                      f"{loop.step_cost * 1e3:.1f} ms of wall time for {world.dt * 1e3:.1f} ms simulated): "
+                      f"dropping time to keep the frame rate, at most {n} step{'s' * (n > 1)} a frame "
+                      "(F3 shows the speed)", file=sys.stderr)
             if interp is not None:
                 interp.alpha = loop.alpha
             if ui["overlay"]:
                 hud.overlay = overlay_lines(stats, loop)
             elif loop.behind:
-                hud.overlay = [f"SLOW MOTION {loop.speed:4.2f}x: a step takes {loop.step_cost * 1e3:.1f} ms"]
+                hud.overlay = [f"SLOW MOTION {loop.speed:4.2f}x (a step takes {loop.step_cost * 1e3:.1f} ms)"]
             else:
                 hud.overlay = None
             world.render()

@@ -16,20 +16,24 @@ draws poses interpolated by it (:mod:`systems.interpolation`).
 The spiral of death, and how the loop avoids it: when one step costs more
 wall time than ``dt``, catching up is impossible (each step taken adds more
 than ``dt`` of debt), and a loop that keeps trying runs ``max_steps`` steps in
-every frame and its frame rate collapses (8 steps of 20 ms: 6 fps). Like
-bevy's ``Time<Virtual>::max_delta``, this loop *drops time* instead, and says
-so:
+every frame and its frame rate collapses (8 steps of 20 ms: 6 fps). A step
+just under ``dt`` does the same in practice: the frame's own drawing time
+must be caught up too, ``n = t_draw / (dt - t_step)`` steps a frame, which
+hits ``max_steps`` (8 steps of 14 ms and 50 ms to draw: 6 fps). Like bevy's
+``Time<Virtual>::max_delta``, this loop *drops time* instead, and says so:
 
 * a frame longer than ``max_delta`` (a debugger, a dragged window) counts as
   ``max_delta``;
-* while the measured cost of a step (the median over the last 9 frames) is at least
-  ``dt``, a frame takes one step and the rest of the debt is dropped: the
-  simulation runs slower than real time, at the frame rate one step allows;
+* stepping may take at most ``max_step_time`` of wall time per frame: with the
+  measured cost of a step (the median over the last 9 frames that stepped),
+  a frame takes ``max(1, max_step_time // cost)`` steps at most (one step of
+  20 ms, two of 14 ms) and the rest of the debt is dropped: the simulation
+  runs slower than real time, at a frame rate that stays usable;
 * never more than ``max_steps`` steps in one frame.
 
 ``dropped_steps`` / ``dropped_seconds`` count what was dropped, ``behind``
-says whether the loop is behind now, and ``speed`` is simulated seconds per
-wall second over the recent frames (1.0 when it keeps up).
+says whether the loop is dropping time now, and ``speed`` is simulated
+seconds per wall second over the recent frames (1.0 when it keeps up).
 """
 from __future__ import annotations
 
@@ -45,9 +49,10 @@ class FixedStepLoop:
     """Drive ``world.step()`` from a clock. ``tick()`` once per presented frame.
 
     ``max_steps``: most steps in one frame. ``max_delta``: longest frame
-    counted, seconds (None: no limit). ``drop_when_behind``: take one step per
-    frame while a step costs more than ``dt`` (False: the old behaviour,
-    ``max_steps`` per frame — kept as the benchmark's baseline).
+    counted, seconds (None: no limit). ``max_step_time``: most wall seconds of
+    stepping per frame (by the measured step cost; at least one step is
+    always taken). ``drop_when_behind=False``: no step-time limit, the old
+    behaviour (``max_steps`` a frame), kept as the benchmark's baseline.
     """
 
     #: The step cost is the median over this many recent frames (one slow frame, a GC pause or the
@@ -55,7 +60,7 @@ class FixedStepLoop:
     COST_FRAMES = 9
 
     def __init__(self, world, clock: Callable[[], float], *, max_steps: int = 8, max_delta: float | None = 0.25,
-                 drop_when_behind: bool = True):
+                 max_step_time: float = 1.0 / 30.0, drop_when_behind: bool = True):
         if not callable(clock):
             raise TypeError(f"clock must be a function returning seconds, got {clock!r}")
         if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
@@ -66,6 +71,7 @@ class FixedStepLoop:
         self.clock = clock
         self.max_steps = max_steps
         self.max_delta = max_delta
+        self.max_step_time = validate.scalar("max_step_time", max_step_time, positive=True)
         self.drop_when_behind = bool(drop_when_behind)
         self.accumulator = 0.0
         self.paused = False
@@ -79,12 +85,20 @@ class FixedStepLoop:
         #: Frames (ticks) so far.
         self.frames = 0
         self._recent = collections.deque(maxlen=120)     # (wall seconds, simulated seconds) per tick
+        self._limited = collections.deque(maxlen=self.COST_FRAMES)   # did the step-time limit drop debt?
         self._last = validate.scalar("clock()", clock())
 
     @property
     def behind(self) -> bool:
-        """True while a step costs at least ``dt`` of wall time (over 3+ frames): real time cannot be kept."""
-        return len(self._costs) >= 3 and self.step_cost >= self.world.dt
+        """True while the step-time limit drops debt (in at least 3 of the last 9 frames): slow motion."""
+        return sum(self._limited) >= 3
+
+    @property
+    def step_limit(self) -> int:
+        """Most steps the next frame may take: ``max_step_time // step_cost``, in [1, max_steps]."""
+        if not self.drop_when_behind or len(self._costs) < 3 or self.step_cost <= 0:
+            return self.max_steps
+        return max(1, min(self.max_steps, int(self.max_step_time / self.step_cost)))
 
     def tick(self) -> int:
         """Take as many whole steps as the elapsed time allows; return how many ran."""
@@ -104,7 +118,8 @@ class FixedStepLoop:
         self.accumulator += elapsed
         # acc / dt rounded, then floored with a hair of tolerance: 10.0 // 0.1 is 99 in floats
         steps = int(self.accumulator / dt + 1e-9)
-        limit = 1 if self.drop_when_behind and self.behind else self.max_steps
+        limit = self.step_limit
+        self._limited.append(steps > limit and limit < self.max_steps)
         if steps > limit:
             self.dropped_steps += steps - limit
             self.dropped_seconds += (steps - limit) * dt

@@ -114,8 +114,19 @@ def test_a_step_slower_than_dt_drops_time_instead_of_collapsing():
     assert fps_old < 7.5 and most_old == 8             # the spiral: 8 steps of 20 ms in every frame
     assert fps_new > 40 and most_new == 1              # one step per frame: 1 / 24 ms
     assert new.behind and new.dropped_steps > 100      # and it says so
+    assert new.step_limit == 1
     assert 0.6 < new.speed < 0.75                      # 41.7 steps/s of 60
     assert new.step_cost == pytest.approx(0.020)
+
+
+def test_a_step_just_under_dt_with_slow_drawing_does_not_collapse_either():
+    # 14 ms steps, 50 ms to draw: real time needs 50 / (16.7 - 14) = 19 steps a frame; the old loop
+    # takes its 8 (162 ms frames), the new one 2 (78 ms frames: 33 ms of stepping at most)
+    fps_old, most_old, _ = _frames_per_second(0.014, 0.050, drop_when_behind=False)
+    fps_new, most_new, new = _frames_per_second(0.014, 0.050, drop_when_behind=True)
+    assert most_old == 8 and fps_old < 6.5
+    assert most_new == 2 and fps_new > 12
+    assert new.behind and new.step_limit == 2
 
 
 def test_a_fast_scene_keeps_real_time_and_drops_nothing():
