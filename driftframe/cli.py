@@ -39,6 +39,13 @@ class _DefaultSeed(int):
 DEFAULT_SEED = _DefaultSeed(0)
 
 
+class _DefaultSky(str):
+    """The sky when --sky is not given: "lines", but recognisable (``record --track`` takes the track's)."""
+
+
+DEFAULT_SKY = _DefaultSky("lines")
+
+
 def _seed(text):
     try:
         v = int(text)
@@ -108,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("--seed", type=_seed, default=DEFAULT_SEED, metavar="N", help="random seed of the scene (default 0)")
     common.add_argument("--camera", choices=CAMERAS, default=None,
                         help="camera to start with (default: the demo's own)")
-    common.add_argument("--sky", choices=("lines", "starfield"), default="lines",
+    common.add_argument("--sky", choices=("lines", "starfield"), default=DEFAULT_SKY,
                         help="skybox: the green line cube (default) or a starfield made from the seed")
 
     rec = sub.add_parser("record", parents=[common], help="record a demo off-screen to MP4, GIF or PNG frames",
@@ -123,8 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="FILE.mp4, FILE.gif, or a directory for numbered PNGs (default out/DEMO.mp4)")
     rec.add_argument("--quiet", action="store_true", help="no progress bar")
     rec.add_argument("--track", default=None, metavar="FILE",
-                     help="fly the track FILE (from `play --save-track`) instead of the demo's script; "
-                          "its seed, camera and length are used unless --seed, --camera, --seconds say otherwise")
+                     help="fly the track FILE (from `play --save-track`) instead of the demo's script; its "
+                          "seed, camera, sky and length are used unless --seed, --camera, --sky, --seconds say "
+                          "otherwise")
     rec.add_argument("--hash-log", default=None, metavar="FILE",
                      help="write one 'STEP HASH' line per step (compare two with `driftframe diverge`)")
 
@@ -201,6 +209,8 @@ def _apply_track(args, demo):
         args.seed = info.get("seed", 0)
     if args.camera is None:
         args.camera = info.get("camera")
+    if args.sky is DEFAULT_SKY:
+        args.sky = info.get("sky", "lines")
     if args.seconds is None:
         args.seconds = info["steps"] * info["dt"] if "steps" in info and "dt" in info else track.duration
     return track

@@ -362,7 +362,7 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
         play.last_run = summary
         print(summary["line"], file=sys.stderr)
         if save_track:
-            write_track(recorder.to_track(demo=name, seed=int(seed), camera=camera), save_track)
+            write_track(recorder.to_track(demo=name, seed=int(seed), camera=camera, sky=str(sky)), save_track)
             print(f"track: {save_track} ({recorder.steps} steps)", file=sys.stderr)
         if state_out:
             out = state_summary(world)

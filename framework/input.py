@@ -297,7 +297,7 @@ class TrackRecorder:
 #: The version of the track file format that :func:`save_track` writes and :func:`load_track` reads.
 TRACK_VERSION = 1
 _TRACK_FORMAT = "driftframe track"
-_INFO_KEYS = {"demo": str, "seed": int, "camera": (str, type(None)), "dt": float, "steps": int}
+_INFO_KEYS = {"demo": str, "seed": int, "camera": (str, type(None)), "sky": str, "dt": float, "steps": int}
 
 
 class TrackFileError(ValueError):
@@ -311,12 +311,14 @@ def save_track(track: Track, path) -> Path:
     ``dt`` for a flown track)::
 
         {"format": "driftframe track", "version": 1,
-         "demo": "asteroids", "seed": 0, "camera": null, "dt": 0.016666666666666666, "steps": 912,
+         "demo": "asteroids", "seed": 0, "camera": null, "sky": "lines", "dt": 0.016666666666666666,
+         "steps": 912,
          "holds": [{"start": 0.5, "end": 1.1, "throttle": 1.0},
                    {"start": 2.0, "end": 2.5, "yaw": -0.42, "kill_rotation": true}],
          "presses": [{"time": 3.0, "action": "switch_camera"}]}
 
-    ``demo`` ... ``steps`` (from ``track.info``) are optional; a hold lists
+    ``demo`` ... ``steps`` (from ``track.info``: where it was flown, with which
+    starting camera and sky, the step and the flight's length) are optional; a hold lists
     only its non-zero channels (:data:`CHANNELS`) and ``kill_rotation``
     when set. Numbers are written with ``repr``, so they read back exactly.
     """

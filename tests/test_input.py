@@ -156,9 +156,11 @@ def test_a_flown_track_saved_and_loaded_gives_every_step_back_exactly(tmp_path, 
     rec = TrackRecorder(dt)
     for k, intent in enumerate(intents):
         rec.add(offset + k, intent, presses.get(k, []))
-    path = save_track(rec.to_track(demo="asteroids", seed=4, camera="cockpit"), tmp_path / "flight.json")
+    path = save_track(rec.to_track(demo="asteroids", seed=4, camera="cockpit", sky="starfield"),
+                      tmp_path / "flight.json")
     back = load_track(path)
-    assert back.info == {"demo": "asteroids", "seed": 4, "camera": "cockpit", "dt": dt, "steps": offset + 3000}
+    assert back.info == {"demo": "asteroids", "seed": 4, "camera": "cockpit", "sky": "starfield", "dt": dt,
+                         "steps": offset + 3000}
     for k, intent in enumerate(intents):
         assert back.intent_at_step(offset + k, dt) == intent, k           # bit for bit
         assert back.presses_at_step(offset + k, dt) == presses.get(k, [])

@@ -16,6 +16,7 @@ def run(*args, env=None, timeout=300):
 
 
 FLIGHT = {"format": "driftframe track", "version": 1, "demo": "asteroids", "seed": 3, "camera": "cockpit",
+          "sky": "starfield",
           "dt": 1 / 60, "steps": 45,
           "holds": [{"start": 0.0, "end": 0.5, "throttle": 1.0}, {"start": 0.25, "end": 0.6, "yaw": -0.35}],
           "presses": [{"time": 0.4, "action": "switch_camera"}]}
@@ -45,6 +46,11 @@ def test_record_track_is_byte_identical_and_uses_the_tracks_seed_camera_and_leng
     res = run("record", "asteroids", "--seed", "3", "--seconds", "0.75", "--camera", "cockpit", "--size",
               "160x90", "--quiet", "-o", str(tmp_path / "script.mp4"), "--hash-log", str(tmp_path / "h3.txt"))
     assert res.returncode == 0, res.stderr
+    # the track's sky was used: the same flight under the line cube is another picture
+    res = run("record", "asteroids", "--track", str(track), "--sky", "lines", "--size", "160x90", "--quiet",
+              "-o", str(tmp_path / "lines.mp4"))
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "lines.mp4").read_bytes() != outs[0]
     assert run("diverge", str(tmp_path / "h0.txt"), str(tmp_path / "h3.txt")).returncode == 1
 
 
