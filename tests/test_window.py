@@ -140,14 +140,15 @@ def test_a_flight_saved_in_play_re_renders_as_the_same_flight_byte_for_byte(disp
     assert doc["presses"] == [{"time": doc["presses"][0]["time"], "action": "switch_camera"}]
     outs = []
     for k in range(2):
-        out = tmp_path / f"replay{k}.mp4"
+        # PNG frames: the frames themselves, byte for byte (tests/test_replay.py checks the MP4 bytes)
+        out = tmp_path / f"replay{k}"
         res = subprocess.run([sys.executable, "-m", "driftframe", "record", "asteroids", "--track", str(track),
-                              "--size", "320x180", "--quiet", "-o", str(out), "--hash-log",
+                              "--size", "320x180", "--quiet", "-o", f"{out}/", "--hash-log",
                               str(tmp_path / f"rec{k}.txt")], capture_output=True, text=True, timeout=300)
         assert res.returncode == 0, res.stderr
         assert f"{doc['steps']} frames" in res.stdout
-        outs.append(out.read_bytes())
-    assert outs[0] == outs[1]
+        outs.append([p.read_bytes() for p in sorted(out.iterdir())])
+    assert len(outs[0]) == doc["steps"] and outs[0] == outs[1]
     # the recording flew the flight that was played: the same state after every step
     from driftframe.framework.hashlog import first_divergence
     assert first_divergence(log, tmp_path / "rec0.txt") is None
