@@ -112,7 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("demo", metavar="DEMO", help=f"one of: {', '.join(demos.NAMES)}")
     common.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH",
                         help="frame size in pixels (default 1280x720)")
-    common.add_argument("--seed", type=_seed, default=DEFAULT_SEED, metavar="N", help="random seed of the scene (default 0)")
+    common.add_argument("--seed", type=_seed, default=DEFAULT_SEED, metavar="N",
+                        help="random seed of the scene (default 0)")
     common.add_argument("--camera", choices=CAMERAS, default=None,
                         help="camera to start with (default: the demo's own)")
     common.add_argument("--sky", choices=("lines", "starfield"), default=DEFAULT_SKY,
