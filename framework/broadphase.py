@@ -34,21 +34,25 @@ Everything here works on whole arrays; no Python loop runs over pairs.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 #: Up to this many boxes "auto" tests every pair (measured crossover; see benchmarks/collision_scaling.py).
 ALL_PAIRS_MAX = 32
 METHODS = ("auto", "all", "sweep", "grid", "kdtree")
 
 _EMPTY = np.empty(0, np.intp)
+#: Pairs of small n, cached (the same n comes back every step); bounded: n <= _TRIU_CACHED only
+#: (at most ~0.7 MB whatever sizes come and go).
 _TRIU: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+_TRIU_CACHED = 64
 
 
 def _triu(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """All pairs i < j of n items (cached: the same n comes back every step)."""
+    """All pairs i < j of n items."""
     got = _TRIU.get(n)
     if got is None:
         got = tuple(a.astype(np.intp) for a in np.triu_indices(n, 1))
-        if n <= 512:
+        if n <= _TRIU_CACHED:
             _TRIU[n] = got
     return got
 
@@ -312,6 +316,10 @@ class NeighbourList:
             far2 = d2 if far2 is None else np.maximum(far2, d2)
         return (far2 >= skin * skin) & ~swept
 
+    def kernel_arrays(self):
+        """The arrays :func:`territory_query` reads: ``(centre, skin, reach, order, lo_x, width)``."""
+        return self.centre, self.skin, self.reach, self._order, self._lo_x, self._width
+
     def territories(self, lo, hi) -> np.ndarray:
         """Listed (not swept) bodies whose territory box overlaps the box ``[lo, hi]`` (3-vectors)."""
         a = np.searchsorted(self._lo_x, lo[0] - self._width, side="left")
@@ -323,3 +331,30 @@ class NeighbourList:
         for k in range(3):
             keep &= (c[k] - rr <= hi[k]) & (c[k] + rr >= lo[k])
         return cand[keep]
+
+
+@njit(cache=True)
+def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
+    """Compiled :meth:`NeighbourList.territories`: listed bodies whose territory box meets ``[lo, hi]``.
+
+    ``order``, ``lo_x``, ``width``, ``centre`` (3, n), ``reach``, ``swept``: the list's arrays
+    (:meth:`NeighbourList.kernel_arrays`). Used by the contact kernel for bodies swept mid-step.
+    """
+    a = np.searchsorted(lo_x, lo[0] - width, side="left")
+    b = np.searchsorted(lo_x, hi[0], side="right")
+    out = np.empty(max(b - a, 0), np.int64)
+    m = 0
+    for q in range(a, b):
+        k = order[q]
+        if swept[k]:
+            continue
+        rr = reach[k]
+        ok = True
+        for d in range(3):
+            if centre[d, k] - rr > hi[d] or centre[d, k] + rr < lo[d]:
+                ok = False
+                break
+        if ok:
+            out[m] = k
+            m += 1
+    return out[:m]

@@ -3,7 +3,16 @@ from __future__ import annotations
 
 import esper
 
+import numpy as np
+
 from driftframe.components.body import Acceleration, Transform, Velocity
+from driftframe.components.collision import SphereCollider
+from driftframe.framework.store import as_index, to_indices
+
+#: ``world.resources[SKIP]``: component classes whose bodies another system integrates itself
+#: (the collision system moves its colliders from the start-of-step state), so movement leaves
+#: them alone and the step's data flows one way.
+SKIP = "movement.skip"
 
 
 class MovementSystem(esper.Processor):
@@ -16,29 +25,60 @@ class MovementSystem(esper.Processor):
     Euler (which leads by as much); see ``benchmarks/thrust_accuracy.py``.
     Nothing else changes velocity here: there is no drag in space.
 
+    Bodies with a component listed in ``world.resources[SKIP]`` are left to
+    the system that claimed them (a CollisionSystem integrates its colliders).
+
     All matching bodies are updated with whole-column numpy operations; the
     packed rows are rebuilt only when esper's query result changes.
     """
 
     stage = "movement"
-    reads = (Velocity, Acceleration)
+    # SphereCollider: only to leave the colliders to a CollisionSystem in the world (see SKIP)
+    reads = (Velocity, Acceleration, SphereCollider)
     writes = (Transform, Velocity)
+
+    def __init__(self):
+        self._kept = {}
+
+    def _rows(self, q, types, skip):
+        """``q.rows(T)`` for each of ``types``, without the bodies that have a class in ``skip``."""
+        got = self._kept.get(q.types)
+        if got is not None and got[0] == (q.version, skip):
+            return got[1]
+        rows = tuple(q.rows(T) for T in types)
+        if skip:
+            world = self.world
+            claimed = []
+            for cls in skip:
+                c = world.query(cls)
+                c.refresh()
+                claimed.append(c.entities)
+            keep = ~np.isin(q.entities, np.concatenate(claimed))
+            if not keep.all():
+                rows = tuple(as_index(to_indices(r)[keep]) if keep.any() else np.empty(0, np.intp)
+                             for r in rows)
+        self._kept[q.types] = ((q.version, skip), rows)
+        return rows
 
     def process(self, dt: float) -> None:
         world = self.world
+        skip = world.resources.get(SKIP)
+        skip = frozenset(skip) if skip else frozenset()
         free = world.query(Transform, Velocity)
         free.refresh()
         if len(free):
+            t_rows, v_rows = self._rows(free, (Transform, Velocity), skip)
             pos = world.table(Transform).data["position"]
             vel = world.table(Velocity).data["linear"]
-            pos[free.rows(Transform)] += vel[free.rows(Velocity)] * dt
+            pos[t_rows] += vel[v_rows] * dt
 
         acc = world.query(Transform, Velocity, Acceleration)
         acc.refresh()
         if len(acc):
+            t_rows, v_rows, a_rows = self._rows(acc, (Transform, Velocity, Acceleration), skip)
             pos = world.table(Transform).data["position"]
             vel = world.table(Velocity).data["linear"]
-            a = world.table(Acceleration).data["linear"][acc.rows(Acceleration)]
+            a = world.table(Acceleration).data["linear"][a_rows]
             # the v dt part was added above; add the constant-acceleration term, then update v
-            pos[acc.rows(Transform)] += (0.5 * dt * dt) * a
-            vel[acc.rows(Velocity)] += dt * a
+            pos[t_rows] += (0.5 * dt * dt) * a
+            vel[v_rows] += dt * a

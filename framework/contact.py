@@ -1,0 +1,893 @@
+"""Sphere contact kernels: times of impact, islands of simultaneous contacts, the step's event loop.
+
+Pure functions over arrays, compiled with numba (``cache=True``: the
+machine code is kept next to this file, so only the first run on a machine
+pays the compilation; ``benchmarks/collision_stress.py`` measures it). The
+collision system (:mod:`driftframe.systems.collision`) gathers the bodies'
+start-of-step state, calls :func:`solve_step` once per step and writes the
+result back; nothing here knows about entities or components.
+
+**Paths.** Body ``k`` moves as ``p(t) = x[k] + u[k] t`` for ``0 <= t <= dt``.
+An impulse at time ``t`` changes ``u`` and moves the path's origin by
+``-du t``, so the body stays where it is at ``t``.
+
+**Time of impact** of a pair: the smaller root of ``|d + w t|^2 = R^2`` (``d``
+relative position, ``w`` relative velocity, ``R = r_i + r_j``), written
+``t = c / (-b + sqrt(b^2 - a c))`` with ``a = w.w``, ``b = d.w``, ``c =
+d.d - R^2`` so that nothing cancels, and solved once more from where the pair
+is at that estimate when it starts more than ``4 R`` apart (``c`` loses
+digits there). A pair counts only when it approaches, ``v_n < -APPROACH
+(|u_i| + |u_j|)`` -- a threshold from the pair's *own* speeds -- and when the
+exact paths meet (``c <= 0``, or a real root): a near miss is never a
+contact, whatever the tolerances. Pairs that already overlap (at spawn) and
+approach are in contact now; those that overlap and separate are left to
+separate (no stick, no jump).
+
+**Waves and islands.** Contacts are taken in time order from a binary heap
+(one entry per pair and version; a pair's entry is void once either body's
+velocity changes). At the earliest instant ``t*`` every pending pair whose
+contact lies within ``TOUCH R / |v_n|`` of ``t*`` (its gap is below
+``TOUCH R`` there) and that still approaches forms one *wave*. The wave is
+split into *islands* (connected components over movable bodies; an
+immovable body joins nothing) and each island is solved on its own:
+impulses ``lambda >= 0`` with
+
+    A lambda = -(1 + e) v_n,   A = J M^-1 J^T   (the island's contacts only)
+
+by Gaussian elimination with symmetric (diagonal) pivoting in a fixed order,
+dropping contacts whose impulse comes out negative and solving again (at
+most ``K`` times). Only ``+ - * / sqrt`` are used, in a fixed order, so a
+step's result is the same bit for bit on any CPU (no LAPACK, no transcendental
+ufunc). Islands of more than :data:`DENSE_MAX` contacts (a crystal or a pile
+hit at once) are resolved contact by contact in pair order (packed index
+order: ascending entity id), each a textbook two-body impulse, which keeps
+the energy of elastic contacts exactly and costs ``O(K)``. With ``e = 1``
+each contact reverses its normal velocity and the energy is unchanged:
+``dKE = lambda . (v_n + v_n') / 2 = 0``. The bodies that changed have their
+pairs re-examined from ``t*``; contacts that now approach at ``t*`` form the
+next wave, so a chain of touching balls (Newton's cradle) passes the impulse
+ball by ball inside one instant, and a symmetric hit stays symmetric.
+
+**Bounds.** Each body keeps, within the step, the time of its last contact
+and a *burst*: how many waves in a row it met within ``t_c`` of the previous
+one.
+
+* *Inelastic collapse* (Luding & McNamara's TC model, Granular Matter 1,
+  1998): hard spheres with ``e < 1`` can meet infinitely often in finite
+  time. A contact of a body whose previous contact was less than ``t_c``
+  earlier is taken as elastic (``e = 1``). Energy is never gained; it is lost
+  only by contacts the model keeps inelastic.
+* *Jams*: a sphere wedged between immovable ones has no elastic answer and
+  bounces forever in no time. Once a body's burst exceeds :data:`JAM` waves,
+  its contacts are taken with ``e = 0`` for the rest of that burst (the
+  motion along the walls is kept); past ``2 JAM`` the island is given its
+  centre-of-mass velocity (every relative velocity in it becomes zero),
+  which ends any burst.
+* *Contacts per body per step* are capped the same way: past ``cap`` a
+  body's contacts are taken with ``e = 0``; past ``2 cap`` its island sticks.
+  So the work of a step is bounded by the bodies involved times these
+  constants, and grows with the island, not with the scene.
+
+The ``flags`` returned say which of these engaged (for a warning).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from driftframe.framework import broadphase as bp
+
+#: Pairs whose contact is within ``TOUCH R / |v_n|`` of an instant meet at that instant (gap < TOUCH R).
+TOUCH = 1e-9
+#: Normal approach speeds below this fraction of the pair's own speeds (|u_i| + |u_j|) are rounding noise.
+APPROACH = 1e-12
+#: Centres closer than this fraction of r_i + r_j define no contact normal: such a pair is left to pass.
+CENTRED = 1e-9
+#: Longest time window (fraction of dt) one wave collects contacts over.
+SLACK_MAX = 1e-9
+#: Islands up to this many contacts are solved simultaneously; larger ones contact by contact.
+DENSE_MAX = 32
+#: Waves in a burst (each within t_c of the previous) before a body's contacts lose their bounce.
+JAM = 256
+#: Default cap on one body's contacts in one step (then e = 0; at twice this its island sticks).
+CAP = 1024
+#: Default t_c of the TC model, as a fraction of dt.
+TC = 1e-6
+
+#: flags returned by solve_step
+F_JAM = 1
+F_TC = 2
+F_CAP = 4
+F_STICK = 8
+F_LIMIT = 16
+
+_INF = math.inf
+
+
+@njit(cache=True)
+def _grow_f(a, n):
+    b = np.empty((max(n, 2 * a.shape[0]),) + a.shape[1:], a.dtype)
+    b[:a.shape[0]] = a
+    return b
+
+
+@njit(cache=True)
+def _grow_i(a, n):
+    b = np.empty(max(n, 2 * a.shape[0]), a.dtype)
+    b[:a.shape[0]] = a
+    return b
+
+
+@njit(cache=True)
+def toi(i, j, t, x, u, r, inv, spd, dt):
+    """Earliest time of impact in [t, dt] of bodies i, j (paths x + u t'); (-1, 0) when none.
+
+    Returns ``(time, slack)``; ``slack`` is how long before ``time`` the gap is already
+    below ``TOUCH R`` (capped at ``SLACK_MAX dt``).
+    """
+    if inv[i] + inv[j] == 0.0:
+        return -1.0, 0.0                                   # two immovable bodies pass through
+    wx = u[j, 0] - u[i, 0]
+    wy = u[j, 1] - u[i, 1]
+    wz = u[j, 2] - u[i, 2]
+    dx = x[j, 0] - x[i, 0] + wx * t
+    dy = x[j, 1] - x[i, 1] + wy * t
+    dz = x[j, 2] - x[i, 2] + wz * t
+    dd = dx * dx + dy * dy + dz * dz
+    b = dx * wx + dy * wy + dz * wz                        # |d| times the normal relative velocity
+    R = r[i] + r[j]
+    dist = math.sqrt(dd)
+    if not (b < -APPROACH * (spd[i] + spd[j]) * dist) or not (dist > CENTRED * R):
+        return -1.0, 0.0
+    c = dd - R * R
+    a = wx * wx + wy * wy + wz * wz
+    if c <= 0.0:
+        tc = t                                             # touching or overlapping, approaching: now
+    else:
+        disc = b * b - a * c
+        if disc < 0.0:
+            return -1.0, 0.0                               # a near miss: the exact paths never meet
+        h = c / (math.sqrt(disc) - b)
+        if dist > 4.0 * R:
+            # c keeps ~eps |d|^2 / R^2 of relative error: solve once more from the estimate
+            ex = dx + wx * h
+            ey = dy + wy * h
+            ez = dz + wz * h
+            c2 = ex * ex + ey * ey + ez * ez - R * R
+            b2 = ex * wx + ey * wy + ez * wz
+            disc2 = b2 * b2 - a * c2
+            if disc2 < 0.0:
+                disc2 = 0.0
+            den = math.sqrt(disc2) - b2
+            if den > 0.0:
+                h += c2 / den
+        tc = t + h
+        if tc < t:
+            tc = t
+    if tc > dt:
+        return -1.0, 0.0
+    slack = TOUCH * R * dist / -b
+    if slack > SLACK_MAX * dt:
+        slack = SLACK_MAX * dt
+    return tc, slack
+
+
+# -- binary heap of (time, pair, version, slack) ------------------------------------------------
+
+@njit(cache=True)
+def _less(ht, hp, a, b):
+    return ht[a] < ht[b] or (ht[a] == ht[b] and hp[a] < hp[b])
+
+
+@njit(cache=True)
+def _swap(ht, hp, hv, hs, a, b):
+    ht[a], ht[b] = ht[b], ht[a]
+    hp[a], hp[b] = hp[b], hp[a]
+    hv[a], hv[b] = hv[b], hv[a]
+    hs[a], hs[b] = hs[b], hs[a]
+
+
+@njit(cache=True)
+def _sift_up(ht, hp, hv, hs, k):
+    while k > 0:
+        parent = (k - 1) >> 1
+        if _less(ht, hp, k, parent):
+            _swap(ht, hp, hv, hs, k, parent)
+            k = parent
+        else:
+            break
+
+
+@njit(cache=True)
+def _sift_down(ht, hp, hv, hs, k, n):
+    while True:
+        a = 2 * k + 1
+        if a >= n:
+            break
+        b = a + 1
+        m = b if (b < n and _less(ht, hp, b, a)) else a
+        if _less(ht, hp, m, k):
+            _swap(ht, hp, hv, hs, k, m)
+            k = m
+        else:
+            break
+
+
+# -- dense solve ------------------------------------------------------------------------------
+
+@njit(cache=True)
+def solve_psd(A, y, m, out):
+    """Solve ``A[:m, :m] out = y[:m]`` for a symmetric positive semi-definite A (A and y are overwritten).
+
+    Gaussian elimination with symmetric pivoting on the largest remaining
+    diagonal; pivots below 1e-12 of the largest are dependent rows, whose
+    unknowns are set to 0 (a basic solution of a consistent singular system).
+    Only + - * /, in an order fixed by the data.
+    """
+    perm = np.arange(m)
+    top = 0.0
+    for k in range(m):
+        if A[k, k] > top:
+            top = A[k, k]
+    rank = 0
+    for s in range(m):
+        q = s
+        for k in range(s + 1, m):
+            if A[k, k] > A[q, q]:
+                q = k
+        if not (A[q, q] > 1e-12 * top):
+            break
+        if q != s:
+            for k in range(m):
+                A[s, k], A[q, k] = A[q, k], A[s, k]
+            for k in range(m):
+                A[k, s], A[k, q] = A[k, q], A[k, s]
+            y[s], y[q] = y[q], y[s]
+            perm[s], perm[q] = perm[q], perm[s]
+        piv = A[s, s]
+        for k in range(s + 1, m):
+            f = A[k, s] / piv
+            if f != 0.0:
+                for l in range(s + 1, m):
+                    A[k, l] -= f * A[s, l]
+                y[k] -= f * y[s]
+        rank += 1
+    sol = np.zeros(m)
+    for s in range(rank - 1, -1, -1):
+        acc = y[s]
+        for l in range(s + 1, rank):
+            acc -= A[s, l] * sol[l]
+        sol[s] = acc / A[s, s]
+    for s in range(m):
+        out[perm[s]] = sol[s]
+
+
+@njit(cache=True)
+def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
+    """Impulses of one island's contacts ``cs[:K]`` (indices into the wave), >= 0, into ``lam``."""
+    for a in range(K):
+        act[a] = True
+        lam[cs[a]] = 0.0
+    while True:
+        m = 0
+        for a in range(K):
+            if act[a]:
+                sub[m] = a
+                m += 1
+        if m == 0:
+            return
+        for p in range(m):
+            ca = cs[sub[p]]
+            ia, ja = wi[ca], wj[ca]
+            for q in range(m):
+                cb = cs[sub[q]]
+                ib, jb = wi[cb], wj[cb]
+                dot = wn[ca, 0] * wn[cb, 0] + wn[ca, 1] * wn[cb, 1] + wn[ca, 2] * wn[cb, 2]
+                s = 0.0
+                # J row: -n at body i, +n at body j; A_ab = sum over shared bodies of sign sign inv n_a.n_b
+                if ia == ib:
+                    s += inv[ia]
+                if ia == jb:
+                    s -= inv[ia]
+                if ja == ib:
+                    s -= inv[ja]
+                if ja == jb:
+                    s += inv[ja]
+                A[p, q] = s * dot
+            y[p] = rhs[ca]
+        sol = np.empty(m)
+        solve_psd(A, y, m, sol)
+        neg = False
+        for p in range(m):
+            if sol[p] < 0.0:
+                act[sub[p]] = False
+                neg = True
+        if not neg:
+            for p in range(m):
+                lam[cs[sub[p]]] = sol[p]
+            return
+
+
+# -- the step ---------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _link(p, i, j, head, nxt):
+    nxt[2 * p] = head[i]
+    head[i] = 2 * p
+    nxt[2 * p + 1] = head[j]
+    head[j] = 2 * p + 1
+
+
+@njit(cache=True)
+def all_pairs(n):
+    """Every pair i < j of n bodies, in lexicographic order."""
+    P = n * (n - 1) // 2
+    pi = np.empty(P, np.int64)
+    pj = np.empty(P, np.int64)
+    k = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            pi[k] = i
+            pj[k] = j
+            k += 1
+    return pi, pj
+
+
+@njit(cache=True)
+def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
+               listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
+    """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
+
+    ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
+    per body; ``live``: bodies taking part (False: a body with non-finite
+    state, left out). ``pi``, ``pj``: candidate pairs. With ``listed`` the
+    candidates come from a :class:`~driftframe.framework.broadphase.NeighbourList`
+    (``swept``, ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n),
+    ``skin``, ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in
+    place for bodies swept here), and bodies whose path leaves their territory
+    are swept against the others and their new pairs added.
+
+    Returns ``(changed, events, ev_n, ev_point, stats, flags)``: which bodies'
+    velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
+    and the contact points on i's and on j's surface (6 numbers); ``stats`` = [pairs, contacts, waves,
+    swept, overlaps, worst overlap pair i, j, worst distance / R, islands
+    solved contact by contact]; ``flags`` (F_* bits).
+    """
+    n = x.shape[0]
+    P = pi.shape[0]
+    cap_p = max(2 * P, 16)
+    PI = np.empty(cap_p, np.int64)
+    PJ = np.empty(cap_p, np.int64)
+    PI[:P] = pi
+    PJ[:P] = pj
+    head = np.full(n, -1, np.int64)
+    nxt = np.empty(2 * cap_p, np.int64)
+    for p in range(P):
+        _link(p, PI[p], PJ[p], head, nxt)
+    ver = np.zeros(cap_p, np.int64)
+    mark = np.full(cap_p, -1, np.int64)
+    spd = np.empty(n)
+    for k in range(n):
+        spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
+    stats = np.zeros(9)
+    flags = 0
+    n_swept = 0
+    if listed:
+        for k in range(n):
+            if swept[k]:
+                n_swept += 1
+        # bodies swept at the start: their whole path against the territories and each other
+        for k in range(n):
+            if swept[k] and live[k]:
+                for d in range(3):
+                    a0 = x[k, d]
+                    a1 = x[k, d] + u[k, d] * dt
+                    blo[k, d] = min(a0, a1) - r[k]
+                    bhi[k, d] = max(a0, a1) + r[k]
+        for k in range(n):
+            if swept[k] and live[k]:
+                P, PI, PJ, nxt, ver, mark = _sweep(k, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
+                                                   centre, reach, order, lo_x, width, True)
+        stats[3] = n_swept
+
+    # -- heap of pending contacts --
+    hcap = 1024
+    ht = np.empty(hcap)
+    hp = np.empty(hcap, np.int64)
+    hv = np.empty(hcap, np.int64)
+    hs = np.empty(hcap)
+    hn = 0
+    overlaps = 0
+    worst = _INF
+    wi_ = -1
+    wj_ = -1
+    for p in range(P):
+        i, j = PI[p], PJ[p]
+        if not (live[i] and live[j]) or inv[i] + inv[j] == 0.0:
+            continue
+        dx = x[j, 0] - x[i, 0]
+        dy = x[j, 1] - x[i, 1]
+        dz = x[j, 2] - x[i, 2]
+        R = r[i] + r[j]
+        q = math.sqrt(dx * dx + dy * dy + dz * dz) / R
+        if q < 1.0 - TOUCH:
+            overlaps += 1
+            if q < worst:
+                worst, wi_, wj_ = q, i, j
+        tp, sl = toi(i, j, 0.0, x, u, r, inv, spd, dt)
+        if tp >= 0.0:
+            if hn == hcap:
+                hcap *= 2
+                ht, hs = _grow_f(ht, hcap), _grow_f(hs, hcap)
+                hp, hv = _grow_i(hp, hcap), _grow_i(hv, hcap)
+            ht[hn], hp[hn], hv[hn], hs[hn] = tp, p, 0, sl
+            hn += 1
+    for k in range((hn >> 1) - 1, -1, -1):
+        _sift_down(ht, hp, hv, hs, k, hn)
+    stats[4] = overlaps
+    stats[5], stats[6], stats[7] = wi_, wj_, worst
+
+    # -- per body bookkeeping --
+    changed = np.zeros(n, np.bool_)
+    t_last = np.full(n, -_INF)
+    burst = np.zeros(n, np.int64)
+    count = np.zeros(n, np.int64)
+    bmark = np.full(n, -1, np.int64)
+    parent = np.arange(n)
+    ustamp = np.full(n, -1, np.int64)
+    kstamp = np.full(n, -1, np.int64)
+    same = SLACK_MAX * dt
+    # wave scratch (grown as needed)
+    wcap = 64
+    wp = np.empty(wcap, np.int64)
+    wi = np.empty(wcap, np.int64)
+    wj = np.empty(wcap, np.int64)
+    wn = np.empty((wcap, 3))
+    wvn = np.empty(wcap)
+    we = np.empty(wcap)
+    wlam = np.empty(wcap)
+    wroot = np.empty(wcap, np.int64)
+    wstick = np.zeros(wcap, np.bool_)
+    back_t = np.empty(wcap)
+    back_p = np.empty(wcap, np.int64)
+    back_v = np.empty(wcap, np.int64)
+    back_s = np.empty(wcap)
+    A = np.empty((DENSE_MAX, DENSE_MAX))
+    y = np.empty(DENSE_MAX)
+    sub = np.empty(DENSE_MAX, np.int64)
+    act = np.empty(DENSE_MAX, np.bool_)
+    cs = np.empty(wcap, np.int64)
+    moved = np.empty(n, np.int64)
+    dv = np.zeros((n, 3))
+    # events
+    ecap = 64
+    ev = np.empty((ecap, 4))
+    ev_n = np.empty((ecap, 3))
+    ev_x = np.empty((ecap, 6))
+    ne = 0
+
+    waves = 0
+    limit = 64 * (n + P) + 100_000
+    while hn > 0:
+        # -- pop the earliest valid entry --
+        t0 = ht[0]
+        p0 = hp[0]
+        v0 = hv[0]
+        hn -= 1
+        if hn > 0:
+            _swap(ht, hp, hv, hs, 0, hn)
+            _sift_down(ht, hp, hv, hs, 0, hn)
+        if v0 != ver[p0]:
+            continue
+        if waves >= limit:
+            flags |= F_LIMIT
+            break
+        # -- the wave: every valid entry within its own slack of t0 --
+        K = 0
+        nb = 0
+        horizon = t0 + SLACK_MAX * dt
+        cand_p = p0
+        cand_ok = True
+        while True:
+            if cand_ok:
+                i, j = PI[cand_p], PJ[cand_p]
+                wx = u[j, 0] - u[i, 0]
+                wy = u[j, 1] - u[i, 1]
+                wz = u[j, 2] - u[i, 2]
+                dx = x[j, 0] - x[i, 0] + wx * t0
+                dy = x[j, 1] - x[i, 1] + wy * t0
+                dz = x[j, 2] - x[i, 2] + wz * t0
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                nx, ny, nz = dx / dist, dy / dist, dz / dist
+                vn = nx * wx + ny * wy + nz * wz
+                if vn < -APPROACH * (spd[i] + spd[j]):
+                    if K == wcap:
+                        wcap *= 2
+                        wp, wi, wj, wroot, cs = (_grow_i(wp, wcap), _grow_i(wi, wcap), _grow_i(wj, wcap),
+                                                 _grow_i(wroot, wcap), _grow_i(cs, wcap))
+                        wstick = np.zeros(wcap, np.bool_)
+                        wn, wvn, we, wlam = _grow_f(wn, wcap), _grow_f(wvn, wcap), _grow_f(we, wcap), \
+                            _grow_f(wlam, wcap)
+                    wp[K], wi[K], wj[K] = cand_p, i, j
+                    wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
+                    wvn[K] = vn
+                    K += 1
+            if hn == 0 or ht[0] > horizon:
+                break
+            tp, pp, vv, ss = ht[0], hp[0], hv[0], hs[0]
+            hn -= 1
+            if hn > 0:
+                _swap(ht, hp, hv, hs, 0, hn)
+                _sift_down(ht, hp, hv, hs, 0, hn)
+            if vv != ver[pp]:
+                cand_ok = False
+                continue
+            if tp - t0 <= ss:
+                cand_p = pp
+                cand_ok = True
+                ver[pp] += 1                               # taken: its entry is void from now on
+            else:
+                if nb == back_t.shape[0]:
+                    back_t, back_s = _grow_f(back_t, 2 * nb), _grow_f(back_s, 2 * nb)
+                    back_p, back_v = _grow_i(back_p, 2 * nb), _grow_i(back_v, 2 * nb)
+                back_t[nb], back_p[nb], back_v[nb], back_s[nb] = tp, pp, vv, ss
+                nb += 1
+                cand_ok = False
+        ver[p0] += 1
+        for b in range(nb):                                # not this instant: back into the heap
+            if hn == hcap:
+                hcap *= 2
+                ht, hs = _grow_f(ht, hcap), _grow_f(hs, hcap)
+                hp, hv = _grow_i(hp, hcap), _grow_i(hv, hcap)
+            ht[hn], hp[hn], hv[hn], hs[hn] = back_t[b], back_p[b], back_v[b], back_s[b]
+            _sift_up(ht, hp, hv, hs, hn)
+            hn += 1
+        if K == 0:
+            continue
+        waves += 1
+        t = t0
+        # -- restitution of each contact: the pair's, or the TC model / the bounds --
+        stick_any = False
+        for k in range(K):
+            i, j = wi[k], wj[k]
+            ee = min(e[i], e[j])
+            gi = t - t_last[i]
+            gj = t - t_last[j]
+            bi = burst[i] + 1 if gi <= t_c else 1
+            bj = burst[j] + 1 if gj <= t_c else 1
+            # TC: a repeat within t_c, but not the same instant (a wave chain is bounded by the burst)
+            rapid = (same < gi <= t_c) or (same < gj <= t_c)
+            wstick[k] = bi > 2 * JAM or bj > 2 * JAM or count[i] >= 2 * cap or count[j] >= 2 * cap
+            if wstick[k]:
+                stick_any = True
+                ee = 0.0
+            elif bi > JAM or bj > JAM:
+                ee = 0.0
+                flags |= F_JAM
+            elif count[i] >= cap or count[j] >= cap:
+                ee = 0.0
+                flags |= F_CAP
+            elif ee < 1.0 and rapid:
+                ee = 1.0                                   # TC model: a rapid repeat is elastic
+                flags |= F_TC
+            we[k] = ee
+        # -- islands: union-find over the movable bodies of the wave --
+        for k in range(K):
+            for b in (wi[k], wj[k]):
+                if ustamp[b] != waves:
+                    ustamp[b] = waves
+                    parent[b] = b
+        for k in range(K):
+            i, j = wi[k], wj[k]
+            if inv[i] > 0.0 and inv[j] > 0.0:
+                a = i
+                while parent[a] != a:
+                    parent[a] = parent[parent[a]]
+                    a = parent[a]
+                b = j
+                while parent[b] != b:
+                    parent[b] = parent[parent[b]]
+                    b = parent[b]
+                if a != b:
+                    if a < b:
+                        parent[b] = a
+                    else:
+                        parent[a] = b
+        for k in range(K):
+            a = wi[k] if inv[wi[k]] > 0.0 else wj[k]
+            while parent[a] != a:
+                a = parent[a]
+            wroot[k] = a
+        rhs = np.empty(K)
+        for k in range(K):
+            rhs[k] = -(1.0 + we[k]) * wvn[k]
+            wlam[k] = 0.0
+        ordk = np.argsort(wroot[:K], kind="mergesort")   # islands together, wave order inside
+        nm = 0
+        s = 0
+        while s < K:
+            root = wroot[ordk[s]]
+            f = s
+            while f < K and wroot[ordk[f]] == root:
+                f += 1
+            m = f - s
+            for a in range(m):
+                cs[a] = ordk[s + a]
+            stick = False
+            if stick_any:
+                for a in range(m):
+                    if wstick[cs[a]]:
+                        stick = True
+            if stick:
+                nm = _stick(cs, m, wi, wj, wn, inv, u, wlam, dv, moved, nm, bmark, waves)
+                flags |= F_STICK
+            elif m == 1:
+                c = cs[0]
+                i, j = wi[c], wj[c]
+                lam = rhs[c] / (inv[i] + inv[j])
+                wlam[c] = lam
+                for b, sg in ((i, -1.0), (j, 1.0)):
+                    if inv[b] > 0.0:
+                        if bmark[b] != waves:
+                            bmark[b] = waves
+                            dv[b, 0] = dv[b, 1] = dv[b, 2] = 0.0
+                            moved[nm] = b
+                            nm += 1
+                        g = sg * lam * inv[b]
+                        dv[b, 0] += g * wn[c, 0]
+                        dv[b, 1] += g * wn[c, 1]
+                        dv[b, 2] += g * wn[c, 2]
+            elif m <= DENSE_MAX:
+                _island_dense(cs, m, wi, wj, wn, rhs, inv, wlam, A, y, sub, act)
+                for a in range(m):
+                    c = cs[a]
+                    lam = wlam[c]
+                    if lam == 0.0:
+                        continue
+                    for b, sg in ((wi[c], -1.0), (wj[c], 1.0)):
+                        if inv[b] > 0.0:
+                            if bmark[b] != waves:
+                                bmark[b] = waves
+                                dv[b, 0] = dv[b, 1] = dv[b, 2] = 0.0
+                                moved[nm] = b
+                                nm += 1
+                            g = sg * lam * inv[b]
+                            dv[b, 0] += g * wn[c, 0]
+                            dv[b, 1] += g * wn[c, 1]
+                            dv[b, 2] += g * wn[c, 2]
+            else:
+                stats[8] += 1
+                # contact by contact in pair order, each on the bodies' current velocities
+                keys = np.empty(m, np.int64)
+                for a in range(m):
+                    keys[a] = wi[cs[a]] * n + wj[cs[a]]
+                ko = np.argsort(keys, kind="mergesort")
+                for a in range(m):
+                    c = cs[ko[a]]
+                    i, j = wi[c], wj[c]
+                    vn = 0.0
+                    for d in range(3):
+                        ud = u[j, d] - u[i, d]
+                        if bmark[j] == waves:
+                            ud += dv[j, d]
+                        if bmark[i] == waves:
+                            ud -= dv[i, d]
+                        vn += wn[c, d] * ud
+                    if not (vn < -APPROACH * (spd[i] + spd[j])):
+                        continue
+                    lam = -(1.0 + we[c]) * vn / (inv[i] + inv[j])
+                    wlam[c] = lam
+                    for b, sg in ((i, -1.0), (j, 1.0)):
+                        if inv[b] > 0.0:
+                            if bmark[b] != waves:
+                                bmark[b] = waves
+                                dv[b, 0] = dv[b, 1] = dv[b, 2] = 0.0
+                                moved[nm] = b
+                                nm += 1
+                            g = sg * lam * inv[b]
+                            dv[b, 0] += g * wn[c, 0]
+                            dv[b, 1] += g * wn[c, 1]
+                            dv[b, 2] += g * wn[c, 2]
+            s = f
+        # -- bookkeeping of the bodies that took an impulse; events --
+        for k in range(K):
+            if not (wlam[k] > 0.0):
+                continue
+            i, j = wi[k], wj[k]
+            for b in (i, j):
+                if kstamp[b] != waves:
+                    kstamp[b] = waves                      # once per body per wave
+                    burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
+                    t_last[b] = t
+                    count[b] += 1
+            if ne == ecap:
+                ecap *= 2
+                ev, ev_n, ev_x = _grow_f(ev, ecap), _grow_f(ev_n, ecap), _grow_f(ev_x, ecap)
+            ev[ne, 0], ev[ne, 1], ev[ne, 2], ev[ne, 3] = i, j, t, wlam[k]
+            for d in range(3):
+                ev_n[ne, d] = wn[k, d]
+                ev_x[ne, d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
+                ev_x[ne, 3 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
+            ne += 1
+        # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
+        for a in range(nm):
+            b = moved[a]
+            for d in range(3):
+                u[b, d] += dv[b, d]
+                x[b, d] -= dv[b, d] * t
+            spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
+            changed[b] = True
+        # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
+        if listed:
+            for a in range(nm):
+                b = moved[a]
+                ex = x[b, 0] + u[b, 0] * dt
+                ey = x[b, 1] + u[b, 1] * dt
+                ez = x[b, 2] + u[b, 2] * dt
+                if not swept[b]:
+                    ox = ex - centre[0, b]
+                    oy = ey - centre[1, b]
+                    oz = ez - centre[2, b]
+                    if ox * ox + oy * oy + oz * oz < skin[b] * skin[b]:
+                        continue                           # still inside its territory (a ball: convex)
+                inside = swept[b]
+                lo = np.empty(3)
+                hi = np.empty(3)
+                for d in range(3):
+                    a0 = x[b, d] + u[b, d] * t
+                    a1 = x[b, d] + u[b, d] * dt
+                    lo[d] = min(a0, a1) - r[b]
+                    hi[d] = max(a0, a1) + r[b]
+                    if lo[d] < blo[b, d] or hi[d] > bhi[b, d]:
+                        inside = False
+                if inside:
+                    continue                               # swept: still inside its box
+                if not swept[b]:
+                    swept[b] = True
+                    n_swept += 1
+                    if n_swept > budget:
+                        flags |= 32                        # the list should be rebuilt
+                for d in range(3):
+                    blo[b, d] = lo[d]
+                    bhi[b, d] = hi[d]
+                stats[3] += 1
+                P, PI, PJ, nxt, ver, mark = _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
+                                                   centre, reach, order, lo_x, width, False)
+        # -- re-examine every pair of the bodies that changed, from t on --
+        for a in range(nm):
+            b = moved[a]
+            node = head[b]
+            while node >= 0:
+                p = node >> 1
+                node = nxt[node]
+                if mark[p] == waves:
+                    continue
+                mark[p] = waves
+                ver[p] += 1
+                i, j = PI[p], PJ[p]
+                if not (live[i] and live[j]):
+                    continue
+                tp, sl = toi(i, j, t, x, u, r, inv, spd, dt)
+                if tp >= 0.0:
+                    if hn == hcap:
+                        hcap *= 2
+                        ht, hs = _grow_f(ht, hcap), _grow_f(hs, hcap)
+                        hp, hv = _grow_i(hp, hcap), _grow_i(hv, hcap)
+                    ht[hn], hp[hn], hv[hn], hs[hn] = tp, p, ver[p], sl
+                    _sift_up(ht, hp, hv, hs, hn)
+                    hn += 1
+    stats[0] = P
+    stats[1] = ne
+    stats[2] = waves
+    return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
+
+
+@njit(cache=True)
+def _stick(cs, m, wi, wj, wn, inv, u, wlam, dv, moved, nm, bmark, wave):
+    """Give an island its centre-of-mass velocity (or an immovable member's): all relative motion stops."""
+    # bodies of the island
+    mass = 0.0
+    px = py = pz = 0.0
+    anchor = -1
+    for a in range(m):
+        c = cs[a]
+        for b in (wi[c], wj[c]):
+            if inv[b] == 0.0:
+                anchor = b
+    seen = np.empty(2 * m, np.int64)
+    ns = 0
+    for a in range(m):
+        c = cs[a]
+        for b in (wi[c], wj[c]):
+            dup = False
+            for q in range(ns):
+                if seen[q] == b:
+                    dup = True
+            if not dup:
+                seen[ns] = b
+                ns += 1
+    if anchor >= 0:
+        vx, vy, vz = u[anchor, 0], u[anchor, 1], u[anchor, 2]
+    else:
+        for q in range(ns):
+            b = seen[q]
+            mb = 1.0 / inv[b]
+            mass += mb
+            px += mb * u[b, 0]
+            py += mb * u[b, 1]
+            pz += mb * u[b, 2]
+        vx, vy, vz = px / mass, py / mass, pz / mass
+    for q in range(ns):
+        b = seen[q]
+        if inv[b] == 0.0:
+            continue
+        if bmark[b] != wave:
+            bmark[b] = wave
+            moved[nm] = b
+            nm += 1
+        dv[b, 0] = vx - u[b, 0]
+        dv[b, 1] = vy - u[b, 1]
+        dv[b, 2] = vz - u[b, 2]
+    for a in range(m):
+        c = cs[a]
+        j = wj[c]
+        if inv[j] > 0.0:
+            lam = (dv[j, 0] * wn[c, 0] + dv[j, 1] * wn[c, 1] + dv[j, 2] * wn[c, 2]) / inv[j]
+        else:
+            i = wi[c]
+            lam = -(dv[i, 0] * wn[c, 0] + dv[i, 1] * wn[c, 1] + dv[i, 2] * wn[c, 2]) / inv[i]
+        wlam[c] = lam if lam > 0.0 else 0.0
+    return nm
+
+
+@njit(cache=True)
+def _has_pair(b, o, head, nxt, PI, PJ):
+    node = head[b]
+    while node >= 0:
+        p = node >> 1
+        if (PI[p] == o and PJ[p] == b) or (PI[p] == b and PJ[p] == o):
+            return True
+        node = nxt[node]
+    return False
+
+
+@njit(cache=True)
+def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, order, lo_x, width, start):
+    """Add the pairs of swept body b's path box with the listed territories and the other swept boxes."""
+    n = swept.shape[0]
+    found = bp.territory_query(blo[b], bhi[b], order, lo_x, width, centre, reach, swept)
+    extra = np.empty(n, np.int64)
+    ne = 0
+    for o in range(n):
+        if o != b and swept[o]:
+            if start and o < b:
+                continue                                  # at the start each swept pair once
+            ok = True
+            for d in range(3):
+                if blo[b, d] > bhi[o, d] or blo[o, d] > bhi[b, d]:
+                    ok = False
+            if ok:
+                extra[ne] = o
+                ne += 1
+    for q in range(found.shape[0] + ne):
+        o = found[q] if q < found.shape[0] else extra[q - found.shape[0]]
+        if o == b or _has_pair(b, o, head, nxt, PI, PJ):
+            continue
+        if P == PI.shape[0]:
+            PI, PJ = _grow_i(PI, 2 * P), _grow_i(PJ, 2 * P)
+            nxt = _grow_i(nxt, 4 * P)
+            ver2 = np.zeros(2 * P, np.int64)
+            ver2[:P] = ver[:P]
+            ver = ver2
+            mark2 = np.full(2 * P, -1, np.int64)
+            mark2[:P] = mark[:P]
+            mark = mark2
+        PI[P] = min(b, o)
+        PJ[P] = max(b, o)
+        ver[P] = 0
+        mark[P] = -1
+        _link(P, PI[P], PJ[P], head, nxt)
+        P += 1
+    return P, PI, PJ, nxt, ver, mark
