@@ -12,6 +12,7 @@ from driftframe.components.collision import SphereCollider
 from driftframe.components.control import FlightControl, FlightInput, Player, RotationAssist
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
+from driftframe.framework import placement
 
 
 def ship(world, *, mode: str = "momentum", position=(0.0, 0.0, 0.0), forward=(0.0, 0.0, 1.0),
@@ -70,18 +71,10 @@ def asteroid_field(world, rng, n: int, *, inner: float, outer: float, radii=(0.5
                              colour=tuple(np.clip(rng.uniform(0.4, 0.6) * (1 + rng.normal(0, 0.04, 3)), 0, 1))) for i, r in enumerate(sizes)]
     kind = rng.integers(0, variants, n)
     r = sizes[kind]
-    pos = np.empty((n, 3))
-    centre = np.asarray(centre, dtype=float)
     clear_at = np.array([c for c, _ in keep_clear], float).reshape(-1, 3)
     clear_r = np.array([cr for _, cr in keep_clear], float)
-    placed = 0
-    while placed < n:                            # rejection sampling: no overlaps at spawn
-        d = rng.normal(size=3)
-        p = centre + d / np.linalg.norm(d) * rng.uniform(inner, outer)
-        if (np.all(np.linalg.norm(pos[:placed] - p, axis=1) > r[:placed] + r[placed] + 0.1)
-                and np.all(np.linalg.norm(clear_at - p, axis=1) > clear_r + r[placed] + 0.1)):
-            pos[placed] = p
-            placed += 1
+    pos = placement.place(rng, r, placement.in_shell(inner, outer, centre), gap=0.1,
+                          avoid=(clear_at, clear_r))                     # no overlaps at spawn
     vel = rng.normal(0.0, speed / np.sqrt(3), (n, 3))
     w = rng.normal(0.0, spin / np.sqrt(3), (n, 3))
     q = fr.quat_from_rotvec(rng.normal(size=(n, 3)))

@@ -274,7 +274,7 @@ class NeighbourList:
 
     def build(self, centres: np.ndarray, radii: np.ndarray, step_disp: np.ndarray) -> None:
         """(Re)build from centres (3, n), radii (n,) and each body's displacement per step (n,), m."""
-        c = np.array(centres, np.float64)
+        c = np.array(centres, np.float64, order="C")      # C order: the compiled kernels take one layout
         r = np.array(radii, np.float64)
         d = np.asarray(step_disp, np.float64)
         n = len(r)
@@ -318,7 +318,7 @@ class NeighbourList:
 
     def kernel_arrays(self):
         """The arrays :func:`territory_query` reads: ``(centre, skin, reach, order, lo_x, width)``."""
-        return self.centre, self.skin, self.reach, self._order, self._lo_x, self._width
+        return (self.centre, self.skin, self.reach, self._order.astype(np.int64), self._lo_x, self._width)
 
     def territories(self, lo, hi) -> np.ndarray:
         """Listed (not swept) bodies whose territory box overlaps the box ``[lo, hi]`` (3-vectors)."""

@@ -60,13 +60,19 @@ one.
 * *Jams*: a sphere wedged between immovable ones has no elastic answer and
   bounces forever in no time. Once a body's burst exceeds :data:`JAM` waves,
   its contacts are taken with ``e = 0`` for the rest of that burst (the
-  motion along the walls is kept); past ``2 JAM`` the island is given its
-  centre-of-mass velocity (every relative velocity in it becomes zero),
+  motion along the walls is kept); past ``2 JAM`` the island's touching
+  cluster is given one velocity (its centre of mass's, or that of an
+  immovable body it touches), so every relative velocity in it is zero,
   which ends any burst.
-* *Contacts per body per step* are capped the same way: past ``cap`` a
-  body's contacts are taken with ``e = 0``; past ``2 cap`` its island sticks.
-  So the work of a step is bounded by the bodies involved times these
-  constants, and grows with the island, not with the scene.
+* *Inelastic contacts per body per step* (pairs with ``e < 1``) are capped
+  the same way: past ``cap`` a body's contacts are taken with ``e = 0``,
+  past ``2 cap`` its touching cluster moves as one. A clump of inelastic
+  spheres comes to rest as a clump instead of chattering. Elastic pairs are
+  never capped (only bursts bound them), so no energy that should be kept is
+  lost.
+
+So the work of a step is bounded by the bodies involved times these
+constants: it grows with the island, not with the scene.
 
 The ``flags`` returned say which of these engaged (for a warning).
 """
@@ -92,7 +98,7 @@ DENSE_MAX = 32
 #: Waves in a burst (each within t_c of the previous) before a body's contacts lose their bounce.
 JAM = 256
 #: Default cap on one body's contacts in one step (then e = 0; at twice this its island sticks).
-CAP = 1024
+CAP = 32
 #: Default t_c of the TC model, as a fraction of dt.
 TC = 1e-6
 
@@ -371,7 +377,7 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
     spd = np.empty(n)
     for k in range(n):
         spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
-    stats = np.zeros(9)
+    stats = np.zeros(12)
     flags = 0
     n_swept = 0
     if listed:
@@ -438,6 +444,8 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
     parent = np.arange(n)
     ustamp = np.full(n, -1, np.int64)
     kstamp = np.full(n, -1, np.int64)
+    sseen = np.full(n, -1, np.int64)
+    squeue = np.empty(n, np.int64)
     same = SLACK_MAX * dt
     # wave scratch (grown as needed)
     wcap = 64
@@ -500,8 +508,11 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
                 dy = x[j, 1] - x[i, 1] + wy * t0
                 dz = x[j, 2] - x[i, 2] + wz * t0
                 dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                nx, ny, nz = dx / dist, dy / dist, dz / dist
-                vn = nx * wx + ny * wy + nz * wz
+                if dist > 0.0:
+                    nx, ny, nz = dx / dist, dy / dist, dz / dist
+                    vn = nx * wx + ny * wy + nz * wz
+                else:
+                    nx = ny = nz = vn = 0.0
                 if vn < -APPROACH * (spd[i] + spd[j]):
                     if K == wcap:
                         wcap *= 2
@@ -517,6 +528,7 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
             if hn == 0 or ht[0] > horizon:
                 break
             tp, pp, vv, ss = ht[0], hp[0], hv[0], hs[0]
+            stats[9] += 1
             hn -= 1
             if hn > 0:
                 _swap(ht, hp, hv, hs, 0, hn)
@@ -536,6 +548,7 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
                 nb += 1
                 cand_ok = False
         ver[p0] += 1
+        stats[11] += nb
         for b in range(nb):                                # not this instant: back into the heap
             if hn == hcap:
                 hcap *= 2
@@ -559,14 +572,15 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
             bj = burst[j] + 1 if gj <= t_c else 1
             # TC: a repeat within t_c, but not the same instant (a wave chain is bounded by the burst)
             rapid = (same < gi <= t_c) or (same < gj <= t_c)
-            wstick[k] = bi > 2 * JAM or bj > 2 * JAM or count[i] >= 2 * cap or count[j] >= 2 * cap
+            worn = ee < 1.0 and (count[i] >= cap or count[j] >= cap)
+            wstick[k] = bi > 2 * JAM or bj > 2 * JAM or (ee < 1.0 and (count[i] >= 2 * cap or count[j] >= 2 * cap))
             if wstick[k]:
                 stick_any = True
                 ee = 0.0
             elif bi > JAM or bj > JAM:
                 ee = 0.0
                 flags |= F_JAM
-            elif count[i] >= cap or count[j] >= cap:
+            elif worn:
                 ee = 0.0
                 flags |= F_CAP
             elif ee < 1.0 and rapid:
@@ -621,7 +635,8 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
                     if wstick[cs[a]]:
                         stick = True
             if stick:
-                nm = _stick(cs, m, wi, wj, wn, inv, u, wlam, dv, moved, nm, bmark, waves)
+                nm = _stick(cs, m, wi, wj, wn, inv, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head, nxt,
+                            PI, PJ, sseen, squeue)
                 flags |= F_STICK
             elif m == 1:
                 c = cs[0]
@@ -701,7 +716,8 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
                     kstamp[b] = waves                      # once per body per wave
                     burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
                     t_last[b] = t
-                    count[b] += 1
+                    if min(e[i], e[j]) < 1.0:
+                        count[b] += 1                      # the cap is on inelastic contacts
             if ne == ecap:
                 ecap *= 2
                 ev, ev_n, ev_x = _grow_f(ev, ecap), _grow_f(ev_n, ecap), _grow_f(ev_x, ecap)
@@ -778,6 +794,7 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
                     ht[hn], hp[hn], hv[hn], hs[hn] = tp, p, ver[p], sl
                     _sift_up(ht, hp, hv, hs, hn)
                     hn += 1
+                    stats[10] += 1
     stats[0] = P
     stats[1] = ne
     stats[2] = waves
@@ -785,44 +802,65 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
 
 
 @njit(cache=True)
-def _stick(cs, m, wi, wj, wn, inv, u, wlam, dv, moved, nm, bmark, wave):
-    """Give an island its centre-of-mass velocity (or an immovable member's): all relative motion stops."""
-    # bodies of the island
-    mass = 0.0
-    px = py = pz = 0.0
+def _stick(cs, m, wi, wj, wn, inv, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen, queue):
+    """Give the touching cluster of an island's bodies one velocity: its centre of mass's, or that of an
+    immovable body it touches. Every relative velocity in it becomes zero, which ends any burst.
+
+    The cluster: the island's bodies and every movable body reached through candidate pairs whose gap at
+    ``t`` is below ``TOUCH R`` (immovable bodies anchor it and are not crossed).
+    """
+    nq = 0
     anchor = -1
     for a in range(m):
         c = cs[a]
         for b in (wi[c], wj[c]):
             if inv[b] == 0.0:
                 anchor = b
-    seen = np.empty(2 * m, np.int64)
-    ns = 0
-    for a in range(m):
-        c = cs[a]
-        for b in (wi[c], wj[c]):
-            dup = False
-            for q in range(ns):
-                if seen[q] == b:
-                    dup = True
-            if not dup:
-                seen[ns] = b
-                ns += 1
+            elif seen[b] != wave:
+                seen[b] = wave
+                queue[nq] = b
+                nq += 1
+    h = 0
+    while h < nq:
+        b = queue[h]
+        h += 1
+        node = head[b]
+        while node >= 0:
+            p = node >> 1
+            node = nxt[node]
+            o = PJ[p] if PI[p] == b else PI[p]
+            if seen[o] == wave:
+                continue
+            d2 = 0.0
+            for d in range(3):
+                q = x[o, d] + u[o, d] * t - x[b, d] - u[b, d] * t
+                d2 += q * q
+            R = (r[o] + r[b]) * (1.0 + TOUCH)
+            if d2 > R * R:
+                continue
+            if inv[o] == 0.0:
+                anchor = o
+                continue
+            seen[o] = wave
+            queue[nq] = o
+            nq += 1
+    if nq == 0:
+        return nm                                          # already moved with another island's cluster
     if anchor >= 0:
         vx, vy, vz = u[anchor, 0], u[anchor, 1], u[anchor, 2]
     else:
-        for q in range(ns):
-            b = seen[q]
+        mass = 0.0
+        px = py = pz = 0.0
+        for q in range(nq):
+            b = queue[q]
             mb = 1.0 / inv[b]
             mass += mb
             px += mb * u[b, 0]
             py += mb * u[b, 1]
             pz += mb * u[b, 2]
         vx, vy, vz = px / mass, py / mass, pz / mass
-    for q in range(ns):
-        b = seen[q]
-        if inv[b] == 0.0:
-            continue
+    for q in range(nq):
+        b = queue[q]
         if bmark[b] != wave:
             bmark[b] = wave
             moved[nm] = b

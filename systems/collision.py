@@ -337,7 +337,7 @@ class CollisionSystem(esper.Processor):
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
             out = contact.solve_step(x, u, r, inv, e, live, self._pi, self._pj, dt, t_c, self.max_contacts,
                                      True, nl.swept, self._blo, self._bhi, centre, skin, reach,
-                                     order.astype(np.int64), lo_x, float(width), int(nl.budget))
+                                     order, lo_x, float(width), int(nl.budget))
         changed, ev, ev_n, ev_x, stats, flags = out
         self.stats["pairs"] = int(stats[0])
         self.stats["contacts"] = int(stats[1])
