@@ -342,13 +342,15 @@ def all_pairs(n):
 
 
 @njit(cache=True)
-def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
+def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
     """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
 
     ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
     per body; ``live``: bodies taking part (False: a body with non-finite
-    state, left out). ``pi``, ``pj``: candidate pairs. With ``listed`` the
+    state, left out); ``t_last``: each body's last contact time relative to
+    the start of this step (-inf: none; negative: an earlier step), updated in
+    place (the TC model looks back across steps). ``pi``, ``pj``: candidate pairs. With ``listed`` the
     candidates come from a :class:`~driftframe.framework.broadphase.NeighbourList`
     (``swept``, ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n),
     ``skin``, ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in
@@ -437,7 +439,6 @@ def solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, cap,
 
     # -- per body bookkeeping --
     changed = np.zeros(n, np.bool_)
-    t_last = np.full(n, -_INF)
     burst = np.zeros(n, np.int64)
     count = np.zeros(n, np.int64)
     bmark = np.full(n, -1, np.int64)

@@ -215,7 +215,8 @@ class CollisionSystem(esper.Processor):
         self._pairs = (_NO_I, _NO_I)
         self._warned: set[str] = set()
         self._reported_overlap = None
-        self._bad: set[tuple[int, str]] = set()
+        self._bad: set[int] = set()
+        self._t_last_layout = None
         self.stats = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "overlaps": 0,
                       "sequential": 0, "left_out": 0}
 
@@ -306,13 +307,19 @@ class CollisionSystem(esper.Processor):
         if u is st.v0:
             u = u.copy()
         t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
+        # last contact of each body (absolute time), for the TC model across steps
+        now = self._now()
+        if self._t_last_layout is not lay:
+            self._t_last = np.full(n, -math.inf)
+            self._t_last_layout = lay
+        t_last = self._t_last - now
 
         if self.broadphase == "all" or (self.broadphase == "auto" and n <= bp.ALL_PAIRS_MAX):
             if self._pairs_n != n:                           # every pair (kept for this n only)
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
             pi, pj = self._pairs
-            out = contact.solve_step(x, u, r, inv, e, live, pi, pj, dt, t_c, self.max_contacts,
+            out = contact.solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, self.max_contacts,
                                      False, _NO_B, _NO_N3, _NO_N3, _NO_3, _NO_F, _NO_F, _NO_I, _NO_F, 0.0, 0)
         else:
             nl = self._list
@@ -335,10 +342,11 @@ class CollisionSystem(esper.Processor):
                 self._bhi = np.empty((n, 3))
                 self.stats["builds"] = 1
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
-            out = contact.solve_step(x, u, r, inv, e, live, self._pi, self._pj, dt, t_c, self.max_contacts,
+            out = contact.solve_step(x, u, r, inv, e, live, t_last, self._pi, self._pj, dt, t_c, self.max_contacts,
                                      True, nl.swept, self._blo, self._bhi, centre, skin, reach,
                                      order, lo_x, float(width), int(nl.budget))
         changed, ev, ev_n, ev_x, stats, flags = out
+        self._t_last = t_last + now
         self.stats["pairs"] = int(stats[0])
         self.stats["contacts"] = int(stats[1])
         self.stats["waves"] = int(stats[2])
@@ -372,12 +380,11 @@ class CollisionSystem(esper.Processor):
     def _report_bad(self, lay, st, bad):
         now = set()
         for k in np.flatnonzero(bad).tolist():
-            what = st.describe(k)
-            key = (int(lay.entities[k]), what.split(" =")[0])
-            now.add(key)
-            if key not in self._bad:
-                warnings.warn(f"collision: entity {key[0]} has {what} at t = {self._now()!r} s; it is left out of "
-                              f"collisions until it is valid again", RuntimeWarning, stacklevel=4)
+            ent = int(lay.entities[k])
+            now.add(ent)
+            if ent not in self._bad:                          # once, until it is valid again
+                warnings.warn(f"collision: entity {ent} has {st.describe(k)} at t = {self._now()!r} s; it is left "
+                              f"out of collisions until it is valid again", RuntimeWarning, stacklevel=4)
         self._bad = now
 
     def _flags(self, flags, lay):
