@@ -141,8 +141,10 @@ def toi(i, j, t, x, u, r, inv, spd, dt):
     dx = x[j, 0] - x[i, 0] + wx * t
     dy = x[j, 1] - x[i, 1] + wy * t
     dz = x[j, 2] - x[i, 2] + wz * t
-    dd = dx * dx + dy * dy + dz * dz
     b = dx * wx + dy * wy + dz * wz                        # |d| times the normal relative velocity
+    if not (b < 0.0):
+        return -1.0, 0.0                                   # separating (or at rest): most pairs end here
+    dd = dx * dx + dy * dy + dz * dz
     R = r[i] + r[j]
     dist = math.sqrt(dd)
     if not (b < -APPROACH * (spd[i] + spd[j]) * dist) or not (dist > CENTRED * R):
@@ -419,8 +421,10 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
         dy = x[j, 1] - x[i, 1]
         dz = x[j, 2] - x[i, 2]
         R = r[i] + r[j]
-        q = math.sqrt(dx * dx + dy * dy + dz * dz) / R
-        if q < 1.0 - TOUCH:
+        dd = dx * dx + dy * dy + dz * dz
+        Rt = R * (1.0 - TOUCH)
+        if dd < Rt * Rt:
+            q = math.sqrt(dd) / R
             overlaps += 1
             if q < worst:
                 worst, wi_, wj_ = q, i, j
@@ -930,3 +934,34 @@ def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, o
         _link(P, PI[P], PJ[P], head, nxt)
         P += 1
     return P, PI, PJ, nxt, ver, mark
+
+
+@njit(cache=True)
+def solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap):
+    """:func:`solve_step` with every pair a candidate (few bodies): fewer arguments to pass per step."""
+    nob = np.zeros(0, np.bool_)
+    n3 = np.empty((0, 3))
+    t3 = np.empty((3, 0))
+    f = np.empty(0)
+    return solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
+                      False, nob, n3, n3.copy(), t3, f, f.copy(), np.empty(0, np.int64), f.copy(), 0.0, 0)
+
+
+@njit(cache=True)
+def check_bodies(x, v, a, r, e, inv, live):
+    """Mark in ``live`` the bodies whose state is valid (finite position, velocity, acceleration;
+    radius > 0; restitution in [0, 1]; inverse mass finite and >= 0). ``a`` may have 0 rows (none).
+    Returns how many are not."""
+    bad = 0
+    has_a = a.shape[0] == x.shape[0]
+    for k in range(x.shape[0]):
+        ok = r[k] > 0.0 and r[k] < _INF and e[k] >= 0.0 and e[k] <= 1.0 and inv[k] >= 0.0 and inv[k] < _INF
+        for d in range(3):
+            s = x[k, d] + v[k, d]
+            if has_a:
+                s += a[k, d]
+            ok = ok and (s - s == 0.0)                      # finite (nan and inf give nan)
+        live[k] = ok
+        if not ok:
+            bad += 1
+    return bad

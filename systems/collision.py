@@ -58,10 +58,6 @@ from driftframe.systems import movement
 
 METHODS = ("continuous", "articles")
 
-_NO_I = np.empty(0, np.int64)
-_NO_F = np.empty(0)
-_NO_B = np.zeros(0, np.bool_)
-_NO_3 = np.empty((3, 0))
 _NO_N3 = np.empty((0, 3))
 
 
@@ -135,15 +131,12 @@ class State:
         return x1, v1
 
     def bad(self, lay: _Layout) -> np.ndarray | None:
-        """Bodies with a non-finite or invalid field, or None (one pass over the arrays)."""
-        ok = np.isfinite(self.x0).all(axis=1) & np.isfinite(self.v0).all(axis=1)
-        ok &= (self.r > 0) & np.isfinite(self.r) & (self.e >= 0) & (self.e <= 1) & (self.inv >= 0)
-        ok &= np.isfinite(self.inv)
-        if self.a is not None:
-            ok &= np.isfinite(self.a).all(axis=1)
-        if ok.all():
+        """Bodies with a non-finite or invalid field, or None (one compiled pass over the arrays)."""
+        live = np.empty(lay.n, np.bool_)
+        a = self.a if self.a is not None else _NO_N3
+        if contact.check_bodies(self.x0, self.v0, a, self.r, self.e, self.inv, live) == 0:
             return None
-        return ~ok
+        return ~live
 
     def describe(self, k: int) -> str:
         """Which field of body k is bad, and its value."""
@@ -212,7 +205,7 @@ class CollisionSystem(esper.Processor):
         self._list_layout = None
         self._list_dirty = True
         self._pairs_n = -1
-        self._pairs = (_NO_I, _NO_I)
+        self._pairs = None
         self._warned: set[str] = set()
         self._reported_overlap = None
         self._bad: set[int] = set()
@@ -319,8 +312,7 @@ class CollisionSystem(esper.Processor):
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
             pi, pj = self._pairs
-            out = contact.solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, self.max_contacts,
-                                     False, _NO_B, _NO_N3, _NO_N3, _NO_3, _NO_F, _NO_F, _NO_I, _NO_F, 0.0, 0)
+            out = contact.solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, self.max_contacts)
         else:
             nl = self._list
             ends = x + u * dt
