@@ -358,3 +358,28 @@ def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
             out[m] = k
             m += 1
     return out[:m]
+
+
+@njit(cache=True)
+def mark_strays(x, u, dt, centre, skin, swept):
+    """Mark as swept every listed body whose path ``x + u t``, 0 <= t <= dt, leaves its territory
+    (either end at its skin's distance or more from its build centre; a ball is convex).
+    ``x``, ``u``: (n, 3); ``centre``: (3, n). Returns ``(newly swept, swept now)``."""
+    total = 0
+    new = 0
+    for k in range(x.shape[0]):
+        if not swept[k]:
+            s2 = skin[k] * skin[k]
+            a = 0.0
+            b = 0.0
+            for d in range(3):
+                o = x[k, d] - centre[d, k]
+                a += o * o
+                o2 = x[k, d] + u[k, d] * dt - centre[d, k]
+                b += o2 * o2
+            if a >= s2 or b >= s2:
+                swept[k] = True
+                new += 1
+        if swept[k]:
+            total += 1
+    return new, total

@@ -112,21 +112,21 @@ F_LIMIT = 16
 _INF = math.inf
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _grow_f(a, n):
     b = np.empty((max(n, 2 * a.shape[0]),) + a.shape[1:], a.dtype)
     b[:a.shape[0]] = a
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _grow_i(a, n):
     b = np.empty(max(n, 2 * a.shape[0]), a.dtype)
     b[:a.shape[0]] = a
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def toi(i, j, t, x, u, r, inv, spd, dt):
     """Earliest time of impact in [t, dt] of bodies i, j (paths x + u t'); (-1, 0) when none.
 
@@ -184,12 +184,12 @@ def toi(i, j, t, x, u, r, inv, spd, dt):
 
 # -- binary heap of (time, pair, version, slack) ------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _less(ht, hp, a, b):
     return ht[a] < ht[b] or (ht[a] == ht[b] and hp[a] < hp[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _swap(ht, hp, hv, hs, a, b):
     ht[a], ht[b] = ht[b], ht[a]
     hp[a], hp[b] = hp[b], hp[a]
@@ -197,7 +197,7 @@ def _swap(ht, hp, hv, hs, a, b):
     hs[a], hs[b] = hs[b], hs[a]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sift_up(ht, hp, hv, hs, k):
     while k > 0:
         parent = (k - 1) >> 1
@@ -208,7 +208,7 @@ def _sift_up(ht, hp, hv, hs, k):
             break
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sift_down(ht, hp, hv, hs, k, n):
     while True:
         a = 2 * k + 1
@@ -225,7 +225,7 @@ def _sift_down(ht, hp, hv, hs, k, n):
 
 # -- dense solve ------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_psd(A, y, m, out):
     """Solve ``A[:m, :m] out = y[:m]`` for a symmetric positive semi-definite A (A and y are overwritten).
 
@@ -272,7 +272,7 @@ def solve_psd(A, y, m, out):
         out[perm[s]] = sol[s]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
     """Impulses of one island's contacts ``cs[:K]`` (indices into the wave), >= 0, into ``lam``."""
     for a in range(K):
@@ -320,7 +320,7 @@ def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
 
 # -- the step ---------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _link(p, i, j, head, nxt):
     nxt[2 * p] = head[i]
     head[i] = 2 * p
@@ -328,7 +328,25 @@ def _link(p, i, j, head, nxt):
     head[j] = 2 * p + 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _pair_structures(pi, pj, n):
+    """Growable copies of the pairs, their adjacency lists (head/nxt), versions and marks."""
+    P = pi.shape[0]
+    cap_p = max(2 * P, 16)
+    PI = np.empty(cap_p, np.int64)
+    PJ = np.empty(cap_p, np.int64)
+    PI[:P] = pi
+    PJ[:P] = pj
+    head = np.full(n, -1, np.int64)
+    nxt = np.empty(2 * cap_p, np.int64)
+    for p in range(P):
+        _link(p, PI[p], PJ[p], head, nxt)
+    ver = np.zeros(cap_p, np.int64)
+    mark = np.full(cap_p, -1, np.int64)
+    return P, PI, PJ, head, nxt, ver, mark
+
+
+@njit(cache=True, error_model="numpy")
 def all_pairs(n):
     """Every pair i < j of n bodies, in lexicographic order."""
     P = n * (n - 1) // 2
@@ -343,66 +361,9 @@ def all_pairs(n):
     return pi, pj
 
 
-@njit(cache=True)
-def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
-               listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
-    """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
-
-    ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
-    per body; ``live``: bodies taking part (False: a body with non-finite
-    state, left out); ``t_last``: each body's last contact time relative to
-    the start of this step (-inf: none; negative: an earlier step), updated in
-    place (the TC model looks back across steps). ``pi``, ``pj``: candidate pairs. With ``listed`` the
-    candidates come from a :class:`~driftframe.framework.broadphase.NeighbourList`
-    (``swept``, ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n),
-    ``skin``, ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in
-    place for bodies swept here), and bodies whose path leaves their territory
-    are swept against the others and their new pairs added.
-
-    Returns ``(changed, events, ev_n, ev_point, stats, flags)``: which bodies'
-    velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
-    and the contact points on i's and on j's surface (6 numbers); ``stats`` = [pairs, contacts, waves,
-    swept, overlaps, worst overlap pair i, j, worst distance / R, islands
-    solved contact by contact]; ``flags`` (F_* bits).
-    """
-    n = x.shape[0]
-    P = pi.shape[0]
-    cap_p = max(2 * P, 16)
-    PI = np.empty(cap_p, np.int64)
-    PJ = np.empty(cap_p, np.int64)
-    PI[:P] = pi
-    PJ[:P] = pj
-    head = np.full(n, -1, np.int64)
-    nxt = np.empty(2 * cap_p, np.int64)
-    for p in range(P):
-        _link(p, PI[p], PJ[p], head, nxt)
-    ver = np.zeros(cap_p, np.int64)
-    mark = np.full(cap_p, -1, np.int64)
-    spd = np.empty(n)
-    for k in range(n):
-        spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
-    stats = np.zeros(12)
-    flags = 0
-    n_swept = 0
-    if listed:
-        for k in range(n):
-            if swept[k]:
-                n_swept += 1
-        # bodies swept at the start: their whole path against the territories and each other
-        for k in range(n):
-            if swept[k] and live[k]:
-                for d in range(3):
-                    a0 = x[k, d]
-                    a1 = x[k, d] + u[k, d] * dt
-                    blo[k, d] = min(a0, a1) - r[k]
-                    bhi[k, d] = max(a0, a1) + r[k]
-        for k in range(n):
-            if swept[k] and live[k]:
-                P, PI, PJ, nxt, ver, mark = _sweep(k, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
-                                                   centre, reach, order, lo_x, width, True)
-        stats[3] = n_swept
-
-    # -- heap of pending contacts --
+@njit(cache=True, error_model="numpy")
+def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
+    """Every candidate pair's time of impact from t = 0, into a heap; and the overlaps at the start."""
     hcap = 1024
     ht = np.empty(hcap)
     hp = np.empty(hcap, np.int64)
@@ -436,10 +397,76 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                 hp, hv = _grow_i(hp, hcap), _grow_i(hv, hcap)
             ht[hn], hp[hn], hv[hn], hs[hn] = tp, p, 0, sl
             hn += 1
+    return ht, hp, hv, hs, hn, overlaps, worst, wi_, wj_
+
+
+@njit(cache=True, error_model="numpy")
+def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
+               listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
+    """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
+
+    ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
+    per body; ``live``: bodies taking part (False: a body with non-finite
+    state, left out); ``t_last``: each body's last contact time relative to
+    the start of this step (-inf: none; negative: an earlier step), updated in
+    place (the TC model looks back across steps). ``pi``, ``pj``: candidate pairs. With ``listed`` the
+    candidates come from a :class:`~driftframe.framework.broadphase.NeighbourList`
+    (``swept``, ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n),
+    ``skin``, ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in
+    place for bodies swept here), and bodies whose path leaves their territory
+    are swept against the others and their new pairs added.
+
+    Returns ``(changed, events, ev_n, ev_point, stats, flags)``: which bodies'
+    velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
+    and the contact points on i's and on j's surface (6 numbers); ``stats`` = [pairs, contacts, waves,
+    swept, overlaps, worst overlap pair i, j, worst distance / R, islands
+    solved contact by contact]; ``flags`` (F_* bits).
+    """
+    n = x.shape[0]
+    P = pi.shape[0]
+    stats = np.zeros(12)
+    flags = 0
+    n_swept = 0
+    if listed:
+        for k in range(n):
+            if swept[k] and live[k]:
+                n_swept += 1
+    # the pair structures (adjacency, versions) are made only when needed: a quiet step makes none
+    early = n_swept > 0
+    if early:
+        P, PI, PJ, head, nxt, ver, mark = _pair_structures(pi, pj, n)
+    else:
+        PI, PJ = pi, pj
+    spd = np.empty(n)
+    for k in range(n):
+        spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
+    if early:
+        # bodies swept at the start: their whole path against the territories and each other
+        for k in range(n):
+            if swept[k] and live[k]:
+                for d in range(3):
+                    a0 = x[k, d]
+                    a1 = x[k, d] + u[k, d] * dt
+                    blo[k, d] = min(a0, a1) - r[k]
+                    bhi[k, d] = max(a0, a1) + r[k]
+        for k in range(n):
+            if swept[k] and live[k]:
+                P, PI, PJ, nxt, ver, mark = _sweep(k, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
+                                                   centre, reach, order, lo_x, width, True)
+        stats[3] = n_swept
+
+    # -- heap of pending contacts --
+    ht, hp, hv, hs, hn, overlaps, worst, wi_, wj_ = _initial(PI, PJ, P, x, u, r, inv, live, spd, dt)
+    hcap = ht.shape[0]
     for k in range((hn >> 1) - 1, -1, -1):
         _sift_down(ht, hp, hv, hs, k, hn)
     stats[4] = overlaps
     stats[5], stats[6], stats[7] = wi_, wj_, worst
+    if hn == 0:                                            # no contact this step
+        stats[0] = P
+        return np.zeros(n, np.bool_), np.empty((0, 4)), np.empty((0, 3)), np.empty((0, 6)), stats, flags
+    if not early:
+        P, PI, PJ, head, nxt, ver, mark = _pair_structures(pi, pj, n)
 
     # -- per body bookkeeping --
     changed = np.zeros(n, np.bool_)
@@ -806,7 +833,7 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
     return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _stick(cs, m, wi, wj, wn, inv, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen, queue):
     """Give the touching cluster of an island's bodies one velocity: its centre of mass's, or that of an
     immovable body it touches. Every relative velocity in it becomes zero, which ends any burst.
@@ -885,7 +912,7 @@ def _stick(cs, m, wi, wj, wn, inv, u, x, r, t, wlam, dv, moved, nm, bmark, wave,
     return nm
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _has_pair(b, o, head, nxt, PI, PJ):
     node = head[b]
     while node >= 0:
@@ -896,7 +923,7 @@ def _has_pair(b, o, head, nxt, PI, PJ):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, order, lo_x, width, start):
     """Add the pairs of swept body b's path box with the listed territories and the other swept boxes."""
     n = swept.shape[0]
@@ -936,7 +963,7 @@ def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, o
     return P, PI, PJ, nxt, ver, mark
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap):
     """:func:`solve_step` with every pair a candidate (few bodies): fewer arguments to pass per step."""
     nob = np.zeros(0, np.bool_)
@@ -947,7 +974,7 @@ def solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap):
                       False, nob, n3, n3.copy(), t3, f, f.copy(), np.empty(0, np.int64), f.copy(), 0.0, 0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def check_bodies(x, v, a, r, e, inv, live):
     """Mark in ``live`` the bodies whose state is valid (finite position, velocity, acceleration;
     radius > 0; restitution in [0, 1]; inverse mass finite and >= 0). ``a`` may have 0 rows (none).

@@ -315,15 +315,12 @@ class CollisionSystem(esper.Processor):
             out = contact.solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, self.max_contacts)
         else:
             nl = self._list
-            ends = x + u * dt
             rebuild = (self._list_dirty or self._list_layout is not lay or len(nl.radius) != n
                        or not np.array_equal(nl.radius, r))
             if not rebuild:
-                # the straight path x0 -> x1 stays in the territory if both ends do (a ball is convex)
-                stray = nl.strays(x.T, ends.T)
-                if stray.any():
-                    nl.swept |= stray
-                    rebuild = int(np.count_nonzero(nl.swept)) > nl.budget
+                # the list no longer speaks for bodies whose path leaves their territory: they are swept
+                new, total = bp.mark_strays(x, u, dt, nl.centre, nl.skin, nl.swept)
+                rebuild = new > 0 and total > nl.budget          # too many to sweep each step: rebuild
             if rebuild:
                 nl.build(x.T, r, np.sqrt((u * u).sum(axis=1)) * dt)
                 self._list_layout = lay

@@ -1,0 +1,427 @@
+"""Collisions at any density (issue 9): every stress scene side by side with pybullet, in one run.
+
+Scenes (``benchmarks/stress_scenes.py``; dt = 1/60 s, 180 steps unless said):
+dense gas of 2,000 spheres at 30 % and 45 % volume fraction; 200 spheres
+converging on a point with restitution 0 and 0.5; touching crystals (simple
+cubic 10x10x10, FCC 500) with random velocities; 10,000 and 200,000 spheres
+dropped at random (overlapping); a sphere wedged between two immovable ones
+among 30,000 idle bodies; fields at 5 % of 50 / 500 / 10,000 / 100,000
+spheres; two bodies head on.
+
+* driftframe: ``world.step()`` with MovementSystem + CollisionSystem
+  (``events=False``: pybullet makes no Python object per contact either; the
+  gas rows also give the time with events on), timed per step.
+* pybullet 3.2 (the ``compare`` extra), set up as in ``collision_scaling``:
+  as elastic as it goes (restitution 1, threshold 0, no friction, no damping,
+  no sleeping, ``contactERP = 0``), the pair restitution set to the scene's,
+  ``stepSimulation()`` timed per step.
+
+Both run in the same process, in turn, in blocks of steps (so a change of load
+hits both alike); each row gives the mean and the worst step of each, and
+the ratio of the means. Energy: the largest relative rise of kinetic energy
+over the run (and the change for the elastic crystals). Overlap: the deepest
+overlap at a step end, as a fraction of the radius. The 200,000-sphere row
+runs in a child process that reports its peak resident memory. The cold start
+is the first step of a child process with an empty numba cache (compilation)
+and with the cache filled (loading it).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+
+import numpy as np
+
+from benchmarks import common
+from benchmarks import stress_scenes as S
+
+DT = 1.0 / 60.0
+
+
+class Drift:
+    def __init__(self, scene, events=False, prewarm=True):
+        from driftframe.components.body import Acceleration, Mass, Transform, Velocity
+        from driftframe.components.collision import SphereCollider
+
+        self.scene = scene
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            self.w, self.cs, self.ids = S.world_of(scene, events=events)
+            if prewarm:
+                # the world's one-time table sync and query build for freshly made entities (esper's cost,
+                # the same for any system): done before timing, as a game does it at load
+                self.w.sync()
+                for types, opt in (((Transform, SphereCollider), (Velocity, Mass, Acceleration)),
+                                   ((Transform, Velocity), ()), ((Transform, Velocity, Acceleration), ()),
+                                   ((SphereCollider,), ())):
+                    self.w.query(*types, optional=opt).refresh()
+        self.warnings = list(rec)
+        self.m = scene[3]
+        self.r = scene[2]
+
+    def step(self):
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            t = time.perf_counter()
+            self.w.step()
+            el = time.perf_counter() - t
+        self.warnings += rec
+        return el
+
+    def velocities(self):
+        from driftframe.components.body import Velocity
+        return self.w.columns(Velocity, self.ids).linear
+
+    def positions(self):
+        from driftframe.components.body import Transform
+        return self.w.columns(Transform, self.ids).position
+
+    def close(self):
+        self.w.close()
+
+
+class Bullet:
+    def __init__(self, scene):
+        import pybullet as pb
+
+        x, v, r, m, e = scene
+        self.pb = pb
+        self.cid = pb.connect(pb.DIRECT)
+        pb.setGravity(0, 0, 0, physicsClientId=self.cid)
+        pb.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, restitutionVelocityThreshold=0.0,
+                                     contactERP=0.0, physicsClientId=self.cid)
+        self.ids = []
+        shapes = {}
+        # Bullet multiplies the two restitutions: sqrt(e) each gives the pair e
+        for xi, vi, ri, mi, ei in zip(x, v, r, m, e):
+            key = float(ri)
+            if key not in shapes:
+                shapes[key] = pb.createCollisionShape(pb.GEOM_SPHERE, radius=key, physicsClientId=self.cid)
+            b = pb.createMultiBody(baseMass=0.0 if not math.isfinite(mi) else float(mi),
+                                   baseCollisionShapeIndex=shapes[key], basePosition=xi.tolist(),
+                                   useMaximalCoordinates=True, physicsClientId=self.cid)
+            pb.changeDynamics(b, -1, restitution=math.sqrt(float(ei)), lateralFriction=0.0, spinningFriction=0.0,
+                              rollingFriction=0.0, linearDamping=0.0, angularDamping=0.0,
+                              activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=self.cid)
+            pb.resetBaseVelocity(b, vi.tolist(), [0, 0, 0], physicsClientId=self.cid)
+            self.ids.append(b)
+        self.m = m
+        self.r = r
+
+    def step(self):
+        t = time.perf_counter()
+        self.pb.stepSimulation(physicsClientId=self.cid)
+        return time.perf_counter() - t
+
+    def velocities(self):
+        return np.array([self.pb.getBaseVelocity(b, physicsClientId=self.cid)[0] for b in self.ids])
+
+    def positions(self):
+        return np.array([self.pb.getBasePositionAndOrientation(b, physicsClientId=self.cid)[0] for b in self.ids])
+
+    def close(self):
+        self.pb.disconnect(physicsClientId=self.cid)
+
+
+def have_pybullet() -> bool:
+    try:
+        import pybullet  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def kinetic(sim) -> float:
+    m = sim.m
+    fin = np.isfinite(m)
+    v = sim.velocities()
+    return 0.5 * float((m[fin] * (v[fin] * v[fin]).sum(1)).sum())
+
+
+def deepest_overlap(sim) -> float:
+    from driftframe.framework import broadphase as bp
+    x = sim.positions()
+    r = sim.r
+    i, j = bp.sphere_pairs(x, r)
+    if not len(i):
+        return 0.0
+    d = np.linalg.norm(x[j] - x[i], axis=1)
+    return float(((r[i] + r[j] - d) / np.minimum(r[i], r[j])).max())
+
+
+def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False, events=False):
+    """Step driftframe and pybullet in turn, blocks of ``block`` steps; per-step times and checks."""
+    scene = make()
+    sims = {"driftframe": Drift(scene, events=events)}
+    if bullet:
+        sims["pybullet"] = Bullet(scene)
+    times = {k: [] for k in sims}
+    k0 = {k: kinetic(s) for k, s in sims.items()} if energy else {}
+    rise = {k: 0.0 for k in sims}
+    last = dict(k0)
+    over = {k: 0.0 for k in sims}
+    done = 0
+    while done < steps:
+        for k, s in sims.items():
+            for _ in range(min(block, steps - done)):
+                times[k].append(s.step())
+                if energy:
+                    e = kinetic(s)
+                    rise[k] = max(rise[k], (e - last[k]) / k0[k] if k0[k] else 0.0)
+                    last[k] = e
+                if overlap:
+                    over[k] = max(over[k], deepest_overlap(s))
+        done += min(block, steps - done)
+    out = {k: {"mean": float(np.mean(t)), "median": float(np.median(t)), "worst": float(np.max(t)),
+               "first": float(t[0])} for k, t in times.items()}
+    for k, s in sims.items():
+        if energy:
+            out[k]["rise"] = rise[k]
+            out[k]["change"] = (kinetic(s) - k0[k]) / k0[k]
+        if overlap:
+            out[k]["overlap"] = over[k]
+    out["driftframe"]["warnings"] = sorted({str(w.message).split(";")[0][:60] for w in sims["driftframe"].warnings
+                                            if issubclass(w.category, RuntimeWarning)})
+    out["driftframe"]["nwarn"] = len([w for w in sims["driftframe"].warnings
+                                      if issubclass(w.category, RuntimeWarning) and "overlap" in str(w.message)])
+    out["driftframe"]["stats"] = dict(sims["driftframe"].cs.stats)
+    for s in sims.values():
+        s.close()
+    return out
+
+
+def first_step(make, *, bullet=True):
+    """The first step of a fresh scene (driftframe: also its collision stage alone)."""
+    scene = make()
+    d = Drift(scene)
+    t = d.step()
+    out = {"driftframe": {"first": t, "collision": d.w.profile["collision"], "stats": dict(d.cs.stats),
+                          "warnings": len([w for w in d.warnings if "overlap" in str(w.message)]),
+                          "all_warnings": sorted({str(w.message)[:70] for w in d.warnings})}}
+    d.close()
+    if bullet:
+        b = Bullet(scene)
+        out["pybullet"] = {"first": b.step()}
+        b.close()
+    return out
+
+
+CHILD_BIG = r"""
+import json, resource, sys, time, warnings
+sys.path.insert(0, {root!r})
+from benchmarks import stress_scenes as S
+from benchmarks.collision_stress import Drift
+warnings.simplefilter("ignore")
+t = time.perf_counter()
+d = Drift(S.random_overlapping({n}))
+made = time.perf_counter() - t
+times = [d.step() for _ in range({steps})]
+print(json.dumps({{"made": made, "times": times, "stats": d.cs.stats,
+                  "rss": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024}}))
+"""
+
+CHILD_COLD = r"""
+import json, sys, time
+t0 = time.perf_counter()
+sys.path.insert(0, {root!r})
+from benchmarks import stress_scenes as S
+w, cs, ids = S.world_of(S.gas(100, 0.3))
+t = time.perf_counter(); w.step(); first = time.perf_counter() - t
+w2, cs2, _ = S.world_of(S.head_on())
+t = time.perf_counter(); w2.step(); first_small = time.perf_counter() - t
+print(json.dumps({{"first": first, "first_small": first_small, "total": time.perf_counter() - t0}}))
+"""
+
+
+def child(code: str, env=None, timeout=900) -> dict:
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=common.ROOT,
+                         env=env, timeout=timeout)
+    if out.returncode:
+        raise RuntimeError(out.stderr[-2000:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    args = common.parser(__doc__.splitlines()[0]).parse_args(argv)
+    q = args.quick
+    started = time.perf_counter()
+    bullet = have_pybullet()
+    if not bullet:
+        print("[collision_stress] pybullet is not installed (pip install -e '.[compare]'): its column is empty")
+    steps = 30 if q else 180
+    res = {}
+    # load the compiled kernels (both entry points) before timing: the cold start is measured below
+    for make in (S.head_on, lambda: S.gas(200, 0.3)):
+        d = Drift(make())
+        d.step()
+        d.close()
+    # -- rows with many steps --
+    for frac in (0.30, 0.45):
+        res[f"gas{frac}"] = run_scene(lambda: S.gas(2000, frac), steps, bullet=bullet, energy=True)
+        res[f"gas{frac}_events"] = run_scene(lambda: S.gas(2000, frac), steps // 3, bullet=False, events=True)
+    for e in (0.0, 0.5):
+        res[f"conv{e}"] = run_scene(lambda: S.converging(200, e), steps, bullet=bullet, energy=True, overlap=True)
+    for n in (50, 500, 10_000) + (() if q else (100_000,)):
+        st = steps if n <= 500 else (steps // 3 if n <= 10_000 else 20)
+        res[f"field{n}"] = run_scene(lambda: S.field(n), st, bullet=bullet, block=max(2, min(10, st // 4)))
+    res["head_on"] = run_scene(S.head_on, 2000 if not q else 300, bullet=bullet, block=100)
+    # -- first steps --
+    res["sc"] = run_scene(lambda: S.crystal("sc", 10), 30 if not q else 5, bullet=bullet, energy=True, block=5)
+    res["fcc"] = run_scene(lambda: S.crystal("fcc", 5), 30 if not q else 5, bullet=bullet, energy=True, block=5)
+    res["rand10k"] = first_step(lambda: S.random_overlapping(10_000), bullet=bullet)
+    res["wedged"] = first_step(lambda: S.wedged(30_000), bullet=False)
+    res["wedged"]["driftframe"]["waves"] = res["wedged"]["driftframe"]["stats"]["waves"]
+    big = 20_000 if q else 200_000
+    res["rand200k"] = child(CHILD_BIG.format(root=str(common.ROOT), n=big, steps=3))
+    # -- cold start: empty numba cache (compiles) vs filled --
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+        res["cold"] = child(CHILD_COLD.format(root=str(common.ROOT)), env=env)
+        res["warm"] = child(CHILD_COLD.format(root=str(common.ROOT)), env=env)
+    report(res, q, bullet, started)
+    return 0
+
+
+def _ms(x):
+    return f"{x * 1e3:.3g}"
+
+
+def report(res, quick, bullet, started):
+    rows = []
+    verdicts = []
+
+    def pb(key, field="mean"):
+        p = res[key].get("pybullet")
+        return p[field] if p else float("nan")
+
+    def bar(name, ok, text):
+        verdicts.append((name, "met" if ok else "NOT met", text))
+        return "met" if ok else "**not met**"
+
+    for frac in (0.30, 0.45):
+        d = res[f"gas{frac}"]["driftframe"]
+        ratio = d["mean"] / pb(f"gas{frac}")
+        ev = res[f"gas{frac}_events"]["driftframe"]["mean"]
+        ok = ratio <= 0.5 and d["worst"] <= 5 * d["mean"]
+        rows.append([f"dense gas 2,000 at {frac:.0%}", f"{_ms(d['mean'])} / {_ms(d['worst'])} (events on: {_ms(ev)})",
+                     f"{_ms(pb(f'gas{frac}'))} / {_ms(pb(f'gas{frac}', 'worst'))}", f"{ratio:.2f}",
+                     f"energy rise {d['rise']:.1e}", "mean <= 0.5x, worst <= 5x mean",
+                     bar(f"gas {frac:.0%}", ok, f"ratio {ratio:.2f}, worst/mean {d['worst'] / d['mean']:.1f}")])
+    for e in (0.0, 0.5):
+        d = res[f"conv{e}"]["driftframe"]
+        ratio = d["mean"] / pb(f"conv{e}")
+        ok = ratio <= 2 and d["worst"] <= 0.020 and d["rise"] <= 1e-12 and d["overlap"] <= 1e-9
+        p = res[f"conv{e}"].get("pybullet", {})
+        rows.append([f"200 converging, e = {e}", f"{_ms(d['mean'])} / {_ms(d['worst'])}",
+                     f"{_ms(pb(f'conv{e}'))} / {_ms(pb(f'conv{e}', 'worst'))}", f"{ratio:.2f}",
+                     f"rise {d['rise']:.1e}, overlap {d['overlap']:.1e} r (pybullet: rise {p.get('rise', math.nan):.1e}, "
+                     f"overlap {p.get('overlap', math.nan):.1e} r); warnings: {'; '.join(d['warnings']) or 'none'}",
+                     "mean <= 2x, worst <= 20 ms, energy never rises, overlap <= 1e-9 r",
+                     bar(f"converging e={e}", ok, f"ratio {ratio:.2f}, worst {_ms(d['worst'])} ms, rise {d['rise']:.1e}, "
+                                                   f"overlap {d['overlap']:.1e}")])
+    for key, name in (("sc", "touching simple cubic 10x10x10"), ("fcc", "touching FCC 500")):
+        d = res[key]["driftframe"]
+        p = res[key].get("pybullet", {})
+        ok = d["first"] <= 0.050 and abs(d["change"]) <= 1e-12
+        rows.append([name, f"first {_ms(d['first'])}, then {_ms(d['median'])}",
+                     f"first {_ms(p.get('first', math.nan))}", f"{d['first'] / p.get('first', math.nan):.2f} (first)",
+                     f"energy change {d['change']:.1e} (pybullet {p.get('change', math.nan):+.1e})",
+                     "first step <= 50 ms, energy exact to 1e-12",
+                     bar(name, ok, f"first {_ms(d['first'])} ms, energy {d['change']:.1e}")])
+    d = res["rand10k"]["driftframe"]
+    p = res["rand10k"].get("pybullet", {})
+    ok = d["first"] <= 0.100 and d["warnings"] == 1
+    rows.append(["10,000 at random, overlapping", f"first {_ms(d['first'])} (collision {_ms(d['collision'])})",
+                 f"first {_ms(p.get('first', math.nan))}", "", f"{d['stats']['overlaps']} overlapping pairs, "
+                 f"{d['warnings']} warning", "first step <= 100 ms, one warning",
+                 bar("10k overlapping", ok, f"first {_ms(d['first'])} ms, {d['warnings']} warning")])
+    b = res["rand200k"]
+    gib = b["rss"] / 2 ** 30
+    ok = gib <= 2.0
+    rows.append([f"{b['stats'].get('pairs', 0) and ''}{'20,000' if quick else '200,000'} at random, overlapping",
+                 f"steps {', '.join(_ms(t) for t in b['times'])}", "", "",
+                 f"peak memory {gib:.2f} GiB (whole process); made in {b['made']:.1f} s",
+                 "runs; peak memory <= 2 GiB", bar("200k overlapping", ok, f"peak {gib:.2f} GiB")])
+    d = res["wedged"]["driftframe"]
+    ok = d["first"] <= 0.050
+    rows.append(["wedged sphere + 30,000 idle", f"that step {_ms(d['first'])} (collision {_ms(d['collision'])})", "", "",
+                 f"{d['waves']} waves; {'; '.join(d['all_warnings'])}", "that step <= 50 ms",
+                 bar("wedged", ok, f"step {_ms(d['first'])} ms, {d['waves']} waves")])
+    limits = {50: 1.0, 500: 0.25, 10_000: 0.1, 100_000: 0.1}
+    for n, lim in limits.items():
+        if f"field{n}" not in res:
+            continue
+        d = res[f"field{n}"]["driftframe"]
+        ratio = d["mean"] / pb(f"field{n}")
+        rows.append([f"field of {n:,} at 5 %", f"{_ms(d['mean'])} / {_ms(d['worst'])}",
+                     f"{_ms(pb(f'field{n}'))} / {_ms(pb(f'field{n}', 'worst'))}", f"{ratio:.2f}", "",
+                     f"<= {lim:g}x pybullet", bar(f"field {n}", ratio <= lim, f"ratio {ratio:.2f}")])
+    d = res["head_on"]["driftframe"]
+    ok = d["median"] <= 30e-6
+    rows.append(["two bodies head on", f"{d['median'] * 1e6:.1f} us median / {d['worst'] * 1e6:.0f} us worst",
+                 f"{pb('head_on', 'median') * 1e6:.1f} us", f"{d['median'] / pb('head_on', 'median'):.1f}", "",
+                 "<= 30 us per step", bar("head on", ok, f"{d['median'] * 1e6:.1f} us")])
+    cold, warm = res["cold"], res["warm"]
+    table = common.table(["scene", "driftframe ms (mean / worst)", "pybullet ms (mean / worst)", "ratio", "checks",
+                          "bar", "status"], rows)
+    met = sum(v[1] == "met" for v in verdicts)
+    body = f"""
+Each row: the same scene in driftframe (`world.step()`, movement + collision, events off unless said) and in
+pybullet (`stepSimulation()`, as elastic as it goes), in the same process, in turn, in blocks of steps; 180
+steps unless the row says otherwise (fields of 10,000: 60 steps; 100,000: 20; crystals: 30, the first step is
+the bar). Times in ms: mean / worst step. Ratio: driftframe mean / pybullet mean.
+{'' if bullet else 'pybullet is not installed here: its column is empty.'}
+
+{table}
+
+**Bars met: {met} of {len(verdicts)}.** Not met: {', '.join(f'{n} ({t})' for n, s, t in verdicts if s != 'met') or 'none'}.
+
+Cold start (numba compiles the contact kernels on the first run on a machine and caches them next to
+`framework/contact.py`): first step of a fresh process with an empty cache {cold['first']:.1f} s
+(the whole process {cold['total']:.1f} s); with the cache filled {warm['first'] * 1e3:.0f} ms
+(a 2-body scene after it: {warm['first_small'] * 1e3:.1f} ms).
+
+The wedged row times the first step after the world's one-time table sync and query build for 30,000 new
+entities (esper's cost, which any system pays once at load), and includes the neighbour list's first build.
+"""
+    chart(res, rows, verdicts)
+    common.write_section("collision_stress", "Collisions at any density: stress scenes vs pybullet", body,
+                         quick=quick, started=started)
+    print("\n".join(f"[collision_stress] {n}: {s} ({t})" for n, s, t in verdicts))
+
+
+def chart(res, rows, verdicts):
+    fig, ax = common.figure(figsize=(10, 5))
+    names, ratios, colours = [], [], []
+    for key, label in (("gas0.3", "gas 30 %"), ("gas0.45", "gas 45 %"), ("conv0.0", "conv e=0"),
+                       ("conv0.5", "conv e=0.5"), ("field50", "field 50"), ("field500", "field 500"),
+                       ("field10000", "field 10k"), ("field100000", "field 100k"), ("head_on", "head on")):
+        if key in res and "pybullet" in res[key]:
+            d, p = res[key]["driftframe"], res[key]["pybullet"]
+            names.append(label)
+            ratios.append(d["mean"] / p["mean"])
+    bars = {"gas 30 %": 0.5, "gas 45 %": 0.5, "conv e=0": 2, "conv e=0.5": 2, "field 50": 1, "field 500": 0.25,
+            "field 10k": 0.1, "field 100k": 0.1, "head on": None}
+    for nm, r in zip(names, ratios):
+        b = bars.get(nm)
+        colours.append("#2ca02c" if b is None or r <= b else "#d62728")
+    ax.bar(names, ratios, color=colours)
+    for k, nm in enumerate(names):
+        b = bars.get(nm)
+        if b:
+            ax.plot([k - 0.4, k + 0.4], [b, b], "k--", lw=1)
+    ax.axhline(1.0, color="grey", lw=0.8)
+    ax.set_yscale("log")
+    ax.set_ylabel("driftframe mean step / pybullet mean step")
+    ax.set_title("Stress scenes: time per step relative to pybullet (dashed: the bar; green: met)")
+    common.save_chart(fig, "collision_stress")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
