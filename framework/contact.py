@@ -98,7 +98,7 @@ DENSE_MAX = 32
 #: Waves in a burst (each within t_c of the previous) before a body's contacts lose their bounce.
 JAM = 256
 #: Default cap on one body's contacts in one step (then e = 0; at twice this its island sticks).
-CAP = 32
+CAP = 8
 #: Default t_c of the TC model, as a fraction of dt.
 TC = 1e-6
 
@@ -667,7 +667,7 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                     if wstick[cs[a]]:
                         stick = True
             if stick:
-                nm = _stick(cs, m, wi, wj, wn, inv, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head, nxt,
+                nm = _stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head, nxt,
                             PI, PJ, sseen, squeue)
                 flags |= F_STICK
             elif m == 1:
@@ -834,7 +834,8 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
 
 
 @njit(cache=True, error_model="numpy")
-def _stick(cs, m, wi, wj, wn, inv, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen, queue):
+def _stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen,
+           queue):
     """Give the touching cluster of an island's bodies one velocity: its centre of mass's, or that of an
     immovable body it touches. Every relative velocity in it becomes zero, which ends any burst.
 
@@ -861,7 +862,7 @@ def _stick(cs, m, wi, wj, wn, inv, u, x, r, t, wlam, dv, moved, nm, bmark, wave,
             p = node >> 1
             node = nxt[node]
             o = PJ[p] if PI[p] == b else PI[p]
-            if seen[o] == wave:
+            if seen[o] == wave or not live[o]:
                 continue
             d2 = 0.0
             for d in range(3):

@@ -222,7 +222,16 @@ class CollisionSystem(esper.Processor):
     def world(self, w):
         self._world = w
         if w is not None:
-            w.resources.setdefault(movement.SKIP, set()).add(SphereCollider)
+            w.resources.setdefault(movement.SKIP, {}).setdefault(SphereCollider, set()).add(id(self))
+
+    def release(self) -> None:
+        """Taken out of the world: movement moves the colliders again (unless another collision system
+        is still there)."""
+        w = self._world
+        if w is not None:
+            claims = w.resources.get(movement.SKIP, {}).get(SphereCollider)
+            if claims is not None:
+                claims.discard(id(self))
 
     # -- bookkeeping ----------------------------------------------------------
     def _refresh(self) -> _Layout:

@@ -9,9 +9,9 @@ from driftframe.components.body import Acceleration, Transform, Velocity
 from driftframe.components.collision import SphereCollider
 from driftframe.framework.store import as_index, to_indices
 
-#: ``world.resources[SKIP]``: component classes whose bodies another system integrates itself
-#: (the collision system moves its colliders from the start-of-step state), so movement leaves
-#: them alone and the step's data flows one way.
+#: ``world.resources[SKIP]``: ``{component class: set of claiming systems}``: the bodies with that
+#: component are integrated by the claiming system itself (the collision system moves its colliders
+#: from the start-of-step state), so movement leaves them alone and the step's data flows one way.
 SKIP = "movement.skip"
 
 
@@ -63,7 +63,7 @@ class MovementSystem(esper.Processor):
     def process(self, dt: float) -> None:
         world = self.world
         skip = world.resources.get(SKIP)
-        skip = frozenset(skip) if skip else frozenset()
+        skip = frozenset(cls for cls, by in skip.items() if by) if skip else frozenset()
         free = world.query(Transform, Velocity)
         free.refresh()
         if len(free):

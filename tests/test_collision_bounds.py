@@ -240,6 +240,17 @@ def test_collision_integrates_its_bodies_exactly_as_movement_would_when_nothing_
         np.testing.assert_array_equal(vc, vt)
 
 
+def test_movement_moves_colliders_again_once_the_collision_system_is_removed():
+    with World() as w:
+        w.add_system(MovementSystem())
+        cs = w.add_system(CollisionSystem())
+        e = w.create_entity(Transform((0, 0, 0)), Velocity((1.0, 0, 0)), SphereCollider(0.5))
+        w.step(3)
+        w.remove_system(cs)
+        w.step(3)
+        np.testing.assert_allclose(w.columns(Transform, [e]).position[0], [6 * DT, 0, 0], rtol=1e-15)
+
+
 def test_movement_moves_colliders_when_no_collision_system_is_present():
     with World() as w:
         w.add_system(MovementSystem())
