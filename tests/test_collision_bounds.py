@@ -423,6 +423,11 @@ def test_placement_makes_a_field_without_overlaps_and_keeps_the_gap():
     assert not len(i)
     d = np.linalg.norm(x, axis=1)
     assert d.min() >= 100.0 and d.max() <= 400.0
+    # spheres already there (a ship) are kept clear too
+    ship, ship_r = np.array([[0.0, 0.0, 150.0]]), np.array([20.0])
+    y = placement.place(np.random.default_rng(2), r[:500], placement.in_shell(100.0, 200.0), gap=0.1,
+                        avoid=(ship, ship_r))
+    assert (np.linalg.norm(y - ship, axis=1) - r[:500] >= ship_r[0] + 0.1 - 1e-9).all()
 
 
 def test_placement_is_deterministic_and_says_when_the_region_is_too_full():
