@@ -106,8 +106,11 @@ def _sweep(lo, hi):
     return _ordered(order[i], order[j])
 
 
-def _grid_regular(lo, hi):
-    """Grid pairs among boxes no larger than one cell (the caller sets large ones aside)."""
+def _grid_regular(lo, hi, exact: bool = True):
+    """Grid pairs among boxes no larger than one cell (the caller sets large ones aside).
+
+    ``exact=False`` returns the stencil's candidates without the final box test (a superset, for
+    a caller that applies its own exact test)."""
     n = lo.shape[1]
     h = float((hi - lo).max())
     if not h > 0:
@@ -144,7 +147,8 @@ def _grid_regular(lo, hi):
     i = np.repeat(np.tile(np.arange(n), 5), count)
     j = _expand(start, count)
     i, j = order[i], order[j]
-    i, j = _overlap(lo, hi, i, j)
+    if exact:
+        i, j = _overlap(lo, hi, i, j)
     return _ordered(i, j)
 
 
@@ -290,7 +294,15 @@ class NeighbourList:
         swept = skin > 8.0 * float(np.median(skin)) + 4.0 * float(r.max()) if n else np.zeros(0, bool)
         reach = r + skin
         slow = np.flatnonzero(~swept)
-        i, j = sphere_pairs(c[:, slow], reach[slow], self.method, soa=True)
+        if self.method in ("auto", "grid") and len(slow) > ALL_PAIRS_MAX:
+            # the grid's candidates, then the exact sphere test in one compiled pass (the same pairs
+            # as sphere_pairs, without its per-axis fancy-indexed box tests)
+            cs, rs = np.ascontiguousarray(c[:, slow]), np.ascontiguousarray(reach[slow])
+            i, j = _grid_regular(cs - rs, cs + rs, exact=False)
+            keep = _within(cs, rs, i.astype(np.int64), j.astype(np.int64))
+            i, j = i[keep], j[keep]
+        else:
+            i, j = sphere_pairs(c[:, slow], reach[slow], self.method, soa=True)
         self.i, self.j = slow[i], slow[j]
         self.centre, self.radius, self.skin, self.reach, self.swept = c, r, skin, reach, swept
         # x order of the territories' low ends, for territories()
@@ -383,3 +395,18 @@ def mark_strays(x, u, dt, centre, skin, swept):
         if swept[k]:
             total += 1
     return new, total
+
+
+@njit(cache=True)
+def _within(c, reach, i, j):
+    """Which candidate pairs (i, j) have ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n))."""
+    out = np.empty(i.shape[0], np.bool_)
+    for k in range(i.shape[0]):
+        a = i[k]
+        b = j[k]
+        dx = c[0, b] - c[0, a]
+        dy = c[1, b] - c[1, a]
+        dz = c[2, b] - c[2, a]
+        R = reach[a] + reach[b]
+        out[k] = dx * dx + dy * dy + dz * dz <= R * R
+    return out
