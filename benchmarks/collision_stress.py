@@ -326,7 +326,8 @@ def report(res, quick, bullet, started):
         rows.append([f"dense gas 2,000 at {frac:.0%}", f"{_ms(d['median'])} ({_ms(d['mean'])}) / {_ms(d['worst'])}, "
                      f"p99 {_ms(d['p99'])} (events on: {_ms(ev)})",
                      f"{_ms(pb(f'gas{frac}'))} ({_ms(pb(f'gas{frac}', 'mean'))}) / {_ms(pb(f'gas{frac}', 'worst'))}",
-                     f"{ratio:.2f} ({rmed:.2f})", f"energy rise {d['rise']:.1e}; worst/mean {d['worst'] / d['mean']:.1f} "
+                     f"{ratio:.2f} ({rmed:.2f})",
+                     f"energy rise {d['rise']:.1e}; worst/mean {d['worst'] / d['mean']:.1f} "
                      f"(pybullet's, same run: {noise:.1f})", "mean <= 0.5x, worst <= 5x mean",
                      bar(f"gas {frac:.0%}", ok, f"ratio {ratio:.2f}, worst/mean {d['worst'] / d['mean']:.1f}, "
                                                f"pybullet's worst/mean {noise:.1f}")])
@@ -340,10 +341,12 @@ def report(res, quick, bullet, started):
                      f"p99 {_ms(d['p99'])}, most contacts in a step {d['max_contacts']}",
                      f"{_ms(pb(f'conv{e}'))} ({_ms(pb(f'conv{e}', 'mean'))}) / {_ms(pb(f'conv{e}', 'worst'))}",
                      f"{ratio:.2f} ({rmed:.2f})",
-                     f"rise {d['rise']:.1e}, overlap {d['overlap']:.1e} r (pybullet: rise {p.get('rise', math.nan):.1e}, "
+                     f"rise {d['rise']:.1e}, overlap {d['overlap']:.1e} r "
+                     f"(pybullet: rise {p.get('rise', math.nan):.1e}, "
                      f"overlap {p.get('overlap', math.nan):.1e} r); warnings: {'; '.join(d['warnings']) or 'none'}",
                      "mean <= 2x, worst <= 20 ms, energy never rises, overlap <= 1e-9 r",
-                     bar(f"converging e={e}", ok, f"ratio {ratio:.2f}, worst {_ms(d['worst'])} ms, rise {d['rise']:.1e}, "
+                     bar(f"converging e={e}", ok, f"ratio {ratio:.2f}, worst {_ms(d['worst'])} ms, "
+                                                   f"rise {d['rise']:.1e}, "
                                                    f"overlap {d['overlap']:.1e}")])
     for key, name in (("sc", "touching simple cubic 10x10x10"), ("fcc", "touching FCC 500")):
         d = res[key]["driftframe"]
@@ -373,7 +376,8 @@ def report(res, quick, bullet, started):
                  "runs; peak memory <= 2 GiB", bar("200k overlapping", ok, f"peak {gib:.2f} GiB")])
     d = res["wedged"]["driftframe"]
     ok = d["first"] <= 0.050
-    rows.append(["wedged sphere + 30,000 idle", f"that step {_ms(d['first'])} (collision {_ms(d['collision'])})", "", "",
+    rows.append(["wedged sphere + 30,000 idle",
+                 f"that step {_ms(d['first'])} (collision {_ms(d['collision'])})", "", "",
                  f"{d['waves']} waves; {'; '.join(d['all_warnings'])}", "that step <= 50 ms",
                  bar("wedged", ok, f"step {_ms(d['first'])} ms, {d['waves']} waves")])
     limits = {50: 1.0, 500: 0.25, 10_000: 0.1, 100_000: 0.1}
@@ -398,6 +402,7 @@ def report(res, quick, bullet, started):
                           "ratio of means (of medians)", "checks",
                           "bar", "status"], rows)
     met = sum(v[1] == "met" for v in verdicts)
+    missed = ", ".join(f"{n} ({t})" for n, s, t in verdicts if s != "met") or "none"
     body = f"""
 Each row: the same scene in driftframe (`world.step()`, movement + collision, events off unless said) and in
 pybullet (`stepSimulation()`, as elastic as it goes), in the same process, in turn, in blocks of steps; 180
@@ -410,7 +415,7 @@ shown beside ours).
 
 {table}
 
-**Bars met: {met} of {len(verdicts)}.** Not met: {', '.join(f'{n} ({t})' for n, s, t in verdicts if s != 'met') or 'none'}.
+**Bars met: {met} of {len(verdicts)}.** Not met: {missed}.
 
 Cold start (numba compiles the contact kernels on the first run on a machine and caches them next to
 `framework/contact.py`): first step of a fresh process with an empty cache {cold['first']:.1f} s
