@@ -44,7 +44,7 @@ def picture(name: str) -> Path:
         seconds = min(demo.SECONDS, MAX_SECONDS)
         out = IMG / f"demo-{name}.gif"
         res = record(world, out, frames=int(seconds * FPS), fps=FPS, steps_per_frame=60 // FPS,
-                     gif_scale=1.0, progress=False)
+                     gif_scale=1.0, progress=False, overwrite=True)
     finally:
         world.close()
     print(f"{res.path.relative_to(ROOT)}: {res.frames} frames, {res.path.stat().st_size / 1024:.0f} KiB")

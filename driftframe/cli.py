@@ -1,15 +1,20 @@
 """The ``driftframe`` command line: list the demos, record one off-screen, or fly one in a window.
 
 Every error a user can cause (an unknown demo, a bad size, an unwritable
-path, no display) ends in one line on stderr and exit status 2, never a
-traceback.
+path, an existing output, no display) ends in one line on stderr and exit
+status 2, never a traceback. A write that fails while recording (a full
+disk) is one line and exit status 1. A recording stopped by Ctrl-C, SIGTERM
+or SIGHUP keeps the frames written so far and exits with 128 + the signal's
+number (130, 143, 129), as the shell reports a process the signal killed.
 """
 from __future__ import annotations
 
 import argparse
 import math
 import os
+import signal
 import sys
+from decimal import Decimal
 
 from driftframe.framework import __version__
 
@@ -53,6 +58,18 @@ def _seed(text):
         raise argparse.ArgumentTypeError(f"seed must be an integer >= 0, got {text!r}") from None
     if v < 0:
         raise argparse.ArgumentTypeError(f"seed must be an integer >= 0, got {text!r}")
+    return v
+
+
+def _blur(text):
+    from driftframe.framework.recorder import MAX_MOTION_BLUR
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"motion blur must be a whole number of sub-frames, got {text!r}") from None
+    if not 1 <= v <= MAX_MOTION_BLUR:
+        raise argparse.ArgumentTypeError(f"motion blur must be between 1 and {MAX_MOTION_BLUR} sub-frames, "
+                                         f"got {text!r}")
     return v
 
 
@@ -128,7 +145,12 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--fps", type=_positive_float("fps"), default=60.0, metavar="F",
                      help="frames per second; must divide the 60 Hz simulation rate (60, 30, 20, 15, ...)")
     rec.add_argument("-o", "--output", default=None, metavar="FILE",
-                     help="FILE.mp4, FILE.gif, or a directory for numbered PNGs (default out/DEMO.mp4)")
+                     help="FILE.mp4, FILE.gif, or DIR/ (a trailing slash, or an existing directory) for "
+                          "numbered PNGs (default out/DEMO.mp4, creating out/)")
+    rec.add_argument("--overwrite", action="store_true", help="replace the output if it exists (refused otherwise)")
+    rec.add_argument("--motion-blur", type=_blur, default=1, metavar="N",
+                     help="average N sub-frames, posed between the fixed steps, into each frame "
+                          "(default 1: none); a fast spin then blurs instead of strobing")
     rec.add_argument("--quiet", action="store_true", help="no progress bar")
     rec.add_argument("--track", default=None, metavar="FILE",
                      help="fly the track FILE (from `play --save-track`) instead of the demo's script; its "
@@ -217,9 +239,34 @@ def _apply_track(args, demo):
     return track
 
 
+#: Longest recording the command line starts: 1,000,000 frames (4.6 h at 60 fps), 10,000,000 fixed steps.
+MAX_FRAMES = 1_000_000
+MAX_STEPS = 10_000_000
+
+
+def _sci(d: Decimal) -> str:
+    """``6e+309``: three significant digits, no trailing zeros, for numbers a float cannot hold."""
+    mantissa, exponent = f"{d:.2e}".split("e")
+    return f"{mantissa.rstrip('0').rstrip('.')}e{exponent}"
+
+
+def frame_count(seconds: float, fps: float, steps: int) -> int:
+    """Frames for ``seconds`` at ``fps``; a UsageError naming the estimate when it is beyond the bounds."""
+    estimate = seconds * fps                          # float: 1e308 * 60 is inf, never an OverflowError
+    frames = max(1, round(estimate)) if math.isfinite(estimate) and estimate <= MAX_FRAMES else None
+    if frames is None or frames * steps > MAX_STEPS:  # (a tiny --fps makes one frame of very many steps)
+        exact = Decimal(seconds) * Decimal(fps)       # the count even where a float overflows
+        count = f"{max(1, round(estimate)):,}" if estimate < 1e18 else _sci(exact)
+        raise UsageError(f"--seconds {seconds:g} at {fps:g} fps is about {count} frames "
+                         f"({_sci(max(exact, Decimal(1)) * steps)} fixed steps); a recording may have at most "
+                         f"{MAX_FRAMES:,} frames ({MAX_FRAMES / fps / 3600:.3g} h at {fps:g} fps) and "
+                         f"{MAX_STEPS:,} steps")
+    return frames
+
+
 def cmd_record(args) -> int:
     from driftframe.app import attach_rendering, make_world
-    from driftframe.framework.recorder import output_format, record
+    from driftframe.framework.recorder import OutputExistsError, output_format, record
 
     demo = _load_demo(args.demo)
     track = _apply_track(args, demo)
@@ -230,24 +277,44 @@ def cmd_record(args) -> int:
         output_format(out)
     except ValueError as e:
         raise UsageError(str(e)) from None
+    k = steps_per_frame(args.fps, demo_dt(demo))
+    frames = frame_count(seconds, args.fps, k)
+    if args.output is None:
+        try:
+            os.makedirs("out", exist_ok=True)         # the default folder is ours to make; -o DIR/ must exist
+        except OSError as e:
+            raise UsageError(f"cannot create the default output folder 'out' here ({e.strerror}); "
+                             "give -o FILE") from None
+    if args.motion_blur > 1:
+        from driftframe.systems.motion_blur import SubframePoses
+        poses = SubframePoses()
+    else:
+        poses = None
     world, demo = make_world(args.demo, seed=args.seed, track=track)
     try:
-        k = steps_per_frame(args.fps, world.dt)
-        frames = max(1, round(seconds * args.fps))
         attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
         if args.hash_log:
             from driftframe.framework.hashlog import attach_hash_log
             attach_hash_log(world, args.hash_log)
-        result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet)
+        result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet,
+                        overwrite=args.overwrite, motion_blur=args.motion_blur, interpolate=poses)
+    except OutputExistsError as e:
+        raise UsageError(f"{e} (or choose another -o)") from None
     finally:
         world.close()
     if result.path is None:
         print("nothing written (interrupted before the first frame)", file=sys.stderr)
-        return 130
+        return 128 + result.signal
+    w, h = result.size
     print(f"wrote {result.path} ({result.frames} frames, {result.frames / args.fps:.2f} s of {args.demo} "
-          f"at {args.fps:g} fps, {args.size[0]}x{args.size[1]}) in {result.seconds:.1f} s "
+          f"at {args.fps:g} fps, {w}x{h}) in {result.seconds:.1f} s "
           f"({result.frames_per_second:.0f} frames/s)")
-    return 130 if result.interrupted else 0
+    return 128 + result.signal if result.interrupted else 0
+
+
+def demo_dt(demo) -> float:
+    """The fixed step of a demo module (1/60 s unless it says otherwise)."""
+    return getattr(demo, "DT", 1.0 / 60.0)
 
 
 def cmd_play(args) -> int:
@@ -292,6 +359,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     from driftframe.framework.gl import GLUnavailableError
+    from driftframe.framework.recorder import RecordingError
 
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
                 "diverge": cmd_diverge}
@@ -300,6 +368,9 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2
+    except RecordingError as e:
+        print(f"driftframe: error: {e}", file=sys.stderr)
+        return 1
     except GLUnavailableError as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2
@@ -307,9 +378,11 @@ def main(argv: list[str] | None = None) -> int:
         # raised by the library's own input checks: they name the bad value; no traceback needed
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("driftframe: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:
+        # Ctrl-C, or SIGTERM / SIGHUP turned into an interrupt by the recorder: exit as the signal would
+        signum = getattr(e, "signum", signal.SIGINT)
+        print(f"driftframe: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":

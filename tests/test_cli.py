@@ -11,9 +11,9 @@ from driftframe import demos
 EXE = [sys.executable, "-m", "driftframe"]
 
 
-def run(*args, env=None, timeout=300):
+def run(*args, env=None, timeout=300, cwd=None):
     return subprocess.run(EXE + list(args), capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, **(env or {})})
+                          env={**os.environ, **(env or {})}, cwd=cwd)
 
 
 def test_list_names_every_demo_with_a_description():
@@ -53,8 +53,10 @@ def test_record_gif_and_png_frames_at_30_fps(tmp_path):
     from PIL import Image
 
     gif = tmp_path / "b.gif"
-    assert run("record", "billiards", "--seconds", "0.5", "--fps", "30", "--size", "320x180", "--quiet",
-               "-o", str(gif)).returncode == 0
+    res = run("record", "billiards", "--seconds", "0.5", "--fps", "30", "--size", "320x180", "--quiet",
+              "-o", str(gif))
+    assert res.returncode == 0
+    assert "at 30 fps, 160x90)" in res.stdout          # the size of the file, not of the render
     with Image.open(gif) as im:
         assert im.size == (160, 90)                     # GIF previews are half size
         assert 1 < im.n_frames <= 15
@@ -87,14 +89,21 @@ def test_two_recordings_are_byte_identical(tmp_path):
     (["record", "cradle", "--seed", "-1"], "seed must be an integer >= 0"),
     (["record", "cradle", "-o", "clip.avi"], "unknown output format '.avi'"),
     (["record", "cradle", "-o", "/nonexistent/dir/x.mp4"], "does not exist"),
+    (["record", "cradle", "-o", "noext"], "'noext' has no suffix: give NAME.mp4 or NAME.gif, or 'noext/'"),
+    (["record", "cradle", "--seconds", "1e9"], "--seconds 1e+09 at 60 fps is about 60,000,000,000 frames"),
+    (["record", "cradle", "--seconds", "1e308"], "--seconds 1e+308 at 60 fps is about 6e+309 frames"),
+    (["record", "cradle", "--seconds", "1e6", "--fps", "1"], "(6e+7 fixed steps); a recording may have at most 1,000,000 frames"),
+    (["record", "cradle", "--motion-blur", "0"], "motion blur must be between 1 and 64"),
+    (["record", "cradle", "--fps", "1e-300"], "about 1 frames (6e+301 fixed steps)"),
+    (["record", "cradle", "-o", "/proc/x.mp4"], "'/proc' is not writable (it is on a proc file system"),
     (["play", "pong"], "unknown demo 'pong'"),
 ])
 def test_bad_input_is_one_clear_line_and_exit_2(args, message, tmp_path):
-    res = run(*args, env={"DRIFTFRAME_UNUSED": "1"})
+    res = run(*args, env={"DRIFTFRAME_UNUSED": "1"}, cwd=tmp_path)
     assert res.returncode == 2
     assert message in res.stderr
     assert "Traceback" not in res.stderr
-    assert not list(tmp_path.iterdir())
+    assert not list(tmp_path.iterdir())             # not even the default out/ folder
 
 
 def test_play_without_a_display_says_so():
@@ -116,3 +125,113 @@ def test_png_output_into_a_folder_of_other_files_is_refused(tmp_path):
     res = run("record", "cradle", "-o", str(tmp_path))
     assert res.returncode == 2 and "holds other files" in res.stderr
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+# -- recordings that never leave debris ----------------------------------------------------------
+def _start_recording(out, *extra):
+    """A real ``driftframe record`` process, long enough to be stopped; returns it once it is writing."""
+    import signal as sg
+    import time
+
+    def default_signals():                          # a test runner may have them ignored (background jobs)
+        for s in (sg.SIGINT, sg.SIGTERM, sg.SIGHUP):
+            sg.signal(s, sg.SIG_DFL)
+
+    proc = subprocess.Popen(EXE + ["record", "cradle", "--seconds", "600", "--size", "64x36", "--quiet",
+                                   "-o", str(out), *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_signals)
+    deadline = time.monotonic() + 120
+    # ffmpeg writes the MP4 header once the first frame reaches it: a non-empty part file means frames flow
+    while not any(p.name.startswith(f".{out.name}.") and p.stat().st_size > 0 for p in out.parent.iterdir()):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the recording never started"
+        time.sleep(0.05)
+    time.sleep(0.5)
+    return proc
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM", "SIGHUP"])
+def test_a_stop_signal_leaves_a_valid_shorter_video_and_exits_as_the_signal(tmp_path, signame):
+    import signal as sg
+
+    import imageio_ffmpeg
+
+    signum = getattr(sg, signame)
+    out = tmp_path / "cut.mp4"
+    proc = _start_recording(out)
+    proc.send_signal(signum)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signum, stderr
+    assert f"recording interrupted after" in stderr and f"({signame}): wrote" in stderr
+    assert "Traceback" not in stderr and f"wrote {out}" in stdout
+    frames = list(imageio_ffmpeg.read_frames(str(out)))[1:]
+    assert 0 < len(frames) < 36000
+    assert [p.name for p in tmp_path.iterdir()] == ["cut.mp4"]          # nothing hidden left
+
+
+@pytest.mark.gl
+def test_after_sigkill_the_next_run_of_the_same_output_removes_the_stale_part(tmp_path):
+    import signal as sg
+
+    out = tmp_path / "k.mp4"
+    proc = _start_recording(out)
+    proc.send_signal(sg.SIGKILL)
+    proc.wait(timeout=30)
+    debris = [p.name for p in tmp_path.iterdir()]
+    assert len(debris) == 1 and debris[0].startswith(".k.mp4.") and ".part" in debris[0]
+    res = run("record", "cradle", "--seconds", "0.1", "--size", "64x36", "--quiet", "-o", str(out))
+    assert res.returncode == 0, res.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["k.mp4"]
+
+
+@pytest.mark.gl
+def test_default_output_folder_is_made_and_an_existing_output_needs_overwrite(tmp_path):
+    args = ["record", "cradle", "--seconds", "0.1", "--size", "64x36", "--quiet"]
+    first = run(*args, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    out = tmp_path / "out" / "cradle.mp4"
+    before = out.read_bytes()
+    again = run(*args, "--seconds", "0.2", cwd=tmp_path)
+    assert again.returncode == 2
+    assert "'out/cradle.mp4' exists; pass overwrite=True (--overwrite)" in again.stderr
+    assert "Traceback" not in again.stderr and out.read_bytes() == before
+    forced = run(*args, "--seconds", "0.2", "--overwrite", cwd=tmp_path)
+    assert forced.returncode == 0, forced.stderr
+    assert "12 frames" in forced.stdout and out.read_bytes() != before
+    assert os.listdir(tmp_path / "out") == ["cradle.mp4"]
+
+
+def _can_mount_tmpfs():
+    import shutil
+    if shutil.which("unshare") is None:
+        return False
+    probe = subprocess.run(["unshare", "-r", "-m", "sh", "-c", "d=$(mktemp -d) && mount -t tmpfs -o size=64k "
+                            "tmpfs \"$d\""], capture_output=True)
+    return probe.returncode == 0
+
+
+@pytest.mark.gl
+@pytest.mark.skipif(not _can_mount_tmpfs(), reason="needs unshare and a user namespace to mount a tiny tmpfs; "
+                                                   "test_recorder's fake full disk covers the logic")
+@pytest.mark.parametrize("name", ["full.mp4", "full.gif", "frames/"])
+def test_a_full_disk_is_one_clear_line_and_leaves_nothing(tmp_path, name):
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    script = (f'mount -t tmpfs -o size=96k tmpfs "{disk}" || exit 99; '
+              f'"{sys.executable}" -m driftframe record cradle --seconds 60 --size 320x180 --quiet '
+              f'-o "{disk}/{name}"; echo "rc=$?"; echo "left:"; ls -A "{disk}"')
+    res = subprocess.run(["unshare", "-r", "-m", "sh", "-c", script], capture_output=True, text=True,
+                         timeout=300)
+    assert "rc=1" in res.stdout, res.stdout + res.stderr
+    assert "no space left on the device" in res.stderr and "Traceback" not in res.stderr
+    assert res.stdout.split("left:")[1].split() == []                 # nothing half-written
+
+
+@pytest.mark.gl
+def test_record_with_motion_blur(tmp_path):
+    sharp, blur = tmp_path / "s.gif", tmp_path / "b.gif"
+    for out, extra in ((sharp, []), (blur, ["--motion-blur", "3"])):
+        res = run("record", "asteroids", "--seconds", "0.2", "--size", "64x36", "--quiet", "-o", str(out), *extra)
+        assert res.returncode == 0, res.stderr
+    assert sharp.read_bytes() != blur.read_bytes()

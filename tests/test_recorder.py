@@ -61,6 +61,16 @@ def listing(d):
     return sorted(os.listdir(d))
 
 
+def gif_delays(path):
+    """Each frame's delay in 1/100 s (Pillow reports milliseconds)."""
+    with Image.open(path) as im:
+        out = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            out.append(im.info["duration"] // 10)
+        return out
+
+
 def test_mp4_has_one_frame_per_simulated_frame_at_the_target_size(scene, tmp_path):
     w = scene()
     out = tmp_path / "run.mp4"
@@ -77,8 +87,8 @@ def test_same_scene_gives_byte_identical_recordings(scene, tmp_path):
         a, b = tmp_path / f"a.{ext}", tmp_path / f"b.{ext}"
         if ext == "frames":
             a, b = tmp_path / "a_frames", tmp_path / "b_frames"
-        record(scene(), a, frames=12, progress=False)
-        record(scene(), b, frames=12, progress=False)
+        record(scene(), a, frames=12, progress=False, format="png" if ext == "frames" else None)
+        record(scene(), b, frames=12, progress=False, format="png" if ext == "frames" else None)
         if ext == "frames":
             assert listing(a) == listing(b) and len(listing(a)) == 12
             for name in listing(a):
@@ -89,7 +99,7 @@ def test_same_scene_gives_byte_identical_recordings(scene, tmp_path):
 
 def test_png_frames_are_the_rendered_frames_in_order_and_right_way_up(scene, tmp_path):
     out = tmp_path / "frames"
-    record(scene(), out, frames=5, steps_per_frame=2, progress=False)
+    record(scene(), str(out) + "/", frames=5, steps_per_frame=2, progress=False)
     assert listing(out) == [f"frame_{i:06d}.png" for i in range(5)]
     ref = scene()
     render = ref.get_system(RenderSystem)
@@ -112,7 +122,8 @@ def test_mp4_and_gif_come_out_the_right_way_up(scene, tmp_path):
         ys = np.nonzero(white)[0]
         assert len(ys) and ys.max() < H // 2
     gif = Image.open(_record_gif(scene, tmp_path))
-    assert gif.n_frames == 3 and gif.size == (W // 2, H // 2)      # reduced size by default
+    # 60 fps: frame ends at 2, 3, 5 cs; the 1 cs frame is merged into the one before it
+    assert gif.n_frames == 2 and gif.size == (W // 2, H // 2)      # reduced size by default
     for k in range(gif.n_frames):
         gif.seek(k)
         rgb = np.asarray(gif.convert("RGB")).astype(int)
@@ -134,12 +145,13 @@ def test_interrupt_leaves_a_valid_shorter_video_and_says_so(scene, tmp_path, cap
 
     for name in ("cut.mp4", "cut.gif", "cut_frames"):
         out = tmp_path / name
-        res = record(scene(), out, frames=40, progress=False, before_step=ctrl_c_at_step_10)
+        res = record(scene(), out, frames=40, progress=False, before_step=ctrl_c_at_step_10,
+                     format="png" if name.endswith("frames") else None)
         assert res.interrupted and res.frames == 10 and res.requested == 40 and res.path == out
         if name.endswith(".mp4"):
             assert len(mp4_frames(out)[1]) == 10
         elif name.endswith(".gif"):
-            assert Image.open(out).n_frames == 10
+            assert gif_delays(out) and sum(gif_delays(out)) == 17      # 10 frames at 60 fps: 16.7 cs
         else:
             assert len(listing(out)) == 10
         assert "interrupted after 10 of 40 frames" in capsys.readouterr().err
@@ -153,14 +165,15 @@ def test_failure_leaves_nothing_behind(scene, tmp_path):
 
     for name in ("x.mp4", "x.gif", "x_frames"):
         with pytest.raises(RuntimeError, match="scripted input failed"):
-            record(scene(), tmp_path / name, frames=20, progress=False, before_step=crash)
+            record(scene(), tmp_path / name, frames=20, progress=False, before_step=crash,
+                   format="png" if name.endswith("frames") else None)
     assert listing(tmp_path) == []
     # an earlier good recording at the same path survives a failed re-recording untouched
     good = tmp_path / "keep.mp4"
     record(scene(), good, frames=4, progress=False)
     before = good.read_bytes()
     with pytest.raises(RuntimeError):
-        record(scene(), good, frames=20, progress=False, before_step=crash)
+        record(scene(), good, frames=20, progress=False, before_step=crash, overwrite=True)
     assert good.read_bytes() == before and listing(tmp_path) == ["keep.mp4"]
 
 
@@ -172,7 +185,7 @@ def test_bad_paths_and_formats_fail_before_anything_is_rendered(scene, tmp_path)
         (tmp_path / "still.png", ValueError, "a .png path is a single image"),
         (tmp_path / "missing" / "clip.mp4", FileNotFoundError, "does not exist"),
         (tmp_path / "a_file" / "clip.mp4", NotADirectoryError, "is not a directory"),
-        (tmp_path / "a_file", FileExistsError, "exists and is not a directory"),
+        (str(tmp_path / "a_file") + "/", FileExistsError, "exists and is not a directory"),
     ]
     if os.geteuid() != 0:                                          # root may write anywhere
         locked = tmp_path / "locked"
@@ -202,8 +215,11 @@ def test_odd_sizes_are_refused_for_h264_before_rendering(scene, tmp_path):
 
 def test_png_directory_is_replaced_but_a_foreign_directory_is_refused(scene, tmp_path):
     out = tmp_path / "frames"
-    record(scene(), out, frames=6, progress=False)
-    record(scene(), out, frames=3, progress=False)
+    record(scene(), out, frames=6, progress=False, format="png")
+    with pytest.raises(FileExistsError, match="holds PNG frames already; pass overwrite=True"):
+        record(scene(), out, frames=3, progress=False)
+    assert len(listing(out)) == 6
+    record(scene(), out, frames=3, progress=False, overwrite=True)
     assert listing(out) == [f"frame_{i:06d}.png" for i in range(3)]
     other = tmp_path / "mine"
     other.mkdir()
@@ -222,8 +238,9 @@ def test_progress_bar_shows_on_stderr_and_can_be_turned_off(scene, tmp_path, cap
 
 def test_output_format_follows_the_suffix(tmp_path):
     assert output_format("a/b.mp4") == "mp4" and output_format("B.GIF") == "gif"
-    assert output_format("frames/") == "png" and output_format("frames") == "png"
-    assert output_format(tmp_path) == "png"
+    assert output_format("frames/") == "png" and output_format(tmp_path) == "png"
+    with pytest.raises(ValueError, match=r"output 'noext' has no suffix: give NAME.mp4 .* 'noext/'"):
+        output_format("noext")                      # a forgotten .mp4, not a folder of PNGs
     with pytest.raises(ValueError, match="unknown output format '.webm'"):
         output_format("x.webm")
 
@@ -235,3 +252,190 @@ def test_recording_needs_rendering_attached(tmp_path):
             record(w, tmp_path / "x.mp4", frames=1)
     finally:
         w.close()
+
+
+# -- GIF: exact length, streamed ----------------------------------------------------------------
+@pytest.mark.parametrize("fps,frames,total_cs", [(60, 30, 50), (30, 9, 30), (20, 7, 35), (12, 5, 42)])
+def test_gif_delays_add_up_to_the_exact_length(scene, tmp_path, fps, frames, total_cs):
+    out = tmp_path / "t.gif"
+    record(scene(), out, frames=frames, fps=fps, steps_per_frame=60 // fps, progress=False)
+    delays = gif_delays(out)
+    assert sum(delays) == total_cs                   # frames / fps seconds, to the 1/100 s
+    assert min(delays) >= 2                          # players slow down anything shorter
+    if fps == 30:
+        assert set(delays) <= {3, 4}                 # 3.33 cs per frame: 3, 4, 3, 3, 4, 3...
+
+
+def test_gif_is_written_as_it_records_and_holds_at_most_two_frames(scene, tmp_path, monkeypatch):
+    from driftframe.framework import recorder
+
+    sinks = []
+
+    class Spy(recorder._GifSink):
+        def __init__(self, *a, **kw):
+            super().__init__(*a, **kw)
+            sinks.append(self)
+
+    monkeypatch.setattr(recorder, "_GifSink", Spy)
+    sizes = {}
+
+    def watch(world, step):
+        if step in (10, 30):
+            parts = [p for p in tmp_path.iterdir() if p.name.startswith(".long.gif.")]
+            assert len(parts) == 1
+            sizes[step] = parts[0].stat().st_size
+
+    record(scene(), tmp_path / "long.gif", frames=40, fps=30, steps_per_frame=1, progress=False,
+           before_step=watch)
+    # the file grows while recording (frames are not kept for a save at the end) ...
+    assert 0 < sizes[10] < sizes[30] < (tmp_path / "long.gif").stat().st_size
+    # ... and memory holds the frame on screen and the one before it, however long the recording
+    assert sinks[0].max_held == 2 and sinks[0].held == 0 and sinks[0].count == 40
+
+
+# -- outputs: existing, stale, unwritable, full -------------------------------------------------
+def test_an_existing_output_is_refused_unless_overwrite(scene, tmp_path):
+    from driftframe.framework.recorder import OutputExistsError
+
+    out = tmp_path / "x.mp4"
+    out.write_bytes(b"mine")
+    w = scene()
+    with pytest.raises(OutputExistsError, match=r"x.mp4' exists; pass overwrite=True \(--overwrite\)"):
+        record(w, out, frames=2, progress=False)
+    assert out.read_bytes() == b"mine" and w.step_count == 0
+    out.chmod(0o444)                                 # read-only: not replaced even with overwrite
+    with pytest.raises(PermissionError, match="it is read-only"):
+        record(w, out, frames=2, progress=False, overwrite=True)
+    assert out.read_bytes() == b"mine" and w.step_count == 0
+    out.chmod(0o644)
+    record(w, out, frames=2, progress=False, overwrite=True)
+    assert len(mp4_frames(out)[1]) == 2 and listing(tmp_path) == ["x.mp4"]
+
+
+def test_stale_part_files_of_dead_recordings_are_removed(scene, tmp_path):
+    import subprocess
+    import sys
+
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()                                      # a pid that no longer runs
+    stale_file = tmp_path / f".x.mp4.{gone.pid}.k3j4.part.mp4"
+    stale_dir = tmp_path / f".x.mp4.{gone.pid}.q9z1.old"
+    live = tmp_path / f".x.mp4.{os.getppid()}.abcd.part.mp4"   # a running process: its file is kept
+    other = tmp_path / f".y.mp4.{gone.pid}.abcd.part.mp4"      # another output's: not ours to judge
+    for p in (stale_file, live, other):
+        p.write_bytes(b"x")
+    stale_dir.mkdir()
+    (stale_dir / "frames").mkdir()
+    record(scene(), tmp_path / "x.mp4", frames=2, progress=False)
+    assert listing(tmp_path) == sorted([live.name, other.name, "x.mp4"])
+
+
+def test_a_full_disk_is_one_clear_error_and_leaves_nothing(scene, tmp_path, monkeypatch):
+    import errno
+
+    from driftframe.framework import recorder
+    from driftframe.framework.recorder import RecordingError
+
+    def full(self, raw):
+        if self.count == 3:
+            raise OSError(errno.ENOSPC, "No space left on device", str(self.tmp / "frame_000003.png"))
+        self.count += 1
+
+    monkeypatch.setattr(recorder._PngSink, "write", full)
+    with pytest.raises(RecordingError, match=r"cannot write .*'.*f/?': no space left on the device "
+                                             r"\(\d+ frames recorded, nothing kept\)"):
+        record(scene(), str(tmp_path / "f") + "/", frames=10, progress=False)
+    assert listing(tmp_path) == []
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux /proc to try writing into it")
+def test_a_virtual_file_system_is_named_as_the_reason(scene):
+    with pytest.raises(PermissionError, match=r"'/proc' is not writable \(it is on a proc file system"):
+        record(scene(), "/proc/x.mp4", frames=2, progress=False)
+
+
+# -- motion blur ---------------------------------------------------------------------------------
+def _spinner(ctx, tmp_path, spin, blur, name):
+    """Frames of a ship seen side-on, pitching at ``spin`` rad/s, recorded with ``blur`` sub-frames."""
+    from driftframe.components.body import AngularVelocity
+    from driftframe.systems.motion_blur import SubframePoses
+    from driftframe.systems.spin import SpinSystem
+
+    w = World()
+    try:
+        w.add_system(SpinSystem())
+        eye = w.create_entity(Transform((0.0, 0.0, 0.0)))
+        w.create_entity(Camera(target=eye, mode="cockpit"))
+        # nose along +x, pitching about x would keep it still: spin about y (the view's vertical axis)
+        w.create_entity(Transform((0.0, 0.0, 4.0), fr_quat_y(0.5)), AngularVelocity((0.0, spin, 0.0)),
+                        ModelRef("ship"))
+        attach(w, ctx, (64, 48), skybox=False)
+        out = tmp_path / name
+        record(w, out, frames=3, progress=False, format="png", motion_blur=blur,
+               interpolate=SubframePoses() if blur > 1 else None)
+        frames = [np.asarray(Image.open(out / f"frame_{i:06d}.png")).astype(int) for i in range(3)]
+        return frames, w.state_hash()
+    finally:
+        w.close()
+
+
+def fr_quat_y(angle):
+    from driftframe.framework import frame as fr
+    return fr.quat_from_axis_angle((0.0, 1.0, 0.0), angle)
+
+
+def test_motion_blur_shows_a_spin_at_the_frame_rate_that_sharp_frames_hide(ctx, tmp_path):
+    turn_per_frame = 2 * np.pi * 60                  # one revolution per 1/60 s frame
+    still, _ = _spinner(ctx, tmp_path, 0.0, 1, "still")
+    sharp, hash_sharp = _spinner(ctx, tmp_path, turn_per_frame, 1, "sharp")
+    blurred, hash_blurred = _spinner(ctx, tmp_path, turn_per_frame, 4, "blur")
+    still_blurred, _ = _spinner(ctx, tmp_path, 0.0, 4, "still_blur")
+    lit = still[0].sum(axis=-1) > 0
+    assert 20 < lit.sum() < lit.size // 2            # the ship is in the picture, not filling it
+    # the wagon-wheel effect: without blur, a whole turn per frame looks exactly like no spin
+    for a, b in zip(sharp, still):
+        assert np.abs(a - b).max() <= 1
+    # with blur each frame shows the turn: the ship smeared over its sweep, not the still ship
+    for a, b in zip(blurred, still):
+        changed = np.abs(a - b).max(axis=-1) > 20
+        assert changed.sum() > 0.3 * lit.sum()
+        assert (a.sum(axis=-1) > 0).sum() > lit.sum()  # the sweep covers more pixels than the ship
+    # a body that does not move is as sharp as without blur, and the simulation is untouched
+    for a, b in zip(still_blurred, still):
+        np.testing.assert_array_equal(a, b)
+    assert hash_blurred == hash_sharp
+
+
+def test_motion_blur_needs_a_pose_source_and_a_sane_count(scene, tmp_path):
+    w = scene()
+    with pytest.raises(TypeError, match="motion_blur needs interpolate="):
+        record(w, tmp_path / "b.mp4", frames=2, motion_blur=3)
+    with pytest.raises(ValueError, match="motion_blur must be at most 64"):
+        record(w, tmp_path / "b.mp4", frames=2, motion_blur=65, interpolate=object())
+    assert w.step_count == 0 and listing(tmp_path) == []
+
+
+@pytest.mark.parametrize("gpu_yuv", [True, False])
+def test_mp4_colours_survive_the_yuv_conversion(ctx, tmp_path, gpu_yuv):
+    # a frame of one flat colour: decoding the video must give it back (BT.709, tagged, limited range)
+    w = World()
+    try:
+        eye = w.create_entity(Transform((0.0, 0.0, 0.0)))
+        w.create_entity(Camera(target=eye, mode="cockpit"))
+        attach(w, ctx, (64, 48), skybox=False, clear_colour=(0.2, 0.5, 0.8))
+        out = tmp_path / "flat.mp4"
+        record(w, out, frames=2, progress=False, gpu_yuv=gpu_yuv)
+    finally:
+        w.close()
+    _, frames = mp4_frames(out)
+    for f in frames:
+        np.testing.assert_allclose(f.reshape(-1, 3).mean(axis=0), (51, 128, 204), atol=2.5)
+        assert np.ptp(f.reshape(-1, 3), axis=0).max() <= 2
+
+
+def test_gpu_yuv_is_refused_where_it_cannot_work(scene, tmp_path):
+    with pytest.raises(ValueError, match="gpu_yuv needs an MP4 output .* width is a multiple of 4, got gif"):
+        record(scene(), tmp_path / "x.gif", frames=2, gpu_yuv=True)
+    with pytest.raises(ValueError, match="got mp4 at 98x64"):
+        record(scene(size=(98, 64)), tmp_path / "x.mp4", frames=2, gpu_yuv=True)
+    assert listing(tmp_path) == []
