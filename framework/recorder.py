@@ -49,9 +49,10 @@ later frame are the same as without blur. Integer averaging: deterministic.
 Safety: the output goes to a temporary name beside the target
 (``.NAME.<pid>.<random>.part...``) and is moved into place only when
 complete. An existing output is refused unless ``overwrite=True``.
-Ctrl-C, SIGTERM and SIGHUP stop rendering, finish a valid, shorter file and
-report ``interrupted=True`` with the signal's number in ``signal`` (and say so
-on stderr); any other failure removes everything it wrote and raises
+Ctrl-C, SIGTERM and SIGHUP stop rendering at the end of the frame being made
+(a second one at once), finish a valid, shorter file and report
+``interrupted=True`` with the signal's number in ``signal`` (and say so on
+stderr); any other failure removes everything it wrote and raises
 (:class:`RecordingError` for a failed write: a full disk, ffmpeg stopping).
 A process killed outright (SIGKILL) cannot clean up: the next recording to
 the same output removes temporary files whose process is gone. An unknown
@@ -619,26 +620,33 @@ def _move_into_place(tmp: Path, path: Path, fmt: str, overwrite: bool) -> None:
 
 
 class _StopSignals:
-    """While active (main thread only), SIGTERM and SIGHUP raise :class:`Interrupted`, like Ctrl-C.
+    """While active (main thread only), Ctrl-C, SIGTERM and SIGHUP ask the recording to stop.
 
-    Signals whose handler is not the default (ignored under ``nohup``, or
-    the application's own) are left alone.
+    The first one only sets :attr:`requested`: the loop stops at the end of
+    the frame it is in, so no system, writer or GL call is cut off halfway
+    (an exception raised at any bytecode could leave the world half-stepped).
+    A second one raises :class:`Interrupted` at once, for a frame that never
+    ends. Signals whose handler is not the default (ignored under ``nohup``,
+    or the application's own) are left alone.
     """
 
     def __init__(self, enabled: bool):
         self._old: dict = {}
+        self.requested: int | None = None
         self.enabled = enabled and threading.current_thread() is threading.main_thread()
 
-    @staticmethod
-    def _raise(signum, frame):
-        raise Interrupted(signum)
+    def _handle(self, signum, frame):
+        if self.requested is not None:
+            raise Interrupted(signum)
+        self.requested = signum
 
     def __enter__(self):
         if self.enabled:
-            for s in STOP_SIGNALS:
+            defaults = {signal.SIGINT: signal.default_int_handler}
+            for s in (signal.SIGINT, *STOP_SIGNALS):
                 # only where nobody chose otherwise: under nohup, SIGHUP stays ignored
-                if signal.getsignal(s) == signal.SIG_DFL:
-                    self._old[s] = signal.signal(s, self._raise)
+                if signal.getsignal(s) is defaults.get(s, signal.SIG_DFL):
+                    self._old[s] = signal.signal(s, self._handle)
         return self
 
     def __exit__(self, *exc):
@@ -728,7 +736,7 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     from tqdm import tqdm
 
     # from the first file made to the last: SIGTERM / SIGHUP become an interrupt, never debris
-    with _StopSignals(handle_signals):
+    with _StopSignals(handle_signals) as stop:
         tmp = _prepare_path(path, fmt, bool(overwrite))
         try:
             if fmt == "mp4":
@@ -762,6 +770,9 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         try:
             try:
                 for _ in range(frames):
+                    if stop.requested is not None:      # a signal during the last frame: stop between frames
+                        stopped_by = stop.requested
+                        break
                     if motion_blur > 1:
                         interpolate.start(world)
                     for _ in range(steps_per_frame):
@@ -775,7 +786,10 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
                     writer.put(grab())
                     done += 1
                     bar.update(1)
-            except KeyboardInterrupt as e:
+                else:
+                    if stop.requested is not None:      # it came during the very last frame
+                        stopped_by = stop.requested
+            except KeyboardInterrupt as e:              # a second signal, or Ctrl-C from scripted input
                 stopped_by = getattr(e, "signum", signal.SIGINT)
             finally:
                 bar.close()
@@ -804,6 +818,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         finally:
             if converter is not None:
                 converter.release()
+        if stopped_by is None and stop.requested is not None:
+            stopped_by = stop.requested                 # it came while the file was being finished
     seconds = time.perf_counter() - t0
     if stopped_by is not None:
         where = f"wrote {done} frames to {path}" if final else "nothing written"

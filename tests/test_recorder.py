@@ -439,3 +439,24 @@ def test_gpu_yuv_is_refused_where_it_cannot_work(scene, tmp_path):
     with pytest.raises(ValueError, match="got mp4 at 98x64"):
         record(scene(size=(98, 64)), tmp_path / "x.mp4", frames=2, gpu_yuv=True)
     assert listing(tmp_path) == []
+
+
+def test_a_stop_signal_ends_the_recording_between_frames(scene, tmp_path, capsys):
+    import signal
+
+    def sigterm_at_step_10(world, step):
+        if step == 10:
+            signal.raise_signal(signal.SIGTERM)      # as `kill` would send it, in the middle of a frame
+
+    w = scene()
+    out = tmp_path / "t.mp4"
+    before = signal.signal(signal.SIGTERM, signal.SIG_DFL)   # the recorder takes over only a default handler
+    try:
+        res = record(w, out, frames=40, progress=False, before_step=sigterm_at_step_10)
+        assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL        # and puts it back
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    # frame 10 was finished (stepped, drawn, written), then the recording stopped: no half-made frame
+    assert (res.interrupted, res.signal, res.frames, w.step_count) == (True, signal.SIGTERM, 11, 11)
+    assert len(mp4_frames(out)[1]) == 11 and listing(tmp_path) == ["t.mp4"]
+    assert "interrupted after 11 of 40 frames (SIGTERM)" in capsys.readouterr().err
