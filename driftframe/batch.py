@@ -501,6 +501,8 @@ def _remove(path) -> None:
 def attempt(spec: Spec, should_stop=None):
     """:func:`run`, with any exception turned into a :class:`Failure` (and a stop into ``None``)."""
     t0 = time.perf_counter()
+    if should_stop is not None and should_stop():
+        return None                     # queued when the batch was stopped: do not even build it
     try:
         return run(spec, should_stop=should_stop)
     except Interrupted:
@@ -751,9 +753,9 @@ def _on_cluster(client, specs, done) -> bool:
                for i, spec in enumerate(specs)}
     with _StopFlag() as flag:
         pending = set(futures)
-        cancelled = False
+        stopped_at = None
         while pending:
-            finished = {f for f in pending if f.done()}
+            finished = {f for f in pending if f.status in ("finished", "error", "cancelled")}
             pending -= finished
             for f in finished:
                 i = futures[f]
@@ -763,11 +765,13 @@ def _on_cluster(client, specs, done) -> bool:
                     exc = f.exception()
                     done(i, Failure(specs[i], f"{type(exc).__name__}: {exc}",
                                     "".join(traceback.format_exception(exc))))
-            if flag.event.is_set() and not cancelled:
+            if flag.event.is_set() and stopped_at is None:
+                stopped_at = time.monotonic()
                 stop.set()              # running tasks stop within half a second and delete their output
-                client.cancel([f for f in pending if f.status == "pending"])
-                cancelled = True
+                running = {k for keys in client.processing().values() for k in keys}
+                client.cancel([f for f in pending if f.key not in running])     # queued: never start
+            if stopped_at is not None and time.monotonic() - stopped_at > 60:
+                break                   # a worker that does not answer: stop waiting for it
             if pending:
                 time.sleep(0.05)
-                pending = {f for f in pending if f.status not in ("cancelled", "lost")}
         return flag.event.is_set()

@@ -3,8 +3,8 @@
 Every key takes one value or a list; each list is an axis of the grid, and
 the batch is every combination (the last axis varies fastest)::
 
-    # sweep.toml: 2 demos x 100 seeds = 200 headless runs
-    demo = ["asteroids", "swarm"]       # or scene = "mypkg.scenes:field" (func(world, rng, **overrides))
+    # sweep.toml: 2 sizes x 100 seeds = 200 headless runs
+    demo = "swarm"                      # or a list; or scene = "mypkg.scenes:field" (func(world, rng, **kw))
     seeds = "0..99"                     # a..b includes both ends; or 7, or [1, 5, 9]
     seconds = 5                         # default: the demo's own length (required for a scene)
     scripted = false                    # no scripted input: the solver alone (thrust adds energy)

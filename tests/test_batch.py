@@ -189,15 +189,27 @@ def test_the_cli_reports_a_failed_run_writes_the_summary_and_exits_1(tmp_path):
 
 
 # -- Ctrl-C --------------------------------------------------------------------------------------
-def test_ctrl_c_stops_the_batch_and_leaves_only_whole_outputs(tmp_path):
+def _whole(folder: Path, frames: int):
+    """Every file in ``folder`` is a finished MP4 of ``frames`` frames; returns their names."""
     import imageio_ffmpeg
 
+    names = sorted(p.name for p in folder.iterdir())
+    assert all(n.startswith("box-") and n.endswith(".mp4") for n in names), names   # no .part, no summary
+    for name in names:
+        reader = imageio_ffmpeg.read_frames(str(folder / name))
+        next(reader)
+        assert sum(1 for _ in reader) == frames, name
+    return names
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_ctrl_c_stops_the_batch_and_leaves_only_whole_outputs(tmp_path, jobs):
     spec = tmp_path / "long.toml"
     # 8 recordings of 4 s at 64x64: long enough that SIGINT lands while runs are going
     spec.write_text('scene = "batch_scenes:box"\nseeds = "0..7"\nseconds = 4\nsize = "64x64"\n'
                     'output = "box-{seed}.mp4"\n')
     out = tmp_path / "o"
-    proc = subprocess.Popen(EXE + ["batch", str(spec), "-j", "2", "-o", str(out), "--quiet"], cwd=HERE,
+    proc = subprocess.Popen(EXE + ["batch", str(spec), "-j", str(jobs), "-o", str(out), "--quiet"], cwd=HERE,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 120
     while not list(out.glob("box-*.mp4")) and time.monotonic() < deadline and proc.poll() is None:
@@ -208,14 +220,28 @@ def test_ctrl_c_stops_the_batch_and_leaves_only_whole_outputs(tmp_path):
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
     assert "interrupted" in stderr and "no summary written" in stderr and "Traceback" not in stderr
-    names = sorted(p.name for p in out.iterdir())
-    assert all(n.startswith("box-") and n.endswith(".mp4") for n in names), names   # no .part, no summary
-    assert 1 <= len(names) < 8
-    for name in names:                        # each output that is there is whole: 240 frames
-        reader = imageio_ffmpeg.read_frames(str(out / name))
-        next(reader)
-        assert sum(1 for _ in reader) == 240, name
+    assert 1 <= len(_whole(out, 240)) < 8     # each output that is there is whole: 240 frames
     assert not [p for p in tmp_path.rglob(".*part*")]
+
+
+def test_ctrl_c_stops_a_batch_on_the_cluster_cleanly(tmp_path, cluster):
+    import threading
+
+    specs = [Spec(scene="batch_scenes:box", seed=s, seconds=4, size=(64, 64), output=str(tmp_path / f"box-{s}.mp4"))
+             for s in range(6)]
+
+    def interrupt_after_the_first_output():
+        deadline = time.monotonic() + 60
+        while not list(tmp_path.glob("box-*.mp4")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.3)
+        os.kill(os.getpid(), signal.SIGINT)   # a real Ctrl-C, handled in this (the main) thread
+
+    threading.Thread(target=interrupt_after_the_first_output, daemon=True).start()
+    out = batch.run_all(specs, scheduler=cluster, progress=False)
+    assert out.interrupted and 1 <= len(out.done) < 6 and not out.failures
+    time.sleep(1.0)                           # a task that was running stops within half a second
+    assert _whole(tmp_path, 240) == sorted(Path(r.output).name for r in out.done)
 
 
 def test_a_stopped_run_deletes_what_it_had_written(tmp_path):
