@@ -24,12 +24,13 @@ to an executor that exists already.
   need driftframe installed and, for outputs, the same file system.
 
 Worker count (:func:`plan_jobs`): the cores this process may use, divided
-by what one run keeps busy. A headless run is one busy thread. A recording
-adds ffmpeg's x264 encoder (its threads pinned at ``recorder.X264_THREADS``
-because the bytes depend on it, so its load is counted: see
-:func:`encoder_share`) and Mesa's rasteriser threads (``LP_NUM_THREADS``,
-by default one per core in every process): with several workers each gets
-``LP_NUM_THREADS = max(1, cores // jobs)`` unless you set it yourself.
+by what one run keeps busy. A headless run is one busy thread. An MP4
+recording adds ffmpeg's x264 encoder beside it (its threads pinned at
+``recorder.X264_THREADS`` because the bytes depend on it, so its load is
+counted: :data:`RECORDING_CORES`). Mesa's rasteriser threads
+(``LP_NUM_THREADS``, by default one per core in every process): with several
+workers each gets ``LP_NUM_THREADS = max(1, cores // jobs)`` unless you set
+it yourself.
 Give ``jobs`` to override.
 
 Failures: a run that raises becomes a :class:`Failure` (its spec, the error,
@@ -520,39 +521,33 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-#: A recording's encoder (ffmpeg's x264, its thread count pinned at ``recorder.X264_THREADS`` because the
-#: bytes depend on it) keeps about ``ENCODER_CORES[0] + ENCODER_CORES[1] * megapixels`` of a core busy
-#: beside the run's own thread, up to one core (measured with getrusage on the asteroids demo:
-#: ffmpeg's CPU time / the run's, 0.6 at 640x360 and 1.0 at 1280x720).
-ENCODER_CORES = (0.45, 0.6)
-
-
-def encoder_share(size) -> float:
-    """Cores an MP4 recording's encoder keeps busy at frame ``size`` (width, height), beside the run."""
-    mp = size[0] * size[1] / 1e6
-    return min(1.0, ENCODER_CORES[0] + ENCODER_CORES[1] * mp)
+#: Cores one MP4 recording keeps busy, measured alone (CPU time of the process and of its ffmpeg over
+#: wall time, asteroids demo, 3 s): 1.2-1.27 at 640x360 and at 1280x720. The run's own thread is the
+#: critical path; x264 (its thread count pinned at ``recorder.X264_THREADS``: the bytes depend on it)
+#: runs beside it in ffmpeg's process, 0.4x-1.2x the run's own CPU time from 320x180 to 1280x720.
+RECORDING_CORES = 1.25
 
 
 def plan_jobs(specs, jobs: int | None = None, *, ncores: int | None = None) -> tuple[int, int | None]:
     """``(jobs, lp_threads)``: worker processes, and ``LP_NUM_THREADS`` for each (None: leave it).
 
     The rule: ``jobs = round(cores / cores_per_run)``, at least 1 and at most
-    the number of runs. A headless run keeps one thread busy (1 core). An
-    MP4 recording keeps its own thread busy (Python and the GL driver's
-    vertex work) plus the encoder, :func:`encoder_share` of a core (its
-    thread count is pinned, so its load is counted instead of capped). Mesa's
-    rasteriser starts ``LP_NUM_THREADS`` threads in every process (default:
-    one per core): with several workers each gets ``max(1, cores // jobs)``
-    unless ``LP_NUM_THREADS`` is set already, which is left alone. The
-    pictures do not depend on it.
+    the number of runs. A headless run keeps one thread busy: 1 core. An
+    MP4 recording keeps :data:`RECORDING_CORES` busy: its own thread
+    (Python, the GL driver's vertex work, read-back) and, beside it, the
+    x264 encoder, whose thread count is pinned for identical bytes, so its
+    load is counted rather than capped. Rounding, not flooring: a slightly
+    oversubscribed core costs less than an idle one. Mesa's rasteriser
+    starts ``LP_NUM_THREADS`` threads in every process (default: one per
+    core): with several workers each gets ``max(1, cores // jobs)`` unless
+    ``LP_NUM_THREADS`` is set already, which is left alone. The pictures do
+    not depend on it.
     """
     ncores = ncores or cores()
     specs = list(specs)
     if jobs is None:
-        per_run = 1.0
-        videos = [s for s in specs if s.output is not None and str(s.output).endswith(".mp4")]
-        if videos:
-            per_run += max(encoder_share(s.size) for s in videos)
+        videos = any(s.output is not None and str(s.output).endswith(".mp4") for s in specs)
+        per_run = RECORDING_CORES if videos else 1.0
         jobs = max(1, round(ncores / per_run))
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise SpecError(f"jobs must be an integer >= 1, got {jobs!r}")
