@@ -368,25 +368,30 @@ def _build(spec: Spec):
 
 
 def _bodies(world):
-    """(masses (n,), velocities (n, 3)) of every body with a Velocity and a finite mass, by entity id."""
-    import esper
+    """(masses (n,), velocities (n, 3)) of every body with a Velocity and a finite mass, by entity id.
 
+    A body with a Velocity and no Mass weighs 1 kg, as it does in a collision.
+    """
     from driftframe.components.body import Mass, Velocity
 
-    world.activate()
-    rows = []
-    for ent, vel in sorted(esper.get_component(Velocity), key=lambda p: p[0]):
-        mass = esper.try_component(ent, Mass)
-        kg = 1.0 if mass is None else float(mass.kg)
-        if math.isfinite(kg):
-            rows.append((kg, np.array(vel.linear, dtype=float)))
-    if not rows:
-        return np.zeros(0), np.zeros((0, 3))
-    return np.array([m for m, _ in rows]), np.array([v for _, v in rows])
+    vel = world.columns(Velocity)
+    ents, v = vel.entities, vel.linear
+    kg = np.ones(len(ents))
+    massed = world.columns(Mass)
+    have = np.isin(ents, massed.entities)
+    if have.any():
+        kg[have] = world.columns(Mass, ents[have]).kg
+    keep = np.isfinite(kg)
+    return kg[keep], v[keep]
+
+
+def _energy(m, v) -> float:
+    """Kinetic energy, J: sum of m |v|^2 / 2."""
+    return 0.5 * float(np.sum(m * np.einsum("ij,ij->i", v, v)))
 
 
 class _Meter:
-    """Collects a run's stats: energy and momentum at the start and end, contacts every step."""
+    """Collects a run's stats: energy and momentum at the start and the end, every contact on the way."""
 
     def __init__(self, world, stats):
         from driftframe.components.collision import CollisionEvent
@@ -394,30 +399,21 @@ class _Meter:
         self.world = world
         self.stats = stats
         self.contacts = 0
-        self._event = CollisionEvent
-        self._counting = "contacts" in stats
-        if self._counting and hasattr(world, "subscribe"):
-            world.subscribe(CollisionEvent, self._count)      # every step's events, however they are kept
-            self._counting = False
+        if "contacts" in stats:
+            world.subscribe(CollisionEvent, self._count)
         m, v = _bodies(world)
-        self.energy0 = 0.5 * float(np.sum(m * np.einsum("ij,ij->i", v, v)))
+        self.energy0 = _energy(m, v)
         self.p0 = (m[:, None] * v).sum(axis=0)
         self.pscale = float(np.sum(m * np.linalg.norm(v, axis=1)))
 
     def _count(self, event) -> None:
         self.contacts += 1
 
-    def after_step(self) -> None:
-        """Count the contacts of the step just taken (``world.events`` holds one step's events)."""
-        if self._counting:
-            ev = self._event
-            self.contacts += sum(1 for e in self.world.events if isinstance(e, ev))
-
     def finish(self) -> dict:
         out: dict = {}
         m, v = _bodies(self.world)
         if "energy" in self.stats:
-            e1 = 0.5 * float(np.sum(m * np.einsum("ij,ij->i", v, v)))
+            e1 = _energy(m, v)
             out["energy_start"] = self.energy0
             out["energy_end"] = e1
             out["energy_drift"] = (e1 - self.energy0) / self.energy0 if self.energy0 > 0 else e1 - self.energy0
@@ -461,25 +457,17 @@ def run(spec: Spec, *, should_stop: Callable[[], bool] | None = None) -> Result:
                 for _ in range(steps):
                     poll()
                     world.step()
-                    meter.after_step()
             else:
                 k = _steps_per_frame(spec.fps, world.dt, spec._err)
                 n = max(1, round(spec.seconds * spec.fps))
                 attach_rendering(world, size=spec.size, camera=spec.camera)
 
-                def before_step(w, step):
-                    poll()
-                    if step > 0:
-                        meter.after_step()        # world.events still holds the previous step's events
-
                 # an Interrupted raised in before_step makes record() delete everything it wrote
                 rec = record(world, spec.output, frames=n, fps=spec.fps, steps_per_frame=k, progress=False,
-                             before_step=before_step)
+                             before_step=poll)
                 if rec.interrupted:               # a KeyboardInterrupt: record kept a shorter file; drop it
                     _remove(rec.path)
                     raise KeyboardInterrupt
-                meter.after_step()
-                steps = n * k
                 frames = rec.frames
             state_hash = world.state_hash()
             stats = meter.finish()
