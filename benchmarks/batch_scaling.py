@@ -16,6 +16,7 @@ interleaved round by round so a busy spell on the machine hits both:
 """
 from __future__ import annotations
 
+import os
 import statistics
 import tempfile
 import time
@@ -72,6 +73,7 @@ def main(argv=None) -> int:
     identical = True
     hashes_equal = True
     worst_run = {"recordings": 0.0, "headless": 0.0}
+    loads = [os.getloadavg()[0]]
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for k in range(rounds):
@@ -90,6 +92,7 @@ def main(argv=None) -> int:
                 else:
                     pool_hashes = [r.state_hash for r in out.results]
                 print(f"[{NAME}] round {k}: {n_head} headless runs, jobs={jobs}: {took:.2f} s", flush=True)
+            loads.append(os.getloadavg()[0])
             hashes_equal &= serial_hashes == pool_hashes
             for s in range(n_rec):
                 a = (tmp / f"r{k}j1" / f"a{s}.mp4").read_bytes()
@@ -121,6 +124,9 @@ def main(argv=None) -> int:
         ax.set_xticks([0, 1], ["serial", "-j 2 (spawn pool)"])
         ax.set_ylabel("batch wall time, s")
         count = n_rec if label == "recordings" else n_head
+        bar = RECORD_BAR if label == "recordings" else HEADLESS_BAR
+        ax.axhline(ser / bar, color="C3", ls="--", lw=1)
+        ax.text(1.45, ser / bar, f"bar: {bar:g}x", color="C3", fontsize=7, va="bottom", ha="right")
         ax.set_title(f"{count} {label}: {ser / par:.2f}x", fontsize=10)
     fig.suptitle(f"driftframe batch on {batch.cores()} cores (median of {rounds} rounds; dots: each round)",
                  fontsize=10)
@@ -132,7 +138,9 @@ def main(argv=None) -> int:
         f"Each batch is timed end to end through `driftframe.batch.run_all` (checks, spawning the workers, "
         f"every run, collecting results): serial (`-j 1`, in the calling process) against `-j 2` (two spawn "
         f"workers), {rounds} interleaved rounds, medians; *worst round* is the smallest of the per-round "
-        f"ratios. The machine is shared with other work, so a round can be slowed by something else.",
+        f"ratios. The 1-minute load average was {min(loads):.1f}-{max(loads):.1f} over the run on "
+        f"{batch.cores()} cores: other work shared the machine, so the figures are lower bounds of what "
+        "a quiet machine gives.",
         "",
         table(["batch", "serial s", "-j 2 s", "serial runs/s", "-j 2 runs/s", "speed-up (median)",
                "worst round", "bar", ""], rows),

@@ -110,6 +110,10 @@ class Spec:
     scripted: bool = True
     where: str = ""
 
+    def __hash__(self):                 # overrides is a dict: hash what it holds
+        return hash((self.demo, self.scene, self.seed, self.seconds, self.fps, tuple(self.size), self.camera,
+                     repr(sorted(self.overrides.items())), self.output, tuple(self.stats), self.scripted))
+
     @property
     def label(self) -> str:
         """Short text for progress lines and tables: ``asteroids seed=3``, plus overrides."""

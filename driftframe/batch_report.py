@@ -19,7 +19,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from driftframe.batch import Failure, Outcome, Result
+from driftframe.batch import Outcome, Result
 
 STAGES = ("input", "control", "movement", "spin", "collision", "camera", "render", "record")
 COLUMNS = ["index", "status", "demo", "scene", "seed", "seconds", "fps", "size", "camera", "overrides",
@@ -143,10 +143,15 @@ def markdown(outcome: Outcome, *, title: str, chart: str | None) -> str:
 
 
 def _symlog_bins(values) -> list[float]:
-    """Histogram edges for a symmetric log axis: two per decade, one linear bin around zero."""
+    """Histogram edges for a symmetric log axis: two per decade, one linear bin around zero.
+
+    Only the positive side when no value is negative (a size, such as the momentum drift).
+    """
     top = max((abs(v) for v in values), default=1.0)
     hi = max(math.ceil(math.log10(max(top, LINEAR))) + 1, -15)
     pos = [10.0 ** (k / 2) for k in range(-32, 2 * hi + 1)]
+    if min(values, default=0.0) >= 0:
+        return [-LINEAR] + pos
     return [-p for p in reversed(pos)] + pos
 
 
