@@ -558,6 +558,7 @@ def _worker_init(stop_event, lp_threads) -> None:
     """Pool worker set-up: Ctrl-C is the parent's to handle; the rasteriser's threads as planned."""
     global _WORKER_STOP
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})    # blocked since birth; now ignored
     if lp_threads is not None:
         os.environ["LP_NUM_THREADS"] = str(lp_threads)
     _WORKER_STOP = stop_event
@@ -596,6 +597,7 @@ class _StopFlag:
         if threading.current_thread() is threading.main_thread():
             self._old = signal.signal(signal.SIGINT, self._handler)
         return self
+
 
     def _handler(self, signum, frame):
         if self.event.is_set():
@@ -709,7 +711,13 @@ def _on_pool(specs, jobs, lp, done) -> bool:
     with _StopFlag(on_stop=stop.set) as flag, \
             ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init,
                                 initargs=(stop, lp)) as pool:
-        futures = {pool.submit(_pool_attempt, spec): i for i, spec in enumerate(specs)}
+        # workers start inside submit(), with SIGINT blocked (fork and exec keep the signal mask): a Ctrl-C
+        # while they import cannot kill one, and in this process it waits until the mask is lifted
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            futures = {pool.submit(_pool_attempt, spec): i for i, spec in enumerate(specs)}
+        finally:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         pending = set(futures)
         while pending:
             finished, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
@@ -718,6 +726,8 @@ def _on_pool(specs, jobs, lp, done) -> bool:
                 if f.cancelled():
                     continue
                 exc = f.exception()
+                if exc is not None and flag.event.is_set():
+                    continue            # stopping: a worker that went down with the batch is not a failure
                 if exc is not None:     # the worker itself broke (killed, out of memory)
                     done(i, Failure(specs[i], f"{type(exc).__name__}: {exc}",
                                     "".join(traceback.format_exception(exc))))

@@ -224,6 +224,25 @@ def test_ctrl_c_stops_the_batch_and_leaves_only_whole_outputs(tmp_path, jobs):
     assert not [p for p in tmp_path.rglob(".*part*")]
 
 
+def test_ctrl_c_while_the_workers_start_is_a_clean_stop_too(tmp_path):
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..3"\nseconds = 4\nsize = "64x64"\n'
+                    'output = "box-{seed}.mp4"\n')
+    out = tmp_path / "o"
+    proc = subprocess.Popen(EXE + ["batch", str(spec), "-j", "2", "-o", str(out), "--quiet"], cwd=HERE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+    deadline = time.monotonic() + 60
+    while len(children.read_text().split()) < 2 and time.monotonic() < deadline:
+        time.sleep(0.005)                     # two workers spawned: they are importing driftframe now
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "no summary written" in stderr and "run failed" not in stderr and "Traceback" not in stderr
+    _whole(out, 240)
+    assert not [p for p in tmp_path.rglob(".*part*")]
+
+
 def test_ctrl_c_stops_a_batch_on_the_cluster_cleanly(tmp_path, cluster):
     import threading
 
