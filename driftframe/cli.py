@@ -315,6 +315,10 @@ def cmd_batch(args) -> int:
     from driftframe import batch, batch_file, batch_report
 
     spec_path = Path(args.spec)
+    # scenes are named by import path, as in `python -m`: from the current folder too (the console
+    # script's sys.path starts at its own bin folder); spawned workers inherit sys.path
+    if os.getcwd() not in sys.path and "" not in sys.path:
+        sys.path.insert(0, os.getcwd())
     if args.jobs is not None and args.scheduler is not None:
         raise UsageError("-j and --scheduler exclude each other: the cluster's workers decide")
     out_dir = Path(args.output) if args.output else Path("out") / spec_path.stem

@@ -418,8 +418,13 @@ def test_without_matplotlib_the_summary_says_why_there_is_no_chart(tmp_path, mon
 
 
 def test_the_cli_batch_end_to_end_with_recordings(tmp_path):
-    res, out = _batch_cli(tmp_path, 'scene = "batch_scenes:box"\nseeds = "0..1"\nseconds = 0.2\nsize = "64x64"\n'
-                          'fps = 30\noutput = "clips/box-{seed}.gif"\n', "-j", "2")
+    # the installed console script, run from the folder that holds the scene's module: found from there
+    script = Path(sys.executable).with_name("driftframe")
+    spec, out = tmp_path / "s.toml", tmp_path / "o"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..1"\nseconds = 0.2\nsize = "64x64"\n'
+                    'fps = 30\noutput = "clips/box-{seed}.gif"\n')
+    res = subprocess.run([str(script), "batch", str(spec), "-j", "2", "-o", str(out), "--quiet"],
+                         capture_output=True, text=True, timeout=120, cwd=HERE)
     assert res.returncode == 0, res.stderr
     assert "2 of 2 runs ok, 0 failed, on 2 processes" in res.stdout
     assert sorted(p.name for p in (out / "clips").iterdir()) == [f"box-{s}.gif" for s in range(2)]
