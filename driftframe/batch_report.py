@@ -179,6 +179,8 @@ def chart(outcome: Outcome, path: Path, *, title: str) -> Path:
         else:
             bins = _symlog_bins(allv)
             ax.set_xscale("symlog", linthresh=LINEAR, linscale=0.5)
+            if bins[0] > -2 * LINEAR:           # a size (never negative): start the axis at zero
+                ax.set_xlim(0, bins[-1])
         for k, (name, rs) in enumerate(groups.items()):
             vals = [r.stats[key] for r in rs if key in r.stats]
             ax.hist(vals, bins=bins, histtype="stepfilled", alpha=0.45, color=f"C{k}", label=name,
