@@ -64,7 +64,7 @@ import numpy as np
 
 #: The stats a run can collect; all of them by default.
 STATS = ("energy", "momentum", "contacts", "stages")
-CAMERAS = ("cockpit", "chase")
+SKIES = ("lines", "starfield")
 #: Frame size of a recording when a spec gives none (pixels).
 DEFAULT_SIZE = (640, 360)
 
@@ -92,7 +92,8 @@ class Spec:
     demo's ``SECONDS``; required for a scene). ``output``: ``None`` for a
     headless run (physics only), else a ``.mp4``/``.gif`` path or a directory
     for PNG frames, rendered at ``size`` and ``fps`` (which must divide the
-    simulation rate). ``scripted``: fly the demo's scripted input (its thrust
+    simulation rate), with ``camera`` (one of ``components.camera.MODES``;
+    default: the scene's own) and ``sky`` (:data:`SKIES`). ``scripted``: fly the demo's scripted input (its thrust
     adds energy; False measures the solver alone). ``stats``: which of
     :data:`STATS` to collect. ``where``: how error messages name this run.
     """
@@ -104,6 +105,7 @@ class Spec:
     fps: float = 60.0
     size: tuple[int, int] = DEFAULT_SIZE
     camera: str | None = None
+    sky: str = "lines"
     overrides: dict = field(default_factory=dict)
     output: str | None = None
     stats: tuple[str, ...] = STATS
@@ -112,7 +114,7 @@ class Spec:
 
     def __hash__(self):                 # overrides is a dict: hash what it holds
         return hash((self.demo, self.scene, self.seed, self.seconds, self.fps, tuple(self.size), self.camera,
-                     repr(sorted(self.overrides.items())), self.output, tuple(self.stats), self.scripted))
+                     self.sky, repr(sorted(self.overrides.items())), self.output, tuple(self.stats), self.scripted))
 
     @property
     def label(self) -> str:
@@ -163,8 +165,11 @@ class Spec:
             size = parse_size(size if isinstance(size, str) else "x".join(map(str, size)))
         except (TypeError, ValueError) as e:
             raise self._err(str(e)) from None
-        if self.camera is not None and self.camera not in CAMERAS:
-            raise self._err(f"camera must be one of {', '.join(CAMERAS)} (or none), got {self.camera!r}")
+        from driftframe.components.camera import MODES
+        if self.camera is not None and self.camera not in MODES:
+            raise self._err(f"camera must be one of {', '.join(MODES)} (or none), got {self.camera!r}")
+        if self.sky not in SKIES:
+            raise self._err(f"sky must be one of {', '.join(SKIES)}, got {self.sky!r}")
         stats = (self.stats,) if isinstance(self.stats, str) else tuple(self.stats)
         bad = [s for s in stats if s not in STATS]
         if bad:
@@ -464,7 +469,7 @@ def run(spec: Spec, *, should_stop: Callable[[], bool] | None = None) -> Result:
             else:
                 k = _steps_per_frame(spec.fps, world.dt, spec._err)
                 n = max(1, round(spec.seconds * spec.fps))
-                attach_rendering(world, size=spec.size, camera=spec.camera)
+                attach_rendering(world, size=spec.size, camera=spec.camera, sky=spec.sky)
 
                 # an Interrupted raised in before_step makes record() delete everything it wrote
                 rec = record(world, spec.output, frames=n, fps=spec.fps, steps_per_frame=k, progress=False,

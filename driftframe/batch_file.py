@@ -14,10 +14,10 @@ the batch is every combination (the last axis varies fastest)::
     COUNT = [500, 1000]                 # a list here is an axis too
 
 Recordings: add ``output``, a file name template relative to the output
-folder (``-o DIR``), with ``size``, ``fps`` and ``camera``::
+folder (``-o DIR``), with ``size``, ``fps``, ``camera`` and ``sky``::
 
     output = "{demo}-{seed}.mp4"        # fields: demo (or the scene's function name), seed, seconds,
-    size = "640x360"                    # fps, size, width, height, camera, index, and each override
+    size = "640x360"                    # fps, size, width, height, camera, sky, index, and each override
     fps = 30
 
 Anything wrong (an unknown key, a bad range, an unknown demo or scene, an
@@ -44,7 +44,8 @@ KEYS = {
     "seconds": "simulated seconds per run",
     "fps": "frames per second of a recording (must divide 60)",
     "size": "'WIDTHxHEIGHT' of a recording",
-    "camera": "'cockpit' or 'chase'",
+    "camera": "'cockpit', 'chase' or 'overhead'",
+    "sky": "'lines' (the green line cube) or 'starfield'",
     "output": "file name template, relative to the output folder; none: headless",
     "stats": f"which stats to collect: any of {', '.join(STATS)}",
     "scripted": "true: fly the demo's scripted input; false: none",
@@ -154,6 +155,7 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
         "fps": _axis(data.get("fps", 60), f"{name}: fps"),
         "size": _axis(data.get("size", "640x360"), f"{name}: size"),
         "camera": _axis(data.get("camera"), f"{name}: camera"),
+        "sky": _axis(data.get("sky", "lines"), f"{name}: sky"),
     }
     for key, value in overrides.items():
         axes[f"overrides.{key}"] = _axis(value, f"{name}: overrides.{key}")
@@ -177,7 +179,7 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
         if template is not None:
             output = str(out_dir / _fill(template, point, kind, ov, index, where))
         specs.append(Spec(**{kind: point[kind]}, seed=point["seed"], seconds=point["seconds"], fps=point["fps"],
-                          size=point["size"], camera=point["camera"], overrides=ov, output=output,
+                          size=point["size"], camera=point["camera"], sky=point["sky"], overrides=ov, output=output,
                           stats=tuple(stats), scripted=scripted, where=where))
     return check_all(specs) if check else specs
 
@@ -210,7 +212,7 @@ def prepare(specs, out_dir) -> list[Spec]:
 
 
 def _fields(overrides) -> set[str]:
-    return {"demo", "scene", "seed", "seconds", "fps", "size", "width", "height", "camera", "index",
+    return {"demo", "scene", "seed", "seconds", "fps", "size", "width", "height", "camera", "sky", "index",
             *overrides}
 
 
@@ -237,7 +239,7 @@ def _fill(template, point, kind, ov, index, where) -> str:
     label = value.split(":")[-1] if kind == "scene" and isinstance(value, str) else value
     fields = {"demo": label, "scene": label, "seed": point["seed"], "seconds": point["seconds"],
               "fps": point["fps"], "size": size if isinstance(size, str) else f"{w}x{h}", "width": w,
-              "height": h, "camera": point["camera"] or "default", "index": index, **ov}
+              "height": h, "camera": point["camera"] or "default", "sky": point["sky"], "index": index, **ov}
     try:
         return template.format(**fields)
     except (ValueError, TypeError, KeyError, IndexError) as e:

@@ -22,7 +22,7 @@ from pathlib import Path
 from driftframe.batch import Outcome, Result
 
 STAGES = ("input", "control", "movement", "spin", "collision", "camera", "render", "record")
-COLUMNS = ["index", "status", "demo", "scene", "seed", "seconds", "fps", "size", "camera", "overrides",
+COLUMNS = ["index", "status", "demo", "scene", "seed", "seconds", "fps", "size", "camera", "sky", "overrides",
            "output", "state_hash", "steps", "frames", "energy_drift", "momentum_drift", "contacts",
            "energy_start", "energy_end", "wall_seconds"] + [f"{s}_seconds" for s in STAGES] + ["error"]
 #: Drifts below this are shown as zero (the linear middle of the symmetric log axis): less than one
@@ -44,7 +44,7 @@ def rows(outcome: Outcome) -> list[dict]:
         s = res.spec
         row = {"index": i, "demo": s.demo or "", "scene": s.scene or "", "seed": s.seed, "seconds": s.seconds,
                "fps": s.fps if s.output else "", "size": f"{s.size[0]}x{s.size[1]}" if s.output else "",
-               "camera": s.camera or "", "overrides": " ".join(f"{k}={v}" for k, v in sorted(s.overrides.items())),
+               "camera": s.camera or "", "sky": s.sky if s.output else "", "overrides": " ".join(f"{k}={v}" for k, v in sorted(s.overrides.items())),
                "output": s.output or "", "wall_seconds": f"{res.wall_seconds:.3f}"}
         if isinstance(res, Result):
             st = res.stats

@@ -108,7 +108,8 @@ def test_a_recording_writes_its_output_and_reports_it(tmp_path):
 # -- reproducibility: serial, pool, cluster --------------------------------------------------------
 def _mixed(folder: Path):
     folder.mkdir()
-    return [headless(s) for s in range(3)] + [recording(s, folder / f"box-{s}.mp4") for s in range(2)] + \
+    return [headless(s) for s in range(3)] + [recording(0, folder / "box-0.mp4"),
+                                              recording(1, folder / "box-1.mp4", sky="starfield")] + \
            [Spec(demo="billiards", seconds=0.2, overrides={"SPEED": 9.0})]
 
 
@@ -301,7 +302,8 @@ def _batch_cli(tmp_path, text, *extra, name="s.toml"):
     ('demo = "cradle"\nseeds = [1, "a"]\n', "seeds[1]: seeds must be integers"),
     ('demo = "cradle"\nfps = 25\n', "fps must divide the 60 Hz"),
     ('demo = "cradle"\nsize = "64x"\n', "WIDTHxHEIGHT"),
-    ('demo = "cradle"\ncamera = "side"\n', "camera must be one of cockpit, chase"),
+    ('demo = "cradle"\ncamera = "side"\n', "camera must be one of cockpit, chase, overhead"),
+    ('demo = "cradle"\nsky = "clouds"\n', "sky must be one of lines, starfield"),
     ('demo = "cradle"\nstats = ["energy", "heat"]\n', "stats[1]: unknown stat 'heat'"),
     ('demo = "swarm"\nseeds = "0..3"\n[overrides]\nCOUNT = [100, -5]\n', "overrides.COUNT must be > 0, got -5"),
     ('demo = "swarm"\n[overrides]\nSIZE = 3\n', "demo 'swarm' has no setting 'SIZE'"),
