@@ -27,11 +27,10 @@ Worker count (:func:`plan_jobs`): the cores this process may use, divided
 by what one run keeps busy. A headless run is one busy thread. An MP4
 recording adds ffmpeg's x264 encoder beside it (its threads pinned at
 ``recorder.X264_THREADS`` because the bytes depend on it, so its load is
-counted: :data:`RECORDING_CORES`). Mesa's rasteriser threads
-(``LP_NUM_THREADS``, by default one per core in every process): with several
+counted: :data:`RECORDING_CORES`). Mesa starts ``LP_NUM_THREADS``
+rasteriser threads in every process (by default one per core): with several
 workers each gets ``LP_NUM_THREADS = max(1, cores // jobs)`` unless you set
-it yourself.
-Give ``jobs`` to override.
+it yourself. Give ``jobs`` to override.
 
 Failures: a run that raises becomes a :class:`Failure` (its spec, the error,
 the traceback) and the others go on. Ctrl-C: the first one stops the batch
@@ -602,7 +601,6 @@ class _StopFlag:
         if threading.current_thread() is threading.main_thread():
             self._old = signal.signal(signal.SIGINT, self._handler)
         return self
-
 
     def _handler(self, signum, frame):
         if self.event.is_set():
