@@ -23,3 +23,9 @@ def not_a_function():
 
 
 NOT_CALLABLE = 3
+
+
+def env_probe(world, rng):
+    """Fails on purpose, naming the worker's LP_NUM_THREADS: how a test reads a worker's environment."""
+    import os
+    raise RuntimeError(f"LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS')}")

@@ -398,6 +398,17 @@ def test_the_worker_plan_follows_the_cores_and_the_frame_size(monkeypatch):
         batch.plan_jobs(runs, 0)
 
 
+def test_pool_workers_get_the_planned_rasteriser_threads(monkeypatch):
+    monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    specs = [Spec(scene="batch_scenes:env_probe", seed=s, seconds=0.1) for s in range(2)]
+    lp = batch.plan_jobs(specs, 2)[1]
+    out = batch.run_all(specs, jobs=2, progress=False)
+    assert [r.error for r in out.results] == [f"RuntimeError: LP_NUM_THREADS={lp}"] * 2
+    monkeypatch.setenv("LP_NUM_THREADS", "3")                      # the user's own setting is kept
+    out = batch.run_all(specs, jobs=2, progress=False)
+    assert [r.error for r in out.results] == ["RuntimeError: LP_NUM_THREADS=3"] * 2
+
+
 def test_the_summary_has_a_row_per_run_a_report_and_a_chart(tmp_path):
     specs = [headless(s) for s in range(3)] + [headless(9, overrides={"fail": True})]
     out = batch.run_all(specs, jobs=1, progress=False)
