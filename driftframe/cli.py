@@ -189,7 +189,31 @@ def build_parser() -> argparse.ArgumentParser:
                                      "where the states differ. Exit status 0 when they agree, 1 when not.")
     div.add_argument("log_a", metavar="LOG_A")
     div.add_argument("log_b", metavar="LOG_B")
+
+    batch = sub.add_parser("batch", help="many runs from a TOML grid, on local processes or a Dask cluster",
+                           description="Run every combination in SPEC.toml (demo or scene, seeds, overrides, "
+                                       "...; see driftframe/batch_file.py) headless or recorded, then write "
+                                       "summary.csv, summary.md and summary.png to the output folder. "
+                                       "Ctrl-C stops cleanly: no half-written output is left.")
+    batch.add_argument("spec", metavar="SPEC.toml", help="the batch file")
+    batch.add_argument("-j", "--jobs", type=_jobs, default=None, metavar="N",
+                       help="worker processes (default: from the cores; 1 runs serially in this process)")
+    batch.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on this dask.distributed scheduler (tcp://host:8786) instead of local processes")
+    batch.add_argument("-o", "--output", default=None, metavar="DIR",
+                       help="folder for the recordings and the summary (default out/SPEC)")
+    batch.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
+
+
+def _jobs(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"-j must be an integer >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"-j must be an integer >= 1, got {text!r}")
+    return v
 
 
 def cmd_list(args) -> int:
@@ -352,6 +376,58 @@ def cmd_diverge(args) -> int:
     return 1
 
 
+def cmd_batch(args) -> int:
+    from pathlib import Path
+
+    from driftframe import batch, batch_file, batch_report
+
+    spec_path = Path(args.spec)
+    # scenes are named by import path, as in `python -m`: from the current folder too (the console
+    # script's sys.path starts at its own bin folder); spawned workers inherit sys.path
+    if os.getcwd() not in sys.path and "" not in sys.path:
+        sys.path.insert(0, os.getcwd())
+    if args.jobs is not None and args.scheduler is not None:
+        raise UsageError("-j and --scheduler exclude each other: the cluster's workers decide")
+    out_dir = Path(args.output) if args.output else Path("out") / spec_path.stem
+    try:
+        # every check before any run: the file, each entry, the output folder, the scheduler
+        specs = batch_file.load(spec_path, out_dir.resolve(), check=False)
+        batch.check_all(batch_file.without_outputs(specs))
+        batch.check_output_names(specs)
+        client = batch.connect(args.scheduler) if args.scheduler else None
+        try:
+            specs = batch_file.prepare(specs, out_dir)
+        except BaseException:
+            if client is not None:
+                client.close()
+            raise
+    except batch.SpecError as e:
+        raise UsageError(str(e)) from None
+    from tqdm import tqdm
+
+    def report(i, res):
+        if isinstance(res, batch.Failure):
+            tqdm.write(f"driftframe: run failed: {res.spec.where or res.spec.label}\n{res.traceback.rstrip()}",
+                       file=sys.stderr)
+
+    try:
+        outcome = batch.run_all(specs, jobs=args.jobs, scheduler=client, progress=not args.quiet, on_done=report)
+    finally:
+        if client is not None:
+            client.close()
+    if outcome.interrupted:
+        finished = len(outcome.done) + len(outcome.failures)
+        print(f"driftframe: interrupted: {finished} of {len(specs)} runs finished (their outputs are whole); "
+              "no summary written", file=sys.stderr)
+        return 130
+    written, note = batch_report.write(outcome, out_dir, title=f"{spec_path.name}: {len(specs)} runs")
+    if note:
+        print(f"driftframe: {note}", file=sys.stderr)
+    print(f"{len(outcome.done)} of {len(specs)} runs ok, {len(outcome.failures)} failed, on {outcome.where} "
+          f"in {outcome.wall_seconds:.1f} s; wrote {', '.join(str(p) for p in written)}")
+    return 1 if outcome.failures else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -362,7 +438,7 @@ def main(argv: list[str] | None = None) -> int:
     from driftframe.framework.recorder import RecordingError
 
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
-                "diverge": cmd_diverge}
+                "diverge": cmd_diverge, "batch": cmd_batch}
     try:
         return handlers[args.command](args)
     except UsageError as e:

@@ -1,0 +1,221 @@
+"""A batch's summary: a CSV row per run, a Markdown report, and one chart of the collected stats.
+
+:func:`write` puts ``summary.csv``, ``summary.md`` and ``summary.png`` in
+the output folder, each written to a temporary name and moved into place.
+The chart shows the *distribution* of energy drift (and of momentum drift
+and contacts when they were collected), one histogram per group of runs
+(demo or scene, and the overrides), on a symmetric log axis whose middle bin
+holds the runs that kept energy to the last bit. It needs matplotlib (the
+``batch`` extra); without it the CSV and the Markdown are still written and
+the caller is told why there is no chart.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import statistics
+import tempfile
+from pathlib import Path
+
+from driftframe.batch import Outcome, Result
+
+STAGES = ("input", "control", "movement", "spin", "collision", "camera", "render", "record")
+COLUMNS = ["index", "status", "demo", "scene", "seed", "seconds", "fps", "size", "camera", "sky", "overrides",
+           "output", "state_hash", "steps", "frames", "energy_drift", "momentum_drift", "contacts",
+           "energy_start", "energy_end", "wall_seconds"] + [f"{s}_seconds" for s in STAGES] + ["error"]
+#: Drifts below this are shown as zero (the linear middle of the symmetric log axis): less than one
+#: rounding of a double, relative to the quantity itself.
+LINEAR = 1e-16
+
+
+def group(spec) -> str:
+    """The group a run is charted and summarised in: its demo or scene, and its overrides."""
+    what = spec.demo if spec.demo is not None else spec.scene
+    return what + "".join(f" {k}={v}" for k, v in sorted(spec.overrides.items()))
+
+
+def rows(outcome: Outcome) -> list[dict]:
+    out = []
+    for i, res in enumerate(outcome.results):
+        if res is None:
+            continue
+        s = res.spec
+        row = {"index": i, "demo": s.demo or "", "scene": s.scene or "", "seed": s.seed, "seconds": s.seconds,
+               "fps": s.fps if s.output else "", "size": f"{s.size[0]}x{s.size[1]}" if s.output else "",
+               "camera": s.camera or "", "sky": s.sky if s.output else "", "overrides": " ".join(f"{k}={v}" for k, v in sorted(s.overrides.items())),
+               "output": s.output or "", "wall_seconds": f"{res.wall_seconds:.3f}"}
+        if isinstance(res, Result):
+            st = res.stats
+            row.update(status="ok", state_hash=res.state_hash, steps=res.steps, frames=res.frames,
+                       energy_drift=_g(st.get("energy_drift")), momentum_drift=_g(st.get("momentum_drift")),
+                       contacts=st.get("contacts", ""), energy_start=_g(st.get("energy_start")),
+                       energy_end=_g(st.get("energy_end")), error="")
+            for stage, took in st.get("stage_seconds", {}).items():
+                row[f"{stage}_seconds"] = f"{took:.6f}"
+        else:
+            row.update(status="failed", error=res.error)
+        out.append(row)
+    return out
+
+
+def _g(v) -> str:
+    return "" if v is None else repr(float(v))
+
+
+def _atomic_write(path: Path, write) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        mask = os.umask(0o022)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_csv(outcome: Outcome, path: Path) -> Path:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n")
+    w.writeheader()
+    for row in rows(outcome):
+        w.writerow(row)
+    _atomic_write(path, lambda f: f.write(buf.getvalue().encode()))
+    return path
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return "0" if v == 0 else f"{v:.3g}"
+    return str(v)
+
+
+def markdown(outcome: Outcome, *, title: str, chart: str | None) -> str:
+    done, failed = outcome.done, outcome.failures
+    lines = [f"# {title}", "",
+             f"{len(outcome.results)} runs on {outcome.where}: {len(done)} ok, {len(failed)} failed; "
+             f"{outcome.wall_seconds:.1f} s wall time.", ""]
+    groups: dict[str, list] = {}
+    for res in outcome.results:
+        if res is not None:
+            groups.setdefault(group(res.spec), []).append(res)
+    head = ["group", "runs", "failed", "energy drift: median", "max abs", "momentum drift: max",
+            "contacts: median", "wall s: median"]
+    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, rs in groups.items():
+        ok = [r for r in rs if isinstance(r, Result)]
+
+        def pick(key):
+            return [r.stats[key] for r in ok if key in r.stats]
+        e, p, c = pick("energy_drift"), pick("momentum_drift"), pick("contacts")
+        lines.append("| " + " | ".join([
+            name, str(len(rs)), str(len(rs) - len(ok)),
+            _fmt(statistics.median(e)) if e else "-", _fmt(max(map(abs, e))) if e else "-",
+            _fmt(max(p)) if p else "-", _fmt(statistics.median(c)) if c else "-",
+            _fmt(statistics.median(r.wall_seconds for r in ok)) if ok else "-"]) + " |")
+    lines.append("")
+    if chart:
+        lines += [f"![distribution of the collected stats]({chart})", ""]
+    lines += ["## Runs", "", "| # | run | status | energy drift | momentum drift | contacts | hash | output |",
+              "|---|---|---|---|---|---|---|---|"]
+    for i, res in enumerate(outcome.results):
+        if res is None:
+            continue
+        if isinstance(res, Result):
+            st = res.stats
+            lines.append(f"| {i} | {res.spec.label} | ok | {_fmt(st.get('energy_drift'))} | "
+                         f"{_fmt(st.get('momentum_drift'))} | {_fmt(st.get('contacts'))} | "
+                         f"`{res.state_hash[:12]}` | {os.path.basename(res.output) if res.output else '-'} |")
+        else:
+            lines.append(f"| {i} | {res.spec.label} | **failed** | - | - | - | - | - |")
+    if failed:
+        lines += ["", "## Failures", ""]
+        for res in failed:
+            lines += [f"### {res.spec.where or res.spec.label}", "", f"`{res.error}`", "", "```",
+                      res.traceback.rstrip(), "```", ""]
+    return "\n".join(lines) + "\n"
+
+
+def _symlog_bins(values) -> list[float]:
+    """Histogram edges for a symmetric log axis: two per decade, one linear bin around zero.
+
+    Only the positive side when no value is negative (a size, such as the momentum drift).
+    """
+    top = max((abs(v) for v in values), default=1.0)
+    hi = max(math.ceil(math.log10(max(top, LINEAR))) + 1, -15)
+    pos = [10.0 ** (k / 2) for k in range(-32, 2 * hi + 1)]
+    if min(values, default=0.0) >= 0:
+        return [-LINEAR] + pos
+    return [-p for p in reversed(pos)] + pos
+
+
+def chart(outcome: Outcome, path: Path, *, title: str) -> Path:
+    """The summary chart; ImportError when matplotlib is missing."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = outcome.done
+    panels = [(k, label) for k, label in (
+        ("energy_drift", "energy drift (E_end - E_start) / E_start"),
+        ("momentum_drift", "momentum drift |P_end - P_start| / sum m|v|"),
+        ("contacts", "contacts per run"))
+        if any(k in r.stats for r in ok)]
+    fig, axes = plt.subplots(1, max(1, len(panels)), figsize=(4.6 * max(1, len(panels)), 3.6), squeeze=False)
+    groups: dict[str, list] = {}
+    for r in ok:
+        groups.setdefault(group(r.spec), []).append(r)
+    for ax, (key, label) in zip(axes[0], panels):
+        allv = [r.stats[key] for r in ok if key in r.stats]
+        if key == "contacts":
+            lo, hi = min(allv), max(allv)
+            bins = range(int(lo), int(hi) + 2, max(1, (int(hi) - int(lo) + 1) // 30 or 1))
+        else:
+            bins = _symlog_bins(allv)
+            ax.set_xscale("symlog", linthresh=LINEAR, linscale=0.5)
+            if bins[0] > -2 * LINEAR:           # a size (never negative): start the axis at zero
+                ax.set_xlim(0, bins[-1])
+        for k, (name, rs) in enumerate(groups.items()):
+            vals = [r.stats[key] for r in rs if key in r.stats]
+            ax.hist(vals, bins=bins, histtype="stepfilled", alpha=0.45, color=f"C{k}", label=name,
+                    edgecolor=f"C{k}")
+        ax.set_xlabel(label, fontsize=8)
+        ax.set_ylabel("runs")
+        ax.tick_params(labelsize=7)
+    if not panels:
+        axes[0][0].text(0.5, 0.5, "no run finished", ha="center", va="center")
+    axes[0][0].legend(fontsize=7, loc="upper left") if panels and groups else None
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+
+    def save(f):
+        fig.savefig(f, format="png", dpi=100)
+    try:
+        _atomic_write(path, save)
+    finally:
+        plt.close(fig)
+    return path
+
+
+def write(outcome: Outcome, out_dir, *, title: str) -> tuple[list[Path], str | None]:
+    """Write the summary files; (paths written, a note when the chart could not be made)."""
+    out_dir = Path(out_dir)
+    written = [write_csv(outcome, out_dir / "summary.csv")]
+    note = None
+    chart_name = None
+    try:
+        written.append(chart(outcome, out_dir / "summary.png", title=title))
+        chart_name = "summary.png"
+    except ImportError:
+        note = "no chart: matplotlib is not installed (pip install 'driftframe[batch]')"
+    md = markdown(outcome, title=title, chart=chart_name)
+    path = out_dir / "summary.md"
+    _atomic_write(path, lambda f: f.write(md.encode()))
+    written.insert(1, path)
+    return written, note

@@ -1,0 +1,447 @@
+"""Batch runs: one picklable run per spec, serial, on a spawn process pool and on a Dask cluster.
+
+Runs are tiny (0.2 s headless, 64x64 recordings of a fraction of a second) so the
+behaviour, not the speed, is tested; speed lives in benchmarks/batch_scaling.py.
+"""
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from driftframe import batch, batch_file, batch_report, cli
+from driftframe.batch import Failure, Result, Spec, SpecError
+
+HERE = Path(__file__).parent
+EXE = [sys.executable, "-m", "driftframe"]
+
+
+def headless(seed, **kw):
+    return Spec(scene="batch_scenes:box", seed=seed, seconds=0.2, **kw)
+
+
+def recording(seed, path, **kw):
+    return Spec(scene="batch_scenes:box", seed=seed, seconds=0.25, size=(64, 64), output=str(path), **kw)
+
+
+def need_distributed():
+    """dask.distributed, from the cluster extra: ./run tests (and so CI) installs it; elsewhere skip."""
+    if os.environ.get("CI"):
+        import distributed
+        return distributed
+    return pytest.importorskip("distributed", reason="needs the cluster extra: pip install -e '.[cluster]'")
+
+
+def summary(results):
+    """What must not depend on where a run ran: hash, steps, frames, the physical stats."""
+    out = []
+    for r in results:
+        assert isinstance(r, Result), getattr(r, "traceback", r)
+        phys = {k: v for k, v in r.stats.items() if k != "stage_seconds"}
+        out.append((r.state_hash, r.steps, r.frames, phys))
+    return out
+
+
+# -- one run -------------------------------------------------------------------------------------
+def test_a_run_is_a_pure_function_of_its_spec():
+    a, b = batch.run(headless(3)), batch.run(headless(3))
+    assert a.state_hash == b.state_hash and a.stats["contacts"] == b.stats["contacts"]
+    assert batch.run(headless(4)).state_hash != a.state_hash
+    assert a.steps == 12 and a.output is None and a.frames == 0 and a.wall_seconds > 0
+
+
+def test_spec_and_result_survive_pickling():
+    spec = headless(1, overrides={"n": 10})
+    res = batch.run(spec)
+    again = pickle.loads(pickle.dumps(res))
+    assert again == res and again.spec == spec.check()
+
+
+def test_stats_count_contacts_and_conserve_energy_and_momentum():
+    from driftframe.components.collision import CollisionEvent
+
+    res = batch.run(Spec(demo="billiards", seconds=2.0))
+    st = res.stats
+    # the same scene stepped by hand, counting collision events step by step
+    from driftframe.app import make_world
+    world, _ = make_world("billiards")
+    events = 0
+    for _ in range(120):
+        world.step()
+        events += sum(isinstance(e, CollisionEvent) for e in world.events)
+    assert world.state_hash() == res.state_hash
+    world.close()
+    assert st["contacts"] == events > 10
+    assert abs(st["energy_drift"]) < 1e-12 and st["momentum_drift"] < 1e-12       # elastic hits
+    assert st["energy_start"] == pytest.approx(0.5 * 1.0 * 12.0 ** 2)              # the cue ball, 1 kg at 12 m/s
+    assert set(st["stage_seconds"]) >= {"input", "movement", "collision"}
+    only = batch.run(Spec(demo="billiards", seconds=0.5, stats=("contacts",))).stats
+    assert set(only) == {"contacts"}
+
+
+def test_thrust_shows_up_as_energy_drift_and_scripted_false_removes_it():
+    flown = batch.run(Spec(demo="asteroids", seed=2, seconds=1.2, stats=("energy",)))
+    coast = batch.run(Spec(demo="asteroids", seed=2, seconds=1.2, stats=("energy",), scripted=False))
+    assert flown.stats["energy_drift"] > 1e-4             # the ship's 0.6 s burn from 0.5 s
+    assert abs(coast.stats["energy_drift"]) < 1e-12
+
+
+def test_demo_overrides_apply_to_the_run_only():
+    from driftframe.demos import billiards
+
+    slow = batch.run(Spec(demo="billiards", seconds=0.2, overrides={"SPEED": 6.0}, stats=("energy",)))
+    assert slow.stats["energy_start"] == pytest.approx(0.5 * 6.0 ** 2)
+    assert billiards.SPEED == 12.0                          # restored
+
+
+def test_a_recording_writes_its_output_and_reports_it(tmp_path):
+    res = batch.run(recording(1, tmp_path / "box.mp4"))
+    assert res.output == str(tmp_path / "box.mp4") and res.frames == 15
+    assert (tmp_path / "box.mp4").stat().st_size > 1000
+    assert [p.name for p in tmp_path.iterdir()] == ["box.mp4"]
+
+
+# -- reproducibility: serial, pool, cluster --------------------------------------------------------
+def _mixed(folder: Path):
+    folder.mkdir()
+    return [headless(s) for s in range(3)] + [recording(0, folder / "box-0.mp4"),
+                                              recording(1, folder / "box-1.mp4", sky="starfield")] + \
+           [Spec(demo="billiards", seconds=0.2, overrides={"SPEED": 9.0})]
+
+
+def _bytes(folder: Path):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def test_serial_and_pool_give_the_same_hashes_stats_and_bytes(tmp_path):
+    serial = batch.run_all(_mixed(tmp_path / "serial"), jobs=1, progress=False)
+    pool = batch.run_all(_mixed(tmp_path / "pool"), jobs=2, progress=False)
+    assert serial.where == "serial" and pool.where == "2 processes" and not pool.interrupted
+    assert summary(serial.results) == summary(pool.results)
+    assert _bytes(tmp_path / "serial") == _bytes(tmp_path / "pool")
+    assert len(_bytes(tmp_path / "pool")) == 2
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    distributed = need_distributed()
+    # in-process workers (threads), loopback only, no dashboard: starts in about a second
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp://", host="127.0.0.1",
+                                  dashboard_address=None) as lc, distributed.Client(lc) as client:
+        yield client
+
+
+def test_a_dask_cluster_gives_the_same_results_as_local_runs(tmp_path, cluster):
+    local = batch.run_all(_mixed(tmp_path / "local"), jobs=1, progress=False)
+    remote = batch.run_all(_mixed(tmp_path / "dask"), scheduler=cluster, progress=False)
+    assert remote.where.startswith("cluster tcp://127.0.0.1:")
+    assert summary(remote.results) == summary(local.results)
+    assert _bytes(tmp_path / "dask") == _bytes(tmp_path / "local")
+
+
+def test_the_cli_runs_a_batch_on_a_scheduler_address(tmp_path, cluster):
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..2"\nseconds = 0.2\n')
+    rc = cli.main(["batch", str(spec), "--scheduler", cluster.scheduler.address, "-o", str(tmp_path / "o"),
+                   "--quiet"])
+    assert rc == 0
+    rows = (tmp_path / "o" / "summary.csv").read_text().splitlines()
+    local = [batch.run(headless(s)).state_hash for s in range(3)]
+    assert [r.split(",")[COL_HASH] for r in rows[1:]] == local
+
+
+COL_HASH = batch_report.COLUMNS.index("state_hash")
+
+
+# -- failures --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_one_failure_is_reported_with_its_spec_and_traceback_and_the_others_go_on(jobs):
+    specs = [headless(s, overrides={"fail": s == 1}) for s in range(4)]
+    seen = []
+    out = batch.run_all(specs, jobs=jobs, progress=False, on_done=lambda i, r: seen.append(i))
+    assert sorted(seen) == [0, 1, 2, 3]
+    fail = out.results[1]
+    assert isinstance(fail, Failure) and fail.spec == specs[1].check()
+    assert fail.error == "RuntimeError: box: asked to fail"
+    assert "batch_scenes.py" in fail.traceback and "raise RuntimeError" in fail.traceback
+    assert [type(r) for r in out.results] == [Result, Failure, Result, Result]
+
+
+def test_a_failure_on_the_cluster_is_reported_too(cluster):
+    out = batch.run_all([headless(0), headless(1, overrides={"fail": True})], scheduler=cluster, progress=False)
+    assert isinstance(out.results[0], Result)
+    assert isinstance(out.results[1], Failure) and "asked to fail" in out.results[1].traceback
+
+
+def test_the_cli_reports_a_failed_run_writes_the_summary_and_exits_1(tmp_path):
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..2"\nseconds = 0.2\n[overrides]\nfail = [false, true]\n')
+    res = subprocess.run(EXE + ["batch", str(spec), "-j", "2", "-o", str(tmp_path / "o"), "--quiet"],
+                         capture_output=True, text=True, timeout=120, cwd=HERE)
+    assert res.returncode == 1, res.stderr
+    assert "run failed: " in res.stderr and "fail=True" in res.stderr and "asked to fail" in res.stderr
+    assert "3 of 6 runs ok, 3 failed" in res.stdout
+    md = (tmp_path / "o" / "summary.md").read_text()
+    assert "## Failures" in md and md.count("RuntimeError: box: asked to fail") >= 3
+
+
+# -- Ctrl-C --------------------------------------------------------------------------------------
+def _whole(folder: Path, frames: int):
+    """Every file in ``folder`` is a finished MP4 of ``frames`` frames; returns their names."""
+    import imageio_ffmpeg
+
+    names = sorted(p.name for p in folder.iterdir())
+    assert all(n.startswith("box-") and n.endswith(".mp4") for n in names), names   # no .part, no summary
+    for name in names:
+        reader = imageio_ffmpeg.read_frames(str(folder / name))
+        next(reader)
+        assert sum(1 for _ in reader) == frames, name
+    return names
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_ctrl_c_stops_the_batch_and_leaves_only_whole_outputs(tmp_path, jobs):
+    spec = tmp_path / "long.toml"
+    # 8 recordings of 4 s at 64x64: long enough that SIGINT lands while runs are going
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..7"\nseconds = 4\nsize = "64x64"\n'
+                    'output = "box-{seed}.mp4"\n')
+    out = tmp_path / "o"
+    proc = subprocess.Popen(EXE + ["batch", str(spec), "-j", str(jobs), "-o", str(out), "--quiet"], cwd=HERE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not list(out.glob("box-*.mp4")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)                      # wait until the first run has finished, then more are running
+    assert proc.poll() is None, proc.communicate()
+    time.sleep(0.3)
+    os.killpg(proc.pid, signal.SIGINT)       # what a terminal's Ctrl-C does: the whole process group
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "interrupted" in stderr and "no summary written" in stderr and "Traceback" not in stderr
+    assert 1 <= len(_whole(out, 240)) < 8     # each output that is there is whole: 240 frames
+    assert not [p for p in tmp_path.rglob(".*part*")]
+
+
+def test_ctrl_c_while_the_workers_start_is_a_clean_stop_too(tmp_path):
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..3"\nseconds = 4\nsize = "64x64"\n'
+                    'output = "box-{seed}.mp4"\n')
+    out = tmp_path / "o"
+    proc = subprocess.Popen(EXE + ["batch", str(spec), "-j", "2", "-o", str(out), "--quiet"], cwd=HERE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+    deadline = time.monotonic() + 60
+    while len(children.read_text().split()) < 2 and time.monotonic() < deadline:
+        time.sleep(0.005)                     # two workers spawned: they are importing driftframe now
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    assert "no summary written" in stderr and "run failed" not in stderr and "Traceback" not in stderr
+    _whole(out, 240)
+    assert not [p for p in tmp_path.rglob(".*part*")]
+
+
+def test_ctrl_c_stops_a_batch_on_the_cluster_cleanly(tmp_path, cluster):
+    import threading
+
+    specs = [Spec(scene="batch_scenes:box", seed=s, seconds=4, size=(64, 64), output=str(tmp_path / f"box-{s}.mp4"))
+             for s in range(6)]
+
+    def interrupt_after_the_first_output():
+        deadline = time.monotonic() + 60
+        while not list(tmp_path.glob("box-*.mp4")) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.3)
+        os.kill(os.getpid(), signal.SIGINT)   # a real Ctrl-C, handled in this (the main) thread
+
+    threading.Thread(target=interrupt_after_the_first_output, daemon=True).start()
+    out = batch.run_all(specs, scheduler=cluster, progress=False)
+    assert out.interrupted and 1 <= len(out.done) < 6 and not out.failures
+    time.sleep(1.0)                           # a task that was running stops within half a second
+    assert _whole(tmp_path, 240) == sorted(Path(r.output).name for r in out.done)
+
+
+def test_a_stopped_run_deletes_what_it_had_written(tmp_path):
+    calls = []
+
+    def stop_after_some_steps():
+        calls.append(1)
+        return len(calls) > 5
+
+    with pytest.raises(batch.Interrupted):
+        batch.run(recording(0, tmp_path / "x.mp4"), should_stop=stop_after_some_steps)
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- bad input, before any run ----------------------------------------------------------------------
+def _batch_cli(tmp_path, text, *extra, name="s.toml"):
+    spec = tmp_path / name
+    spec.write_text(text)
+    out = tmp_path / "o"
+    res = subprocess.run(EXE + ["batch", str(spec), "-o", str(out), "--quiet", *extra], capture_output=True,
+                         text=True, timeout=120, cwd=HERE)
+    return res, out
+
+
+@pytest.mark.parametrize("text,message", [
+    ('demo = "asteroids\n', "not valid TOML"),
+    ('demo = "asteroids"\ncolour = "red"\n', "unknown key 'colour'"),
+    ('seeds = "0..3"\n', "give demo = ... or scene = ..."),
+    ('demo = ["asteroids", "pong"]\nseconds = 0.2\n', "run 1 (pong, seed 0): unknown demo 'pong'"),
+    ('scene = "no_such_module:box"\nseconds = 0.2\n', "cannot import module 'no_such_module'"),
+    ('scene = "batch_scenes:nope"\nseconds = 0.2\n', "module 'batch_scenes' has no 'nope'"),
+    ('scene = "batch_scenes:NOT_CALLABLE"\nseconds = 0.2\n', "'NOT_CALLABLE' is not a function"),
+    ('scene = "batch_scenes.box"\nseconds = 0.2\n', "import path 'package.module:function'"),
+    ('scene = "batch_scenes:box"\n', "seconds is required for scene 'batch_scenes:box'"),
+    ('demo = "cradle"\nseeds = "5..2"\n', "seeds: bad range '5..2': the end 2 is before the start 5"),
+    ('demo = "cradle"\nseeds = "0..x"\n', "seeds: bad range '0..x'"),
+    ('demo = "cradle"\nseeds = "-3..2"\n', "seeds must be >= 0, got -3"),
+    ('demo = "cradle"\nseeds = [1, "a"]\n', "seeds[1]: seeds must be integers"),
+    ('demo = "cradle"\nfps = 25\n', "fps must divide the 60 Hz"),
+    ('demo = "cradle"\nsize = "64x"\n', "WIDTHxHEIGHT"),
+    ('demo = "cradle"\ncamera = "side"\n', "camera must be one of cockpit, chase, overhead"),
+    ('demo = "cradle"\nsky = "clouds"\n', "sky must be one of lines, starfield"),
+    ('demo = "cradle"\nstats = ["energy", "heat"]\n', "stats[1]: unknown stat 'heat'"),
+    ('demo = "swarm"\nseeds = "0..3"\n[overrides]\nCOUNT = [100, -5]\n', "overrides.COUNT must be > 0, got -5"),
+    ('demo = "swarm"\n[overrides]\nSIZE = 3\n', "demo 'swarm' has no setting 'SIZE'"),
+    ('scene = "batch_scenes:box"\nseconds = 0.2\n[overrides]\nradius = 2\n', "do not fit scene"),
+    ('demo = "cradle"\noutput = "{demo}.mp4"\nseeds = "0..1"\n', "is also written by"),
+    ('demo = "cradle"\noutput = "{demo}-{colour}.mp4"\n', "unknown field {colour}"),
+    ('demo = "cradle"\noutput = "{seed}.avi"\n', "unknown output format '.avi'"),
+    ('demo = "cradle"\noutput = "../{seed}.mp4"\n', "must be a relative name inside the output folder"),
+])
+def test_bad_batch_files_fail_before_any_run_naming_the_entry(tmp_path, text, message, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(text)
+    out = tmp_path / "o"
+    assert cli.main(["batch", str(spec), "-o", str(out), "--quiet"]) == 2     # in process: fast
+    err = capsys.readouterr().err
+    assert err.startswith(f"driftframe: error: {spec}: ") and message in err, err
+    assert err.count("\n") == 1 and not out.exists()         # one line; nothing ran, no folder was made
+
+
+def test_a_missing_batch_file_and_bad_jobs_are_clear_errors(tmp_path):
+    res = subprocess.run(EXE + ["batch", str(tmp_path / "none.toml")], capture_output=True, text=True)
+    assert res.returncode == 2 and "none.toml: no such batch file" in res.stderr
+    res, _ = _batch_cli(tmp_path, 'demo = "cradle"\n', "-j", "0")
+    assert res.returncode == 2 and "-j must be an integer >= 1, got '0'" in res.stderr
+
+
+def test_an_unwritable_output_folder_is_refused_before_any_run(tmp_path):
+    spec = tmp_path / "s.toml"
+    spec.write_text('demo = "cradle"\nseconds = 0.2\noutput = "{seed}.mp4"\n')
+    # /sys refuses new folders even to root; a file cannot be a folder
+    for folder, message in (("/sys/driftframe-batch", "output folder '/sys/driftframe-batch' is not writable"),
+                            (str(spec), "exists and is not a folder")):
+        res = subprocess.run(EXE + ["batch", str(spec), "-o", folder, "--quiet"], capture_output=True, text=True)
+        assert res.returncode == 2 and message in res.stderr and "Traceback" not in res.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["s.toml"]
+
+
+def test_an_unreachable_scheduler_is_refused_before_any_run(tmp_path, monkeypatch, capsys):
+    import socket
+
+    need_distributed()
+    with socket.socket() as s:                       # a loopback port that nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    spec = tmp_path / "s.toml"
+    spec.write_text('demo = "cradle"\nseconds = 0.2\noutput = "{seed}.mp4"\n')
+    monkeypatch.setattr(batch, "CONNECT_TIMEOUT", 1.0)
+    rc = cli.main(["batch", str(spec), "--scheduler", f"tcp://127.0.0.1:{port}", "-o", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"scheduler 'tcp://127.0.0.1:{port}' cannot be reached" in err
+    assert not (tmp_path / "o").exists()
+    assert cli.main(["batch", str(spec), "--scheduler", "x", "-j", "2"]) == 2
+    assert "-j and --scheduler exclude each other" in capsys.readouterr().err
+
+
+def test_bad_specs_in_the_api_name_the_value():
+    with pytest.raises(SpecError, match="give exactly one of demo or scene"):
+        Spec().check()
+    with pytest.raises(SpecError, match="seed must be an integer >= 0, got -1"):
+        Spec(demo="cradle", seed=-1).check()
+    with pytest.raises(SpecError, match=r"run 1: expected a driftframe.batch.Spec"):
+        batch.check_all([Spec(demo="cradle"), "cradle"])
+    with pytest.raises(SpecError, match="seconds must be a finite number > 0, got nan"):
+        batch.run(Spec(demo="cradle", seconds=float("nan")))
+
+
+# -- the grid, the plan, the summary --------------------------------------------------------------
+def test_the_grid_is_every_combination_with_inclusive_ranges(tmp_path):
+    specs = batch_file.grid({"demo": ["cradle", "billiards"], "seeds": "3..5", "seconds": 0.2,
+                             "overrides": {}, "output": "{demo}/{seed}-{index}.gif"}, tmp_path, check=False)
+    assert [(s.demo, s.seed) for s in specs] == [("cradle", 3), ("cradle", 4), ("cradle", 5),
+                                                 ("billiards", 3), ("billiards", 4), ("billiards", 5)]
+    assert specs[4].output == str(tmp_path / "billiards" / "4-4.gif")
+    assert specs[4].where.endswith("run 4 (billiards, seed 4)")
+    swept = batch_file.grid({"demo": "swarm", "seeds": [1, 2], "overrides": {"COUNT": [10, 20]}}, tmp_path)
+    assert [(s.seed, s.overrides["COUNT"]) for s in swept] == [(1, 10), (1, 20), (2, 10), (2, 20)]
+    assert batch_file.parse_seeds("0..99") == list(range(100)) and batch_file.parse_seeds(7) == [7]
+
+
+def test_the_worker_plan_follows_the_cores_and_the_frame_size(monkeypatch):
+    monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    runs = [Spec(demo="cradle")] * 10
+    assert batch.plan_jobs(runs, ncores=8) == (8, 1)
+    assert batch.plan_jobs(runs[:3], ncores=8) == (3, 2)          # never more workers than runs
+    assert batch.plan_jobs(runs, 1, ncores=8) == (1, None)        # serial: llvmpipe keeps every core
+    videos = [Spec(demo="cradle", output="a.mp4", size=(640, 360))] * 10
+    assert batch.plan_jobs(videos, ncores=8) == (6, 1)            # 1.25 cores a recording: the encoder
+    assert batch.plan_jobs(videos, ncores=2) == (2, 1)            # 1.6 rounds up: an idle core costs more
+    monkeypatch.setenv("LP_NUM_THREADS", "3")
+    assert batch.plan_jobs(runs, ncores=8) == (8, None)           # the user's setting is left alone
+    with pytest.raises(SpecError, match="jobs must be an integer >= 1, got 0"):
+        batch.plan_jobs(runs, 0)
+
+
+def test_pool_workers_get_the_planned_rasteriser_threads(monkeypatch):
+    monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    specs = [Spec(scene="batch_scenes:env_probe", seed=s, seconds=0.1) for s in range(2)]
+    lp = batch.plan_jobs(specs, 2)[1]
+    out = batch.run_all(specs, jobs=2, progress=False)
+    assert [r.error for r in out.results] == [f"RuntimeError: LP_NUM_THREADS={lp}"] * 2
+    monkeypatch.setenv("LP_NUM_THREADS", "3")                      # the user's own setting is kept
+    out = batch.run_all(specs, jobs=2, progress=False)
+    assert [r.error for r in out.results] == ["RuntimeError: LP_NUM_THREADS=3"] * 2
+
+
+def test_the_summary_has_a_row_per_run_a_report_and_a_chart(tmp_path):
+    specs = [headless(s) for s in range(3)] + [headless(9, overrides={"fail": True})]
+    out = batch.run_all(specs, jobs=1, progress=False)
+    written, note = batch_report.write(out, tmp_path, title="t")
+    assert note is None and [p.name for p in written] == ["summary.csv", "summary.md", "summary.png"]
+    lines = (tmp_path / "summary.csv").read_text().splitlines()
+    assert lines[0].split(",") == batch_report.COLUMNS and len(lines) == 5
+    assert [ln.split(",")[COL_HASH] for ln in lines[1:4]] == [r.state_hash for r in out.results[:3]]
+    md = (tmp_path / "summary.md").read_text()
+    assert "| batch_scenes:box | 3 |" in md and "| batch_scenes:box fail=True | 1 | 1 |" in md
+    assert (tmp_path / "summary.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_without_matplotlib_the_summary_says_why_there_is_no_chart(tmp_path, monkeypatch):
+    out = batch.run_all([headless(0)], jobs=1, progress=False)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)          # import matplotlib -> ImportError
+    written, note = batch_report.write(out, tmp_path, title="t")
+    assert "matplotlib is not installed" in note and "driftframe[batch]" in note
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.csv", "summary.md"]
+
+
+def test_the_cli_batch_end_to_end_with_recordings(tmp_path):
+    # the installed console script, run from the folder that holds the scene's module: found from there
+    script = Path(sys.executable).with_name("driftframe")
+    spec, out = tmp_path / "s.toml", tmp_path / "o"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..1"\nseconds = 0.2\nsize = "64x64"\n'
+                    'fps = 30\noutput = "clips/box-{seed}.gif"\n')
+    res = subprocess.run([str(script), "batch", str(spec), "-j", "2", "-o", str(out), "--quiet"],
+                         capture_output=True, text=True, timeout=120, cwd=HERE)
+    assert res.returncode == 0, res.stderr
+    assert "2 of 2 runs ok, 0 failed, on 2 processes" in res.stdout
+    assert sorted(p.name for p in (out / "clips").iterdir()) == [f"box-{s}.gif" for s in range(2)]
+    assert sorted(p.name for p in out.iterdir()) == ["clips", "summary.csv", "summary.md", "summary.png"]
+    from PIL import Image
+    with Image.open(out / "clips" / "box-0.gif") as im:
+        assert im.size == (32, 32) and im.n_frames >= 2
