@@ -110,10 +110,13 @@ class Spec:
     stats: tuple[str, ...] = STATS
     scripted: bool = True
     where: str = ""
+    #: Replace an existing output (the batch command checks outputs before any run starts).
+    overwrite: bool = False
 
     def __hash__(self):                 # overrides is a dict: hash what it holds
         return hash((self.demo, self.scene, self.seed, self.seconds, self.fps, tuple(self.size), self.camera,
-                     self.sky, repr(sorted(self.overrides.items())), self.output, tuple(self.stats), self.scripted))
+                     self.sky, repr(sorted(self.overrides.items())), self.output, tuple(self.stats), self.scripted,
+                     self.overwrite))
 
     @property
     def label(self) -> str:
@@ -472,7 +475,7 @@ def run(spec: Spec, *, should_stop: Callable[[], bool] | None = None) -> Result:
 
                 # an Interrupted raised in before_step makes record() delete everything it wrote
                 rec = record(world, spec.output, frames=n, fps=spec.fps, steps_per_frame=k, progress=False,
-                             before_step=poll)
+                             before_step=poll, overwrite=spec.overwrite)
                 if rec.interrupted:               # a KeyboardInterrupt: record kept a shorter file; drop it
                     _remove(rec.path)
                     raise KeyboardInterrupt

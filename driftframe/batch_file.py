@@ -190,13 +190,23 @@ def without_outputs(specs) -> list[Spec]:
     return [dataclasses.replace(s, output=None) for s in specs]
 
 
-def prepare(specs, out_dir) -> list[Spec]:
+def prepare(specs, out_dir, *, overwrite: bool = False) -> list[Spec]:
     """Check the runs, then the output folder, then the outputs in it: errors before anything runs.
 
     Everything but the outputs is checked first, so a bad entry creates no
     folder; then ``out_dir`` (created if needed, proven writable) and any
-    sub-folder an output template names.
+    sub-folder an output template names. Outputs that exist already are an
+    error naming the first (and how many) unless ``overwrite``; with it the
+    runs replace them.
     """
+    import dataclasses
+
+    existing = [s.output for s in specs if s.output is not None and Path(s.output).exists()]
+    if existing and not overwrite:
+        more = f" and {len(existing) - 1} more" if len(existing) > 1 else ""
+        raise SpecError(f"output {existing[0]!r}{more} exists already; pass --overwrite to replace")
+    if overwrite:
+        specs = [dataclasses.replace(s, overwrite=True) for s in specs]
     check_all(without_outputs(specs))
     check_output_names(specs)
     out_dir = check_out_dir(out_dir)

@@ -202,6 +202,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="run on this dask.distributed scheduler (tcp://host:8786) instead of local processes")
     batch.add_argument("-o", "--output", default=None, metavar="DIR",
                        help="folder for the recordings and the summary (default out/SPEC)")
+    batch.add_argument("--overwrite", action="store_true",
+                       help="replace outputs that exist already (default: refuse them before any run starts)")
     batch.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -396,7 +398,7 @@ def cmd_batch(args) -> int:
         batch.check_output_names(specs)
         client = batch.connect(args.scheduler) if args.scheduler else None
         try:
-            specs = batch_file.prepare(specs, out_dir)
+            specs = batch_file.prepare(specs, out_dir, overwrite=args.overwrite)
         except BaseException:
             if client is not None:
                 client.close()

@@ -445,3 +445,19 @@ def test_the_cli_batch_end_to_end_with_recordings(tmp_path):
     from PIL import Image
     with Image.open(out / "clips" / "box-0.gif") as im:
         assert im.size == (32, 32) and im.n_frames >= 2
+
+
+def test_existing_outputs_are_refused_before_any_run_unless_overwrite(tmp_path):
+    spec, out = tmp_path / "s.toml", tmp_path / "o"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..1"\nseconds = 0.1\nsize = "64x64"\n'
+                    'fps = 30\noutput = "box-{seed}.gif"\n')
+    out.mkdir()
+    (out / "box-1.gif").write_bytes(b"an older file")
+    base = [*EXE, "batch", str(spec), "-j", "1", "-o", str(out), "--quiet"]
+    res = subprocess.run(base, capture_output=True, text=True, timeout=120, cwd=HERE)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
+    assert "box-1.gif' exists already; pass --overwrite" in res.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["box-1.gif"]          # nothing ran
+    res = subprocess.run(base + ["--overwrite"], capture_output=True, text=True, timeout=120, cwd=HERE)
+    assert res.returncode == 0, res.stderr
+    assert (out / "box-1.gif").read_bytes()[:6] == b"GIF89a"
