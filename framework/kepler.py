@@ -1,0 +1,484 @@
+"""The two-body (Kepler) problem, solved exactly and vectorised over many bodies.
+
+A body moving only under a point mass ``mu`` (m^3/s^2) follows a conic. Given
+its state ``(r0, v0)`` relative to the mass, :func:`propagate` returns the
+state after ``dt`` seconds for every eccentricity — circle, ellipse, radial,
+parabola, hyperbola — with one formula, the *universal variable* formulation
+(Battin 1987, ch. 4; Vallado, *Fundamentals of Astrodynamics*, alg. 8)::
+
+    alpha   = 2/|r0| - |v0|^2/mu            (1/a: > 0 ellipse, 0 parabola, < 0 hyperbola)
+    sigma0  = r0.v0 / sqrt(mu)
+    psi     = alpha chi^2
+    sqrt(mu) dt = chi^3 c3(psi) + sigma0 chi^2 c2(psi) + |r0| chi (1 - psi c3(psi))   (*)
+
+``chi`` (the universal anomaly, m^(1/2)) solves (*); ``c2, c3`` are Stumpff's
+functions. Position and velocity follow from the Lagrange coefficients::
+
+    r = f r0 + g v0,     f = 1 - chi^2 c2 / |r0|,       g = dt - chi^3 c3 / sqrt(mu)
+    v = fd r0 + gd v0,   fd = sqrt(mu) chi (psi c3 - 1) / (|r| |r0|),   gd = 1 - chi^2 c2 / |r|
+
+(*) is solved by Laguerre's method of order 5 (Conway 1986), which converges
+from a rough first guess for any conic where Newton's method can cycle, then
+polished by Newton steps. The derivatives of the right side of (*) in ``chi``
+are ``|r|`` and ``dr/dchi = sigma0 (1 - psi c2) + (1 - alpha |r0|) chi (1 - psi c3)``.
+
+Accuracy: an elliptic ``dt`` is first reduced modulo the period, so the work
+and the rounding do not grow with the time propagated; energy and angular
+momentum come back to a few units of the last place (``tests/test_kepler.py``,
+``benchmarks/orbit_accuracy.py``). Stumpff's functions use their series near
+``psi = 0`` (where ``1 - cos`` and ``x - sin x`` cancel) and half-angle forms
+elsewhere.
+
+Everything here is plain numpy on arrays of shape ``(n, 3)`` (states) and
+``(n,)`` or scalars (``mu``, ``dt``): no components, no systems.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+TWO_PI = 2.0 * np.pi
+_EPS = np.finfo(np.float64).eps
+
+# Series of c2 and c3 in psi: c2 = sum (-psi)^k / (2k+2)!, c3 = sum (-psi)^k / (2k+3)!;
+# 12 terms at |psi| <= 1 leave a remainder below 1/27! ~ 1e-28.
+_K = np.arange(12)
+_C2_SERIES = np.array([(-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 3, dtype=np.float64))) for k in _K])
+_C3_SERIES = np.array([(-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 4, dtype=np.float64))) for k in _K])
+_C3_SERIES_ABS = np.abs(_C3_SERIES)
+
+
+def _series_terms(p: float) -> int:
+    """Terms of the Stumpff series that leave a remainder below 1e-18 at |psi| <= p (<= 1)."""
+    for k in range(1, len(_K)):
+        if p ** k * _C3_SERIES_ABS[k] * 6.0 < 1e-18:
+            return k
+    return len(_K)
+
+
+def stumpff(psi):
+    """Stumpff's functions ``c2(psi), c3(psi)`` for any real ``psi`` (arrays broadcast).
+
+    ``c2 = (1 - cos sqrt psi) / psi``, ``c3 = (sqrt psi - sin sqrt psi) / psi^(3/2)``
+    for ``psi > 0``, the cosh/sinh forms for ``psi < 0``; ``c2(0) = 1/2``,
+    ``c3(0) = 1/6``. ``|psi| <= 1`` uses the series (Horner, only as many
+    terms as the largest ``|psi|`` needs), where the closed forms lose digits;
+    ``1 - cos x`` is written ``2 sin^2(x/2)`` so it never cancels.
+    """
+    psi = np.asarray(psi, dtype=np.float64)
+    apsi = np.abs(psi)
+    pmax = float(apsi.max()) if psi.size else 0.0
+    small = apsi <= 1.0
+    terms = _series_terms(min(pmax, 1.0))
+    c2 = np.full_like(psi, _C2_SERIES[terms - 1])
+    c3 = np.full_like(psi, _C3_SERIES[terms - 1])
+    for k in range(terms - 2, -1, -1):
+        c2 *= psi
+        c2 += _C2_SERIES[k]
+        c3 *= psi
+        c3 += _C3_SERIES[k]
+    if pmax <= 1.0:
+        return c2, c3
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        pos = psi > 1.0
+        neg = psi < -1.0
+        x = np.sqrt(apsi)
+        s = np.sin(0.5 * x)
+        c2_pos = 2.0 * s * s / psi
+        c3_pos = (x - np.sin(x)) / (psi * x)
+        c2_neg = (np.cosh(x) - 1.0) / (-psi)
+        c3_neg = (np.sinh(x) - x) / (-psi * x)
+    c2 = np.where(pos, c2_pos, np.where(neg, c2_neg, c2))
+    c3 = np.where(pos, c3_pos, np.where(neg, c3_neg, c3))
+    return c2, c3
+
+
+def _as_states(r0, v0, mu, dt):
+    r0 = np.atleast_2d(np.asarray(r0, dtype=np.float64))
+    v0 = np.atleast_2d(np.asarray(v0, dtype=np.float64))
+    n = r0.shape[0]
+    mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), (n,))
+    dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+    return r0, v0, mu, dt
+
+
+def _norm(a):
+    return np.sqrt(np.einsum("ij,ij->i", a, a))
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def period(alpha, mu):
+    """Orbital period ``2 pi sqrt(a^3/mu)`` (s) for ``alpha = 1/a > 0``; ``inf`` otherwise."""
+    alpha = np.asarray(alpha, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(alpha > 0, TWO_PI / np.sqrt(np.asarray(mu) * np.abs(alpha) ** 3), np.inf)
+
+
+def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 40):
+    """Solve (*) for ``chi``; vectorised over whole arrays (no gathers: bodies that have
+    converged sit at their root, where another step changes nothing).
+
+    ``r0n`` = |r0| (m), ``sigma0`` = r0.v0/sqrt(mu), ``alpha`` = 1/a (1/m),
+    ``dt`` (s, already reduced for ellipses). ``chi`` may carry a first guess.
+    Returns ``chi, psi, c2, c3, r`` at the solution (``r = |r(dt)|``).
+    """
+    target = np.sqrt(mu) * dt
+    chi = _first_guess(r0n, sigma0, alpha, mu, dt) if chi is None else np.array(chi, dtype=np.float64)
+    n = chi.shape[0]
+    out = [np.empty(n) for _ in range(5)]            # chi, psi, c2, c3, |r| at the solution
+    idx = None                                       # None: all bodies; else the ones still iterating
+    for it in range(iterations):
+        a_, s_, r_, t_ = (alpha, sigma0, r0n, target) if idx is None else \
+            (alpha[idx], sigma0[idx], r0n[idx], target[idx])
+        psi = a_ * chi * chi
+        c2, c3 = stumpff(psi)
+        chi2 = chi * chi
+        one_c3 = 1.0 - psi * c3
+        one_c2 = 1.0 - psi * c2
+        f = chi2 * chi * c3 + s_ * chi2 * c2 + r_ * chi * one_c3 - t_
+        fp = chi2 * c2 + s_ * chi * one_c3 + r_ * one_c2                # = |r(chi)| > 0
+        # converged when Newton's step is within the rounding of f (a few ulp of the terms of (*)):
+        # then this evaluation's c2, c3 and |r| are the solution's, and no extra pass is needed
+        newton = f / fp
+        done = np.abs(newton) <= 4.0 * _EPS * (np.abs(chi) + np.abs(t_) / fp)
+        done |= ~np.isfinite(newton)
+        if it == iterations - 1:
+            done[:] = True                           # out of iterations: take the last iterate
+        where = np.flatnonzero(done) if idx is None else idx[done]
+        for o, val in zip(out, (chi, psi, c2, c3, fp)):
+            o[where] = val[done]
+        if done.all():
+            break
+        if it < 6:   # Laguerre, order 5 (Conway 1986): converges from a rough guess for any conic
+            fpp = s_ * one_c2 + (1.0 - a_ * r_) * chi * one_c3             # = dr/dchi
+            disc = np.abs(16.0 * fp * fp - 20.0 * f * fpp)               # (n-1)^2 fp^2 - n(n-1) f fpp, n = 5
+            step = 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
+        else:        # Newton near the root: quadratic, never stalls on a flat denominator
+            step = newton
+        chi = chi - step
+        # keep iterating only the bodies that have not converged (most converge in one or two)
+        keep = ~done
+        chi = chi[keep]
+        idx = np.flatnonzero(keep) if idx is None else idx[keep]
+    return tuple(out)
+
+
+def _first_guess(r0n, sigma0, alpha, mu, dt):
+    """A starting chi for every conic; Laguerre's method needs no better.
+
+    Short steps (``alpha chi^2 <= 0.1``, the usual case in a fixed-step game):
+    the reversion of (*) to third order, ``sqrt(mu) dt = r0 chi + sigma0 chi^2/2
+    + (1 - alpha r0) chi^3/6 + ...``. Long steps: Vallado's guesses (alg. 8),
+    ``chi = sqrt(mu) dt alpha`` for ellipses and the logarithmic one for hyperbolas.
+    """
+    sqmu = np.sqrt(mu)
+    u = sqmu * dt / r0n
+    w = u / r0n
+    chi = u * (1.0 - 0.5 * sigma0 * w + (0.5 * sigma0 * sigma0 - r0n * (1.0 - alpha * r0n) / 6.0) * w * w)
+    long_step = (np.abs(alpha) * chi * chi > 0.1) | ~np.isfinite(chi)
+    if not long_step.any():
+        return chi
+    k = np.flatnonzero(long_step)
+    chi[k] = _long_guess(r0n[k], sigma0[k], alpha[k], mu[k], dt[k])
+    return chi
+
+
+def _long_guess(r0n, sigma0, alpha, mu, dt):
+    """chi for long steps from the anomalies: ``chi = sqrt(a) dE`` (ellipse), ``sqrt(-a) dH``
+    (hyperbola), with the new anomaly from Kepler's equation (Danby's start, three Newton steps)."""
+    sqmu = np.sqrt(mu)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        sa = np.sqrt(1.0 / np.abs(alpha))                    # sqrt(|a|)
+        ec = 1.0 - r0n * alpha                                # e cos E0 | e cosh H0
+        es = sigma0 * np.sqrt(np.abs(alpha))                  # e sin E0 | e sinh H0  (r.v / sqrt(mu |a|))
+        nmean = sqmu * np.abs(alpha) ** 1.5
+        ell = alpha > 0
+        # ellipse
+        e_e = np.hypot(ec, es)
+        E0 = np.arctan2(es, ec)
+        M1 = E0 - es + nmean * dt
+        E = M1 + 0.85 * e_e * np.sign(np.sin(M1))
+        for _ in range(3):
+            E = E - (E - e_e * np.sin(E) - M1) / (1.0 - e_e * np.cos(E))
+        chi_e = sa * (E - E0)
+        # hyperbola
+        e_h = np.sqrt(np.maximum(ec * ec - es * es, 0.0))
+        H0 = np.arcsinh(es / np.where(e_h > 0, e_h, 1.0))
+        Mh = es - H0 + nmean * dt
+        H = np.arcsinh(Mh / np.where(e_h > 0, e_h, 1.0))
+        for _ in range(3):
+            H = H - (e_h * np.sinh(H) - H - Mh) / (e_h * np.cosh(H) - 1.0)
+        chi_h = sa * (H - H0)
+    chi = np.where(ell, chi_e, chi_h)
+    # near-parabolic or degenerate: the straight-line guess has the right sign and Laguerre does the rest
+    bad = ~np.isfinite(chi) | (chi * dt < 0)
+    return np.where(bad, sqmu * dt / r0n, chi)
+
+
+def propagate(r0, v0, mu, dt, *, return_chi: bool = False):
+    """State after ``dt`` seconds on the conic through ``(r0, v0)`` about a point mass ``mu``.
+
+    ``r0`` (m) and ``v0`` (m/s) are ``(n, 3)`` (or ``(3,)``) relative to the
+    mass, in any inertial frame; ``mu`` (m^3/s^2, > 0) and ``dt`` (s, either
+    sign) are scalars or ``(n,)``. Returns ``r, v`` with the shape of ``r0``.
+    A body with ``r0 = 0`` has no defined orbit and gets NaN.
+    """
+    single = np.ndim(r0) == 1
+    r0, v0, mu, dt = _as_states(r0, v0, mu, dt)
+    r0n = _norm(r0)
+    v2 = _dot(v0, v0)
+    sqmu = np.sqrt(mu)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = 2.0 / r0n - v2 / mu
+        sigma0 = _dot(r0, v0) / sqmu
+        # ellipses: take whole periods off dt, so the rounding and the work do not grow with time
+        # (|dt| > period  <=>  mu alpha^3 dt^2 > 4 pi^2; the usual short step skips it)
+        dt_red = dt
+        longer = (alpha > 0) & (mu * alpha ** 3 * dt * dt > TWO_PI * TWO_PI)
+        if longer.any():
+            per = period(alpha, mu)
+            dt_red = np.where(longer, dt - per * np.round(dt / per), dt)
+    chi, psi, c2, c3, rn = solve_universal(r0n, sigma0, alpha, mu, dt_red)
+    chi2 = chi * chi
+    f = 1.0 - chi2 * c2 / r0n
+    # g from chi alone (it equals dt - chi^3 c3 / sqrt(mu) at the root of (*)): then f, g, fd, gd all
+    # follow from one chi, so the new state lies on the same conic to rounding even where chi is a few
+    # ulp off the root -- a timing error of that size, never an energy error (which would build up)
+    g = (r0n * chi * (1.0 - psi * c3) + sigma0 * chi2 * c2) / sqmu
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fd = sqmu * chi * (psi * c3 - 1.0) / (rn * r0n)
+        gd = 1.0 - chi2 * c2 / rn
+    r = f[:, None] * r0 + g[:, None] * v0
+    v = fd[:, None] * r0 + gd[:, None] * v0
+    # dt = 0 exactly: the same state, bit for bit
+    zero = dt_red == 0.0
+    if zero.any():
+        r[zero] = r0[zero]
+        v[zero] = v0[zero]
+    if single:
+        r, v = r[0], v[0]
+    if return_chi:
+        return r, v, chi
+    return r, v
+
+
+# --------------------------------------------------------------------------- elements
+@dataclass(frozen=True)
+class Elements:
+    """Orbit readouts of states about one mass; arrays of shape ``(n,)`` (``h``, ``e_vec``: ``(n, 3)``).
+
+    Lengths in m, times in s, energies in J/kg. Open orbits (``e >= 1``) have
+    ``apoapsis = period = time_to_apoapsis = inf``; ``time_to_periapsis`` is
+    negative once a hyperbolic body is past periapsis (it will not come back).
+    """
+
+    #: Semi-major axis, m (negative for hyperbolas, inf for a parabola).
+    a: np.ndarray
+    #: Eccentricity (0 circle, < 1 ellipse, 1 parabola or radial, > 1 hyperbola).
+    e: np.ndarray
+    #: Eccentricity vector (points at periapsis), world frame.
+    e_vec: np.ndarray
+    #: Specific angular momentum r x v, world frame, m^2/s.
+    h: np.ndarray
+    #: Specific orbital energy v^2/2 - mu/r, J/kg.
+    energy: np.ndarray
+    #: Distances from the mass's centre, m.
+    periapsis: np.ndarray
+    apoapsis: np.ndarray
+    #: s.
+    period: np.ndarray
+    time_to_periapsis: np.ndarray
+    time_to_apoapsis: np.ndarray
+
+
+def elements(r, v, mu) -> Elements:
+    """Readouts of the conics through states ``(r, v)`` about ``mu`` (see :class:`Elements`).
+
+    Periapsis ``p / (1 + e)`` with ``p = h^2/mu`` (exact for radial orbits too:
+    ``p = 0``); times from Kepler's equation in the eccentric (or hyperbolic)
+    anomaly, ``M = E - e sin E``, ``M = e sinh H - H``.
+    """
+    r = np.atleast_2d(np.asarray(r, dtype=np.float64))
+    v = np.atleast_2d(np.asarray(v, dtype=np.float64))
+    n = r.shape[0]
+    mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), (n,))
+    rn = _norm(r)
+    v2 = _dot(v, v)
+    rv = _dot(r, v)
+    h = np.cross(r, v)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e_vec = ((v2 - mu / rn)[:, None] * r - rv[:, None] * v) / mu[:, None]
+        e = _norm(e_vec)
+        energy = 0.5 * v2 - mu / rn
+        alpha = 2.0 / rn - v2 / mu
+        a = 1.0 / alpha
+        p = _dot(h, h) / mu
+        rp = np.where(p > 0, p / (1.0 + e), np.where(alpha > 0, a * (1.0 - e), 0.0))
+        ra = np.where(alpha > 0, a * (1.0 + e), np.inf)
+        per = period(alpha, mu)
+        # elliptic: eccentric anomaly E from e cos E = 1 - r/a, e sin E = r.v / sqrt(mu a)
+        ell = alpha > 0                            # bound (radial ones have e = 1 to rounding)
+        cosE = 1.0 - rn * alpha
+        sinE = rv / np.sqrt(mu * np.abs(a))
+        E = np.arctan2(sinE, cosE)
+        M = E - sinE                               # e sin E = sinE as defined
+        nmean = np.sqrt(mu * np.abs(alpha) ** 3)
+        t_peri_e = np.mod(-M, TWO_PI) / nmean
+        t_apo_e = np.mod(np.pi - M, TWO_PI) / nmean
+        # hyperbolic: e sinh H = r.v / sqrt(-mu a), e cosh H = 1 - r/a
+        sinhH_e = rv / np.sqrt(mu * np.abs(a))
+        H = np.arcsinh(sinhH_e / np.where(e > 0, e, 1.0))
+        Mh = sinhH_e - H
+        t_peri_h = -Mh / nmean
+        # parabola (alpha = 0): Barker, D = r.v/sqrt(mu), t_p = -(p D/2 + D^3/6)... via D
+        D = rv / np.sqrt(mu)
+        t_peri_p = -(p * D + D ** 3 / 3.0) / (2.0 * np.sqrt(mu))
+    t_peri = np.where(ell, t_peri_e, np.where(alpha < 0, t_peri_h, t_peri_p))
+    t_apo = np.where(ell, t_apo_e, np.inf)
+    return Elements(a=a, e=e, e_vec=e_vec, h=h, energy=energy, periapsis=rp, apoapsis=ra,
+                    period=per, time_to_periapsis=t_peri, time_to_apoapsis=t_apo)
+
+
+# --------------------------------------------------------------------------- contacts
+def time_to_radius(r, v, mu, radius, horizon):
+    """Time (s) until each body first reaches distance ``radius`` from the mass moving inwards,
+    within ``[0, horizon]``; ``inf`` where it does not.
+
+    Exact along the conic at any step length (no sampling, so no tunnelling):
+    the crossing exists iff periapsis < ``radius`` and the body is outside it;
+    it lies on the inbound branch, before the next periapsis. The anomaly of
+    the crossing comes from ``r = a (1 - e cos E)`` (``a (1 - e cosh H)``), its
+    time from Kepler's equation; two Newton steps on ``|r(t)| - radius`` with
+    the exact propagator polish it (``d|r|/dt = r.v/|r|``), which also covers
+    near-parabolic orbits where Kepler's equation loses digits.
+    """
+    r = np.atleast_2d(np.asarray(r, dtype=np.float64))
+    v = np.atleast_2d(np.asarray(v, dtype=np.float64))
+    n = r.shape[0]
+    mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), (n,))
+    radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (n,))
+    horizon = np.broadcast_to(np.asarray(horizon, dtype=np.float64), (n,))
+    el = elements(r, v, mu)
+    rn = _norm(r)
+    rv = _dot(r, v)
+    out = np.full(n, np.inf)
+    cand = (el.periapsis < radius) & (rn > radius)
+    # an outbound hyperbola (or parabola) past periapsis never returns
+    cand &= ~((el.e >= 1.0) & (rv >= 0))
+    if not cand.any():
+        return out
+    idx = np.flatnonzero(cand)
+    a, e, mu_i, R = el.a[idx], el.e[idx], mu[idx], radius[idx]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = 1.0 / a
+        nmean = np.sqrt(mu_i * np.abs(alpha) ** 3)
+        ell = alpha > 0
+        # elliptic: inbound crossing at E = -E_R; time from the current M
+        cosE = np.clip((1.0 - R * alpha) / e, -1.0, 1.0)
+        E_R = np.arccos(cosE)
+        M_R = -(E_R - e * np.sin(E_R))
+        t_e = np.mod(M_R - _mean_anomaly_e(el, idx), TWO_PI) / nmean
+        # hyperbolic: inbound at H = -H_R
+        coshH = np.maximum((1.0 - R * alpha) / e, 1.0)
+        H_R = np.arccosh(coshH)
+        M_Rh = -(e * np.sinh(H_R) - H_R)
+        t_h = (M_Rh - (-el.time_to_periapsis[idx] * nmean)) / nmean
+        t = np.where(ell, t_e, t_h)
+        # near-parabolic or degenerate: fall back to the time to periapsis as a bracket start
+        t = np.where(np.isfinite(t), t, np.maximum(el.time_to_periapsis[idx], 0.0))
+    # polish with the exact propagator: Newton on |r(t)| - R
+    ri, vi = r[idx], v[idx]
+    for _ in range(3):
+        rt, vt = propagate(ri, vi, mu_i, t)
+        rtn = _norm(rt)
+        rdot = _dot(rt, vt) / rtn
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(rdot < 0, (rtn - R) / rdot, 0.0)
+        t = t - np.where(np.isfinite(step), step, 0.0)
+    t = np.maximum(t, 0.0)
+    out[idx] = np.where(t <= horizon[idx], t, np.inf)
+    return out
+
+
+def _mean_anomaly_e(el: Elements, idx):
+    """Mean anomaly now (elliptic, mod 2 pi), from the time to periapsis."""
+    return -el.time_to_periapsis[idx] * (TWO_PI / el.period[idx])
+
+
+def closest_approach(r1, v1, r2, v2, mu, horizon, *, samples: int = 256):
+    """When and how close two bodies on conics about the same mass come, within ``[0, horizon]`` s.
+
+    ``r1, v1`` and ``r2, v2`` are single states (3,) relative to the mass.
+    The distance is sampled at ``samples`` times along both exact conics and
+    the smallest sample is refined by golden-section search on its bracket
+    (the distance is smooth; one bracket of 1/samples of the horizon holds one
+    minimum for any sensible sample count). Returns ``(t, distance)``.
+    """
+    horizon = float(horizon)
+    ts = np.linspace(0.0, horizon, samples + 1)
+    n = ts.size
+    a, _ = propagate(np.repeat(np.atleast_2d(r1), n, 0), np.repeat(np.atleast_2d(v1), n, 0), mu, ts)
+    b, _ = propagate(np.repeat(np.atleast_2d(r2), n, 0), np.repeat(np.atleast_2d(v2), n, 0), mu, ts)
+    d = _norm(a - b)
+    k = int(np.argmin(d))
+    lo, hi = ts[max(k - 1, 0)], ts[min(k + 1, n - 1)]
+
+    def dist(t):
+        pa, _ = propagate(r1, v1, mu, t)
+        pb, _ = propagate(r2, v2, mu, t)
+        return float(np.linalg.norm(pa - pb))
+
+    g = (np.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+    f1, f2 = dist(x1), dist(x2)
+    for _ in range(60):
+        if hi - lo <= 1e-9 * max(horizon, 1.0):
+            break
+        if f1 < f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - g * (hi - lo)
+            f1 = dist(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + g * (hi - lo)
+            f2 = dist(x2)
+    t = 0.5 * (lo + hi)
+    dt_ = dist(t)
+    if d[k] < dt_:
+        return float(ts[k]), float(d[k])
+    return float(t), dt_
+
+
+def orbit_points(r, v, mu, n: int = 128, *, max_radius: float | None = None):
+    """``n`` points (n, 3) along the conic through ``(r, v)``, for drawing the predicted orbit.
+
+    Ellipses: one period at equal steps of eccentric anomaly (dense near
+    periapsis, where the path bends). Open orbits: from now out to
+    ``max_radius`` (default 4 x the current distance), equal steps in time.
+    """
+    r = np.asarray(r, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    el = elements(r, v, mu)
+    if el.e[0] < 1.0 and np.isfinite(el.period[0]):
+        # times of equally spaced eccentric anomalies from now
+        E0 = -el.time_to_periapsis[0] * TWO_PI / el.period[0]        # mean anomaly now
+        Es = np.linspace(0.0, TWO_PI, n)
+        M = Es - el.e[0] * np.sin(Es)
+        t = np.mod(M - E0, TWO_PI) * el.period[0] / TWO_PI
+        pts, _ = propagate(np.repeat(r[None], n, 0), np.repeat(v[None], n, 0), mu, t)
+        return pts
+    rmax = max_radius if max_radius is not None else 4.0 * float(np.linalg.norm(r))
+    # time to reach rmax outbound: bracket by doubling
+    horizon = float(np.linalg.norm(r) / max(np.linalg.norm(v), 1e-12))
+    for _ in range(60):
+        p, _ = propagate(r, v, mu, horizon)
+        if np.linalg.norm(p) >= rmax:
+            break
+        horizon *= 2.0
+    t = np.linspace(0.0, horizon, n)
+    pts, _ = propagate(np.repeat(r[None], n, 0), np.repeat(v[None], n, 0), mu, t)
+    return pts
