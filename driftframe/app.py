@@ -25,12 +25,15 @@ def simulation_systems(track=None, *, collision: str = "continuous") -> list:
     from driftframe.systems.assist import RotationAssistSystem
     from driftframe.systems.collision import CollisionSystem
     from driftframe.systems.control import ControlSystem
+    from driftframe.systems.gravity import GravitySystem
     from driftframe.systems.input import InputSystem
     from driftframe.systems.movement import MovementSystem
     from driftframe.systems.spin import SpinSystem
 
-    return [InputSystem(track), ControlSystem(), RotationAssistSystem(), MovementSystem(), SpinSystem(),
-            CollisionSystem(method=collision)]
+    # gravity runs before movement in the movement stage and moves the bodies it integrates itself
+    # (marked Orbiting, which movement skips); without a GravityWell it is one empty query per step
+    return [InputSystem(track), ControlSystem(), RotationAssistSystem(), GravitySystem(), MovementSystem(),
+            SpinSystem(), CollisionSystem(method=collision)]
 
 
 def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous", track=None):

@@ -47,14 +47,15 @@ _K = np.arange(12)
 _C2_SERIES = np.array([(-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 3, dtype=np.float64))) for k in _K])
 _C3_SERIES = np.array([(-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 4, dtype=np.float64))) for k in _K])
 _C3_SERIES_ABS = np.abs(_C3_SERIES)
+# k terms leave a remainder below 1e-18 where p^k 6 |c3_k| < 1e-18: log10 p < L_k (L_k grows with k)
+_TERM_LIMIT = np.array([(-18.0 - np.log10(6.0 * _C3_SERIES_ABS[k])) / k for k in range(1, len(_K))])
 
 
 def _series_terms(p: float) -> int:
     """Terms of the Stumpff series that leave a remainder below 1e-18 at |psi| <= p (<= 1)."""
-    for k in range(1, len(_K)):
-        if p ** k * _C3_SERIES_ABS[k] * 6.0 < 1e-18:
-            return k
-    return len(_K)
+    if p <= 0.0:
+        return 1
+    return int(np.searchsorted(_TERM_LIMIT, np.log10(p), side="right")) + 1
 
 
 def stumpff(psi):
@@ -118,17 +119,33 @@ def period(alpha, mu):
         return np.where(alpha > 0, TWO_PI / np.sqrt(np.asarray(mu) * np.abs(alpha) ** 3), np.inf)
 
 
-def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 40):
-    """Solve (*) for ``chi``; vectorised over whole arrays (no gathers: bodies that have
-    converged sit at their root, where another step changes nothing).
+def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 60):
+    """Solve (*) for ``chi``, vectorised; bodies drop out of the arrays as they converge.
 
     ``r0n`` = |r0| (m), ``sigma0`` = r0.v0/sqrt(mu), ``alpha`` = 1/a (1/m),
-    ``dt`` (s, already reduced for ellipses). ``chi`` may carry a first guess.
-    Returns ``chi, psi, c2, c3, r`` at the solution (``r = |r(dt)|``).
+    ``dt`` (s). ``chi`` may carry a first guess. Returns ``chi, psi, c2, c3, r``
+    at the solution (``r = |r(dt)|``).
+
+    Safeguarded: the right side of (*) grows monotonically in ``chi`` (its
+    derivative is ``|r| > 0``), so every evaluation narrows a bracket
+    ``[lo, hi]`` around the root, and a step that would leave it bisects
+    instead. The bracket starts at ``[0, inf)`` (``dt > 0``; mirrored for
+    ``dt < 0``), for ellipses ``[0, (|dM| + 2) sqrt(a)]``, since
+    ``chi = sqrt(a) dE`` and ``dE - dM = e (sin E1 - sin E0)`` is at most 2.
+    So a poor guess (a warm start across periapsis) costs iterations, never the answer.
     """
     target = np.sqrt(mu) * dt
     chi = _first_guess(r0n, sigma0, alpha, mu, dt) if chi is None else np.array(chi, dtype=np.float64)
     n = chi.shape[0]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        sgn = np.where(dt < 0, -1.0, 1.0)
+        span = np.where(alpha > 0, (np.sqrt(mu * alpha ** 3) * np.abs(dt) + 2.0) / np.sqrt(np.abs(alpha)), np.inf)
+    lo = np.where(sgn > 0, 0.0, -span)
+    hi = np.where(sgn > 0, span, 0.0)
+    outside = ~((chi >= lo) & (chi <= hi)) | ~np.isfinite(chi)
+    if outside.any():
+        chi[outside] = _first_guess(r0n[outside], sigma0[outside], alpha[outside], mu[outside], dt[outside])
+        chi = np.clip(chi, lo, hi)
     out = [np.empty(n) for _ in range(5)]            # chi, psi, c2, c3, |r| at the solution
     idx = None                                       # None: all bodies; else the ones still iterating
     for it in range(iterations):
@@ -153,16 +170,25 @@ def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 4
             o[where] = val[done]
         if done.all():
             break
-        if it < 6:   # Laguerre, order 5 (Conway 1986): converges from a rough guess for any conic
+        # narrow the bracket: (*) is increasing in chi
+        above = f > 0
+        hi = np.where(above, np.minimum(hi, chi), hi)
+        lo = np.where(above, lo, np.maximum(lo, chi))
+        if it < 8:   # Laguerre, order 5 (Conway 1986): converges from a rough guess for any conic
             fpp = s_ * one_c2 + (1.0 - a_ * r_) * chi * one_c3             # = dr/dchi
             disc = np.abs(16.0 * fp * fp - 20.0 * f * fpp)               # (n-1)^2 fp^2 - n(n-1) f fpp, n = 5
             step = 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
         else:        # Newton near the root: quadratic, never stalls on a flat denominator
             step = newton
-        chi = chi - step
+        new = chi - step
+        leave = ~((new > lo) & (new < hi))
+        if leave.any():                               # bisect (or double towards an open end)
+            mid = np.where(np.isfinite(hi), 0.5 * (lo + hi), np.maximum(2.0 * np.abs(lo), 1.0) * 1.0)
+            mid = np.where(np.isfinite(lo), mid, np.minimum(-2.0 * np.abs(hi), -1.0))
+            new = np.where(leave, mid, new)
         # keep iterating only the bodies that have not converged (most converge in one or two)
         keep = ~done
-        chi = chi[keep]
+        chi, lo, hi = new[keep], lo[keep], hi[keep]
         idx = np.flatnonzero(keep) if idx is None else idx[keep]
     return tuple(out)
 
@@ -219,13 +245,17 @@ def _long_guess(r0n, sigma0, alpha, mu, dt):
     return np.where(bad, sqmu * dt / r0n, chi)
 
 
-def propagate(r0, v0, mu, dt, *, return_chi: bool = False):
+def propagate(r0, v0, mu, dt, *, chi=None, return_chi: bool = False):
     """State after ``dt`` seconds on the conic through ``(r0, v0)`` about a point mass ``mu``.
 
     ``r0`` (m) and ``v0`` (m/s) are ``(n, 3)`` (or ``(3,)``) relative to the
     mass, in any inertial frame; ``mu`` (m^3/s^2, > 0) and ``dt`` (s, either
-    sign) are scalars or ``(n,)``. Returns ``r, v`` with the shape of ``r0``.
-    A body with ``r0 = 0`` has no defined orbit and gets NaN.
+    sign) are scalars or ``(n,)``. Returns ``r, v`` with the shape of ``r0``
+    (and ``chi``, the universal anomaly of the solution, with ``return_chi``).
+    ``chi``: a first guess, e.g. the last step's ``chi`` plus
+    ``sqrt(mu) step / |r|`` when one epoch is propagated step after step
+    (``d chi / dt = sqrt(mu) / |r|``): one or two iterations then do. A body
+    with ``r0 = 0`` has no defined orbit and gets NaN.
     """
     single = np.ndim(r0) == 1
     r0, v0, mu, dt = _as_states(r0, v0, mu, dt)
@@ -238,11 +268,16 @@ def propagate(r0, v0, mu, dt, *, return_chi: bool = False):
         # ellipses: take whole periods off dt, so the rounding and the work do not grow with time
         # (|dt| > period  <=>  mu alpha^3 dt^2 > 4 pi^2; the usual short step skips it)
         dt_red = dt
+        turns = None
+        guess = None if chi is None else np.broadcast_to(np.asarray(chi, dtype=np.float64), dt.shape).copy()
         longer = (alpha > 0) & (mu * alpha ** 3 * dt * dt > TWO_PI * TWO_PI)
         if longer.any():
             per = period(alpha, mu)
-            dt_red = np.where(longer, dt - per * np.round(dt / per), dt)
-    chi, psi, c2, c3, rn = solve_universal(r0n, sigma0, alpha, mu, dt_red)
+            turns = np.where(longer, np.round(dt / per), 0.0)
+            dt_red = np.where(longer, dt - per * turns, dt)           # (per is inf for open orbits)
+            if guess is not None:                     # one whole orbit is chi = 2 pi sqrt(a)
+                guess -= np.where(longer, turns * TWO_PI / np.sqrt(np.abs(alpha)), 0.0)
+    chi, psi, c2, c3, rn = solve_universal(r0n, sigma0, alpha, mu, dt_red, guess)
     chi2 = chi * chi
     f = 1.0 - chi2 * c2 / r0n
     # g from chi alone (it equals dt - chi^3 c3 / sqrt(mu) at the root of (*)): then f, g, fd, gd all
@@ -262,7 +297,9 @@ def propagate(r0, v0, mu, dt, *, return_chi: bool = False):
     if single:
         r, v = r[0], v[0]
     if return_chi:
-        return r, v, chi
+        if turns is not None:                          # chi of the whole dt, whole orbits included
+            chi = chi + np.where(longer, turns * TWO_PI / np.sqrt(np.abs(alpha)), 0.0)
+        return r, v, (chi[0] if single else chi)
     return r, v
 
 

@@ -130,7 +130,7 @@ def test_vectorised_over_mixed_conics_is_the_same_as_one_at_a_time():
 
 @pytest.mark.parametrize("e, bound", [(0.0, 1e-12), (0.5, 1e-12), (0.9, 1e-10), (0.99, 1e-8)])
 def test_energy_and_angular_momentum_kept_in_many_short_steps(e, bound):
-    """1,000 orbits at 10 steps per orbit, each step from the last (as a thrusting body goes):
+    """300 orbits at 10 steps per orbit, each step from the last (as a thrusting body goes):
     the drift is the rounding of the state, repeated at the same phases every orbit (v^2/2 and
     mu/r cancel by 2/(1 - e) at periapsis). On rails the gravity system propagates from an epoch
     instead, which keeps a single rounding however long it runs (test_gravity.py)."""
@@ -140,7 +140,7 @@ def test_energy_and_angular_momentum_kept_in_many_short_steps(e, bound):
     v = np.repeat(v[None], 4, 0)
     P = 2 * np.pi * np.sqrt(a ** 3 / MU)
     E0, h0 = energy(r, v), np.linalg.norm(np.cross(r, v), axis=1)
-    for _ in range(10_000):
+    for _ in range(3_000):
         r, v = kepler.propagate(r, v, MU, P / 10)
     assert np.max(np.abs(energy(r, v) / E0 - 1)) < bound
     assert np.max(np.abs(np.linalg.norm(np.cross(r, v), axis=1) / h0 - 1)) < bound
