@@ -80,6 +80,8 @@ from pathlib import Path
 
 import numpy as np
 
+from driftframe.framework import warp as time_warp
+
 FORMATS = ("mp4", "gif", "png")
 _SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
 _PNG_NAME = "frame_{:06d}.png"
@@ -775,7 +777,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
                         break
                     if motion_blur > 1:
                         interpolate.start(world)
-                    for _ in range(steps_per_frame):
+                    # time warp multiplies the steps of each frame (read per frame: it can drop mid-recording)
+                    for _ in range(steps_per_frame * time_warp.factor(world)):
                         if before_step is not None:
                             before_step(world, world.step_count)
                         world.step()

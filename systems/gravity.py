@@ -134,6 +134,21 @@ class _Wells:
         return len(self.ents)
 
 
+def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
+    """Each body's well: the deepest sphere of influence holding it, then the strongest pull.
+    ``moon_parent[k] >= 0``: body k is a moon and orbits that well, whatever the spheres say."""
+    d2 = np.einsum("nwk,nwk->nw", x[:, None, :] - X[None], x[:, None, :] - X[None])
+    inside = d2 < (w.soi * w.soi)[None, :]
+    moons = np.flatnonzero(moon_parent >= 0)
+    if moons.size:
+        inside[moons] = False
+        inside[moons, moon_parent[moons]] = True
+    with np.errstate(divide="ignore"):
+        pull = w.mu[None, :] / d2
+    deepest = np.where(inside, w.depth[None, :], -1.0).max(axis=1, keepdims=True)
+    return np.argmax(np.where(inside & (w.depth[None, :] == deepest), pull, -np.inf), axis=1)
+
+
 class GravitySystem(esper.Processor):
     """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody; writes Transform, Velocity,
     Orbiting.  Gravity: on rails (exact Kepler from an epoch) or kick-drift-kick (n-body)."""
@@ -215,19 +230,43 @@ class GravitySystem(esper.Processor):
         for k, arr in arrays.items():
             getattr(self, k)[new_i] = arr[old_i]
 
-    def _dominant(self, x, X) -> np.ndarray:
-        """Each body's well: the deepest sphere of influence holding it, then the strongest pull."""
-        w = self._wells
-        d2 = np.einsum("nwk,nwk->nw", x[:, None, :] - X[None], x[:, None, :] - X[None])
-        inside = d2 < (w.soi * w.soi)[None, :]
-        moons = np.flatnonzero(self.moon_parent >= 0)
-        if moons.size:
-            inside[moons] = False
-            inside[moons, self.moon_parent[moons]] = True
-        with np.errstate(divide="ignore"):
-            pull = w.mu[None, :] / d2
-        deepest = np.where(inside, w.depth[None, :], -1.0).max(axis=1, keepdims=True)
-        return np.argmax(np.where(inside & (w.depth[None, :] == deepest), pull, -np.inf), axis=1)
+    def reference(self, entity: int):
+        """The well ``entity`` moves about now, as ``(well entity, mu, radius, X, V)`` (its centre's
+        position and velocity, world frame), or None in a scene without wells or for a root well.
+        For orbit readouts and flight aids: prograde means along the velocity relative to this well."""
+        world = self.world
+        wq = world.query(GravityWell, Transform)
+        wq.refresh()
+        if not len(wq):
+            return None
+        wells = self._wells if self._wells is not None else _Wells(world, wq)
+        pos_t = world.table(Transform).data["position"]
+        vel_t = world.table(Velocity).data["linear"]
+        X = pos_t[wells.t_rows]
+        V = np.where((wells.v_rows >= 0)[:, None], vel_t[np.maximum(wells.v_rows, 0)], 0.0)
+        x = world.columns(Transform, [entity]).position
+        if entity in wells.ents:
+            i = wells.ents.index(entity)
+            if wells.parent[i] < 0:
+                return None
+            wi = int(wells.parent[i])
+        else:
+            wi = int(_dominant(wells, x, X, np.full(1, -1, np.intp))[0])
+        return wells.ents[wi], float(wells.mu[wi]), float(wells.radius[wi]), X[wi].copy(), V[wi].copy()
+
+    def next_contact(self):
+        """``(time, entity, well)`` of the earliest predicted surface contact of a body on rails
+        (absolute seconds, exact on its conic), or None. For the warp governor."""
+        if not self._n:
+            return None
+        valid = self.ep_well >= 0
+        if not valid.any():
+            return None
+        t = np.where(valid, self.ep_contact, np.inf)
+        k = int(np.argmin(t))
+        if not np.isfinite(t[k]):
+            return None
+        return float(t[k]), int(self.ents[k]), self._wells.ents[int(self.ep_well[k])]
 
     # -- the step -------------------------------------------------------------------------------
     def process(self, dt: float) -> None:
@@ -271,15 +310,11 @@ class GravitySystem(esper.Processor):
         x1 = np.empty_like(x)
         v1 = np.empty_like(v)
         events = []
-        dom = self._dominant(x, X0)
+        dom = _dominant(wells, x, X0, self.moon_parent)
         thrust = np.any(a != 0.0, axis=1)
         edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
         rails = ~self.nbody
-        for wi in range(W):
-            k = self.well_index == wi
-            if k.any():                                   # a moon: its new state is known before its bodies
-                kk = int(np.flatnonzero(k)[0])
-                pass
+        for wi in range(W):                               # parents first: a moon is placed before its bodies
             sel = np.flatnonzero(rails & (dom == wi))
             if sel.size:
                 self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events)
