@@ -68,31 +68,60 @@ def stumpff(psi):
     ``1 - cos x`` is written ``2 sin^2(x/2)`` so it never cancels.
     """
     psi = np.asarray(psi, dtype=np.float64)
+    if psi.ndim == 0:
+        c2, c3 = stumpff(psi[None])
+        return c2[0], c3[0]
     apsi = np.abs(psi)
-    pmax = float(apsi.max()) if psi.size else 0.0
     small = apsi <= 1.0
-    terms = _series_terms(min(pmax, 1.0))
-    c2 = np.full_like(psi, _C2_SERIES[terms - 1])
-    c3 = np.full_like(psi, _C3_SERIES[terms - 1])
-    for k in range(terms - 2, -1, -1):
-        c2 *= psi
-        c2 += _C2_SERIES[k]
-        c3 *= psi
-        c3 += _C3_SERIES[k]
-    if pmax <= 1.0:
-        return c2, c3
+    n_small = int(np.count_nonzero(small))
+    c2 = np.empty_like(psi)
+    c3 = np.empty_like(psi)
+    if n_small:
+        # each branch on its own bodies only: a step on rails mostly has psi > 1, a short one psi < 1
+        p = psi if n_small == psi.size else psi[small]
+        terms = _series_terms(float(np.abs(p).max()))
+        s2 = np.full_like(p, _C2_SERIES[terms - 1])
+        s3 = np.full_like(p, _C3_SERIES[terms - 1])
+        for k in range(terms - 2, -1, -1):
+            s2 *= p
+            s2 += _C2_SERIES[k]
+            s3 *= p
+            s3 += _C3_SERIES[k]
+        if n_small == psi.size:
+            return s2, s3
+        c2[small] = s2
+        c3[small] = s3
+    big = ~small
+    p = psi if not n_small else psi[big]
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        pos = psi > 1.0
-        neg = psi < -1.0
-        x = np.sqrt(apsi)
-        s = np.sin(0.5 * x)
-        c2_pos = 2.0 * s * s / psi
-        c3_pos = (x - np.sin(x)) / (psi * x)
-        c2_neg = (np.cosh(x) - 1.0) / (-psi)
-        c3_neg = (np.sinh(x) - x) / (-psi * x)
-    c2 = np.where(pos, c2_pos, np.where(neg, c2_neg, c2))
-    c3 = np.where(pos, c3_pos, np.where(neg, c3_neg, c3))
+        x = np.sqrt(np.abs(p))
+        if (p > 0).all():
+            s = np.sin(0.5 * x)
+            b2 = 2.0 * s * s / p
+            b3 = (x - np.sin(x)) / (p * x)
+        else:
+            pos = p > 0
+            s = np.sin(0.5 * x)
+            b2 = np.where(pos, 2.0 * s * s / p, (np.cosh(x) - 1.0) / (-p))
+            b3 = np.where(pos, (x - np.sin(x)) / (p * x), (np.sinh(x) - x) / (-p * x))
+    if not n_small:
+        return b2, b3
+    c2[big] = b2
+    c3[big] = b3
     return c2, c3
+
+
+def next_chi(chi, r, v, mu, step):
+    """A first guess for ``chi`` one ``step`` (s) further on, from the last solution ``chi`` and its
+    state ``r, v``: the Taylor series ``chi + chi' step + chi'' step^2 / 2`` with
+    ``chi' = sqrt(mu)/|r|`` and ``chi'' = -sqrt(mu) (r.v)/|r|^3`` (``d|r|/dt = r.v/|r|``). Good to
+    ``step^3``: one Laguerre step then lands on the root, for a body propagated step after step
+    from one epoch."""
+    rn = _norm(np.atleast_2d(r))
+    rv = _dot(np.atleast_2d(r), np.atleast_2d(v))
+    sq = np.sqrt(mu)
+    d1 = sq / rn
+    return chi + step * d1 * (1.0 - 0.5 * step * rv / (rn * rn))
 
 
 def _as_states(r0, v0, mu, dt):
@@ -119,7 +148,7 @@ def period(alpha, mu):
         return np.where(alpha > 0, TWO_PI / np.sqrt(np.asarray(mu) * np.abs(alpha) ** 3), np.inf)
 
 
-def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 60):
+def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 60, span_rate=None):
     """Solve (*) for ``chi``, vectorised; bodies drop out of the arrays as they converge.
 
     ``r0n`` = |r0| (m), ``sigma0`` = r0.v0/sqrt(mu), ``alpha`` = 1/a (1/m),
@@ -133,59 +162,77 @@ def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 6
     ``dt < 0``), for ellipses ``[0, (|dM| + 2) sqrt(a)]``, since
     ``chi = sqrt(a) dE`` and ``dE - dM = e (sin E1 - sin E0)`` is at most 2.
     So a poor guess (a warm start across periapsis) costs iterations, never the answer.
+    ``span_rate``: ``(sqrt(mu alpha^3), sqrt(|a|))`` where already known (:class:`Epoch`).
     """
     target = np.sqrt(mu) * dt
     chi = _first_guess(r0n, sigma0, alpha, mu, dt) if chi is None else np.array(chi, dtype=np.float64)
     n = chi.shape[0]
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        sgn = np.where(dt < 0, -1.0, 1.0)
-        span = np.where(alpha > 0, (np.sqrt(mu * alpha ** 3) * np.abs(dt) + 2.0) / np.sqrt(np.abs(alpha)), np.inf)
-    lo = np.where(sgn > 0, 0.0, -span)
-    hi = np.where(sgn > 0, span, 0.0)
-    outside = ~((chi >= lo) & (chi <= hi)) | ~np.isfinite(chi)
+        if span_rate is None:
+            span_rate = (np.where(alpha > 0, np.sqrt(mu * alpha ** 3), np.inf), np.sqrt(1.0 / np.abs(alpha)))
+        span = (span_rate[0] * np.abs(dt) + 2.0) * span_rate[1]       # inf for open orbits
+    neg = dt < 0
+    lo = np.where(neg, -span, 0.0)
+    hi = np.where(neg, 0.0, span)
+    outside = ~((chi >= lo) & (chi <= hi))            # (NaN is outside too)
     if outside.any():
         chi[outside] = _first_guess(r0n[outside], sigma0[outside], alpha[outside], mu[outside], dt[outside])
         chi = np.clip(chi, lo, hi)
-    out = [np.empty(n) for _ in range(5)]            # chi, psi, c2, c3, |r| at the solution
+    out = None                                       # chi, psi, c2, c3, |r| at the solution
     idx = None                                       # None: all bodies; else the ones still iterating
+    tol = 4.0 * _EPS
     for it in range(iterations):
         a_, s_, r_, t_ = (alpha, sigma0, r0n, target) if idx is None else \
             (alpha[idx], sigma0[idx], r0n[idx], target[idx])
-        psi = a_ * chi * chi
-        c2, c3 = stumpff(psi)
         chi2 = chi * chi
+        psi = a_ * chi2
+        c2, c3 = stumpff(psi)
         one_c3 = 1.0 - psi * c3
         one_c2 = 1.0 - psi * c2
-        f = chi2 * chi * c3 + s_ * chi2 * c2 + r_ * chi * one_c3 - t_
-        fp = chi2 * c2 + s_ * chi * one_c3 + r_ * one_c2                # = |r(chi)| > 0
-        # converged when Newton's step is within the rounding of f (a few ulp of the terms of (*)):
-        # then this evaluation's c2, c3 and |r| are the solution's, and no extra pass is needed
-        newton = f / fp
-        done = np.abs(newton) <= 4.0 * _EPS * (np.abs(chi) + np.abs(t_) / fp)
-        done |= ~np.isfinite(newton)
+        s_chi = s_ * chi
+        f = chi2 * (chi * c3 + s_ * c2) + r_ * chi * one_c3 - t_
+        fp = chi2 * c2 + s_chi * one_c3 + r_ * one_c2                   # = |r(chi)| > 0
+        # converged when Newton's step f/fp is within the rounding of f (a few ulp of the terms of
+        # (*)): this evaluation's c2, c3 and |r| are then the solution's, no extra pass needed
+        done = np.abs(f) <= tol * (np.abs(chi) * fp + np.abs(t_))
         if it == iterations - 1:
             done[:] = True                           # out of iterations: take the last iterate
-        where = np.flatnonzero(done) if idx is None else idx[done]
-        for o, val in zip(out, (chi, psi, c2, c3, fp)):
-            o[where] = val[done]
-        if done.all():
-            break
+        else:
+            done |= ~np.isfinite(f)
+        all_done = bool(done.all())
+        if all_done and idx is None:
+            return chi, psi, c2, c3, fp              # the usual case: every body at once, no copies
+        # while most bodies still iterate, iterate them all (a converged one only moves by ulp, and
+        # gathering costs more than the arithmetic); take them out once they are the minority
+        whole = idx is None and not all_done and np.count_nonzero(done) * 2 < n
+        if whole:
+            done[:] = False
+        if out is None and not whole:
+            out = [np.empty(n) for _ in range(5)]
+        if not whole:
+            where = (np.flatnonzero(done) if idx is None else idx[done]) if not all_done else idx
+            for o, val in zip(out, (chi, psi, c2, c3, fp)):
+                o[where] = val if all_done else val[done]
+            if all_done:
+                break
         # narrow the bracket: (*) is increasing in chi
         above = f > 0
-        hi = np.where(above, np.minimum(hi, chi), hi)
-        lo = np.where(above, lo, np.maximum(lo, chi))
+        np.copyto(hi, chi, where=above & (chi < hi))
+        np.copyto(lo, chi, where=~above & (chi > lo))
         if it < 8:   # Laguerre, order 5 (Conway 1986): converges from a rough guess for any conic
             fpp = s_ * one_c2 + (1.0 - a_ * r_) * chi * one_c3             # = dr/dchi
             disc = np.abs(16.0 * fp * fp - 20.0 * f * fpp)               # (n-1)^2 fp^2 - n(n-1) f fpp, n = 5
-            step = 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
+            new = chi - 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
         else:        # Newton near the root: quadratic, never stalls on a flat denominator
-            step = newton
-        new = chi - step
+            new = chi - f / fp
         leave = ~((new > lo) & (new < hi))
         if leave.any():                               # bisect (or double towards an open end)
-            mid = np.where(np.isfinite(hi), 0.5 * (lo + hi), np.maximum(2.0 * np.abs(lo), 1.0) * 1.0)
+            mid = np.where(np.isfinite(hi), 0.5 * (lo + hi), np.maximum(2.0 * np.abs(lo), 1.0))
             mid = np.where(np.isfinite(lo), mid, np.minimum(-2.0 * np.abs(hi), -1.0))
             new = np.where(leave, mid, new)
+        if whole:
+            chi = new
+            continue
         # keep iterating only the bodies that have not converged (most converge in one or two)
         keep = ~done
         chi, lo, hi = new[keep], lo[keep], hi[keep]
@@ -245,6 +292,70 @@ def _long_guess(r0n, sigma0, alpha, mu, dt):
     return np.where(bad, sqmu * dt / r0n, chi)
 
 
+class Epoch:
+    """States ``(r0, v0)`` about ``mu`` with what :func:`propagate` derives from them computed once:
+    for bodies propagated from one epoch step after step (on rails), only ``dt`` changes."""
+
+    __slots__ = ("r0", "v0", "mu", "sqmu", "r0n", "alpha", "sigma0", "period", "chi_turn", "span_rate")
+
+    def __init__(self, r0, v0, mu):
+        r0 = np.atleast_2d(np.asarray(r0, dtype=np.float64))
+        v0 = np.atleast_2d(np.asarray(v0, dtype=np.float64))
+        self.r0, self.v0 = r0, v0
+        self.mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), (r0.shape[0],))
+        self.sqmu = np.sqrt(self.mu)
+        self.r0n = _norm(r0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.alpha = 2.0 / self.r0n - _dot(v0, v0) / self.mu
+            self.sigma0 = _dot(r0, v0) / self.sqmu
+            self.period = period(self.alpha, self.mu)
+            # one whole orbit is chi = 2 pi sqrt(a); zero for open orbits
+            self.chi_turn = np.where(self.alpha > 0, TWO_PI / np.sqrt(np.abs(self.alpha)), 0.0)
+            # the solver's bracket for ellipses: |chi| <= (n |dt| + 2) sqrt(a)
+            self.span_rate = (np.where(self.alpha > 0, np.sqrt(self.mu * np.abs(self.alpha) ** 3), np.inf),
+                              np.sqrt(1.0 / np.abs(self.alpha)))
+
+    def at(self, dt, chi=None):
+        """``r, v, chi`` after ``dt`` s (scalar or ``(n,)``); ``chi``: a first guess (:func:`next_chi`)."""
+        n = self.r0.shape[0]
+        dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+        guess = None if chi is None else np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)
+        # ellipses: take whole periods off dt, so the rounding and the work do not grow with time
+        with np.errstate(invalid="ignore"):
+            longer = np.abs(dt) > self.period              # (period is inf for open orbits)
+        turns = None
+        dt_red = dt
+        if longer.all():                                   # on rails after the first orbit
+            turns = np.round(dt / self.period)
+            dt_red = dt - self.period * turns
+        elif longer.any():
+            turns = np.where(longer, np.round(dt / np.where(longer, self.period, 1.0)), 0.0)
+            dt_red = np.where(longer, dt - self.period * turns, dt)
+        if turns is not None and guess is not None:
+            guess -= turns * self.chi_turn
+        r0, v0, r0n, sqmu = self.r0, self.v0, self.r0n, self.sqmu
+        chi, psi, c2, c3, rn = solve_universal(r0n, self.sigma0, self.alpha, self.mu, dt_red, guess,
+                                               span_rate=self.span_rate)
+        chi2 = chi * chi
+        f = 1.0 - chi2 * c2 / r0n
+        # g from chi alone (it equals dt - chi^3 c3 / sqrt(mu) at the root of (*)): then f, g, fd, gd all
+        # follow from one chi, so the new state lies on the same conic to rounding even where chi is a
+        # few ulp off the root -- a timing error of that size, never an energy error (which would build up)
+        g = (r0n * chi * (1.0 - psi * c3) + self.sigma0 * chi2 * c2) / sqmu
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fd = sqmu * chi * (psi * c3 - 1.0) / (rn * r0n)
+            gd = 1.0 - chi2 * c2 / rn
+        r = f[:, None] * r0 + g[:, None] * v0
+        v = fd[:, None] * r0 + gd[:, None] * v0
+        zero = dt_red == 0.0                                 # dt = 0 exactly: the same state, bit for bit
+        if zero.any():
+            r[zero] = r0[zero]
+            v[zero] = v0[zero]
+        if turns is not None:                                # chi of the whole dt, whole orbits included
+            chi = chi + turns * self.chi_turn
+        return r, v, chi
+
+
 def propagate(r0, v0, mu, dt, *, chi=None, return_chi: bool = False):
     """State after ``dt`` seconds on the conic through ``(r0, v0)`` about a point mass ``mu``.
 
@@ -252,54 +363,17 @@ def propagate(r0, v0, mu, dt, *, chi=None, return_chi: bool = False):
     mass, in any inertial frame; ``mu`` (m^3/s^2, > 0) and ``dt`` (s, either
     sign) are scalars or ``(n,)``. Returns ``r, v`` with the shape of ``r0``
     (and ``chi``, the universal anomaly of the solution, with ``return_chi``).
-    ``chi``: a first guess, e.g. the last step's ``chi`` plus
-    ``sqrt(mu) step / |r|`` when one epoch is propagated step after step
-    (``d chi / dt = sqrt(mu) / |r|``): one or two iterations then do. A body
-    with ``r0 = 0`` has no defined orbit and gets NaN.
+    ``chi``: a first guess (:func:`next_chi` gives one for a body propagated
+    step after step). A body with ``r0 = 0`` has no defined orbit and gets NaN.
+    For many calls from the same states, :class:`Epoch` derives what depends
+    on them only once.
     """
     single = np.ndim(r0) == 1
-    r0, v0, mu, dt = _as_states(r0, v0, mu, dt)
-    r0n = _norm(r0)
-    v2 = _dot(v0, v0)
-    sqmu = np.sqrt(mu)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        alpha = 2.0 / r0n - v2 / mu
-        sigma0 = _dot(r0, v0) / sqmu
-        # ellipses: take whole periods off dt, so the rounding and the work do not grow with time
-        # (|dt| > period  <=>  mu alpha^3 dt^2 > 4 pi^2; the usual short step skips it)
-        dt_red = dt
-        turns = None
-        guess = None if chi is None else np.broadcast_to(np.asarray(chi, dtype=np.float64), dt.shape).copy()
-        longer = (alpha > 0) & (mu * alpha ** 3 * dt * dt > TWO_PI * TWO_PI)
-        if longer.any():
-            per = period(alpha, mu)
-            turns = np.where(longer, np.round(dt / per), 0.0)
-            dt_red = np.where(longer, dt - per * turns, dt)           # (per is inf for open orbits)
-            if guess is not None:                     # one whole orbit is chi = 2 pi sqrt(a)
-                guess -= np.where(longer, turns * TWO_PI / np.sqrt(np.abs(alpha)), 0.0)
-    chi, psi, c2, c3, rn = solve_universal(r0n, sigma0, alpha, mu, dt_red, guess)
-    chi2 = chi * chi
-    f = 1.0 - chi2 * c2 / r0n
-    # g from chi alone (it equals dt - chi^3 c3 / sqrt(mu) at the root of (*)): then f, g, fd, gd all
-    # follow from one chi, so the new state lies on the same conic to rounding even where chi is a few
-    # ulp off the root -- a timing error of that size, never an energy error (which would build up)
-    g = (r0n * chi * (1.0 - psi * c3) + sigma0 * chi2 * c2) / sqmu
-    with np.errstate(divide="ignore", invalid="ignore"):
-        fd = sqmu * chi * (psi * c3 - 1.0) / (rn * r0n)
-        gd = 1.0 - chi2 * c2 / rn
-    r = f[:, None] * r0 + g[:, None] * v0
-    v = fd[:, None] * r0 + gd[:, None] * v0
-    # dt = 0 exactly: the same state, bit for bit
-    zero = dt_red == 0.0
-    if zero.any():
-        r[zero] = r0[zero]
-        v[zero] = v0[zero]
+    r, v, chi = Epoch(r0, v0, mu).at(dt, chi)
     if single:
-        r, v = r[0], v[0]
+        r, v, chi = r[0], v[0], chi[0]
     if return_chi:
-        if turns is not None:                          # chi of the whole dt, whole orbits included
-            chi = chi + np.where(longer, turns * TWO_PI / np.sqrt(np.abs(alpha)), 0.0)
-        return r, v, (chi[0] if single else chi)
+        return r, v, chi
     return r, v
 
 

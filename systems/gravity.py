@@ -164,6 +164,8 @@ class GravitySystem(esper.Processor):
     def __init__(self):
         self._wells = None
         self._n = 0
+        self._epoch_version = 0
+        self._epochs: dict = {}
 
     # -- the scene ------------------------------------------------------------------------------
     def _build_bodies(self, q) -> None:
@@ -200,8 +202,10 @@ class GravitySystem(esper.Processor):
         self.ep_contact = np.full(n, np.inf)             # absolute time of the next surface contact
         self.ep_chi = np.zeros(n)                         # universal anomaly at the last step (a warm start)
         self.ep_rate = np.zeros(n)                        # sqrt(mu) / |r| then: d chi / dt
+        self.ep_q = np.zeros(n)                           # (r.v) / |r|^2 then: the second-order term
         self.last_x = np.full((n, 3), np.nan)
         self.last_v = np.full((n, 3), np.nan)
+        self._epoch_version += 1
         orbiting = world.query(Orbiting)
         orbiting.refresh()
         for e in self.ents[~np.isin(self.ents, orbiting.entities)]:
@@ -217,7 +221,7 @@ class GravitySystem(esper.Processor):
                 raise ValueError(f"entity {int(self.ents[k])} starts {float(d[k])!r} m from the centre of "
                                  f"well {wells.ents[i]}, inside its surface (radius {wells.radius[i]!r} m)")
 
-    _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "ep_rate", "last_x", "last_v")
+    _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "ep_rate", "ep_q", "last_x", "last_v")
 
     def _carry(self):
         return (list(self._wells.ents), self.ents.copy(), {k: getattr(self, k) for k in self._EPOCH})
@@ -284,6 +288,7 @@ class GravitySystem(esper.Processor):
             self._build_bodies(bq)
             if old is not None and old[0] == self._wells.ents:
                 self._restore(old[1:])
+            self._epoch_version += 1
             wq.refresh()                                  # Orbiting may have been added: new lists
             bq.refresh()
         n = self._n
@@ -340,6 +345,7 @@ class GravitySystem(esper.Processor):
         # a new epoch where the engine fires, the well changed, or someone else moved the body
         new = thrust[sel] | edited[sel] | (self.ep_well[sel] != wi)
         if new.any():
+            self._epoch_version += 1
             k = sel[new]
             self.ep_r[k] = x[k] - X0[wi]
             self.ep_v[k] = v[k] - V0[wi] + 0.5 * dt * a[k]           # thrust: the first half kick
@@ -347,12 +353,13 @@ class GravitySystem(esper.Processor):
             self.ep_well[k] = wi
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
-            self.ep_rate[k] = np.sqrt(mu) / np.linalg.norm(self.ep_r[k], axis=1)
+            self._set_rates(k, self.ep_r[k], self.ep_v[k], mu)
         # surface contacts in this step (the contact time was found once, exactly, for the epoch)
         for _ in range(MAX_CONTACTS):
             hit = sel[self.ep_contact[sel] <= t1]
             if not hit.size:
                 break
+            self._epoch_version += 1
             tc = self.ep_contact[hit]
             rc, uc = kepler.propagate(self.ep_r[hit], self.ep_v[hit], mu, tc - self.ep_t[hit])
             n_hat = rc / np.linalg.norm(rc, axis=1, keepdims=True)
@@ -364,18 +371,19 @@ class GravitySystem(esper.Processor):
                                              float(-un[j])))
             self.ep_r[hit], self.ep_v[hit], self.ep_t[hit] = rc, uc, tc
             self.ep_chi[hit] = 0.0
-            self.ep_rate[hit] = np.sqrt(mu) / np.linalg.norm(rc, axis=1)
+            self._set_rates(hit, rc, uc, mu)
             # the next contact of the new epoch (an outbound body: after its next periapsis dip, if any)
             nxt = kepler.time_to_radius(rc * (1.0 + 1e-12), uc, mu, R, np.inf)
             self.ep_contact[hit] = tc + nxt
         # from the epoch for the whole time since (no error carried from step to step); the last
         # step's chi, moved on by d chi/dt = sqrt(mu)/|r|, starts the solver next to the root. The
         # guess changes how fast it converges, and where only within the solver's few ulp.
-        guess = self.ep_chi[sel] + self.ep_rate[sel] * (t1 - t0)
-        r, u, chi = kepler.propagate(self.ep_r[sel], self.ep_v[sel], mu, t1 - self.ep_t[sel], chi=guess,
-                                     return_chi=True)
+        # a warm start: chi moved on by the Taylor series of chi(t) (kepler.next_chi), from the last step
+        step = t1 - t0
+        guess = self.ep_chi[sel] + step * self.ep_rate[sel] * (1.0 - 0.5 * step * self.ep_q[sel])
+        r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[sel], guess)
         self.ep_chi[sel] = chi
-        self.ep_rate[sel] = np.sqrt(mu) / np.linalg.norm(r, axis=1)
+        self._set_rates(sel, r, u, mu)
         th = thrust[sel]
         if th.any():
             # the second half kick; the state after it is the next step's epoch (taken then, as thrust
@@ -384,6 +392,22 @@ class GravitySystem(esper.Processor):
             self.ep_well[sel[th]] = -1
         x1[sel] = X1[wi] + r
         v1[sel] = V1[wi] + u
+
+    def _set_rates(self, k, r, u, mu) -> None:
+        rn2 = np.einsum("ij,ij->i", r, r)
+        self.ep_rate[k] = np.sqrt(mu / rn2)
+        self.ep_q[k] = np.einsum("ij,ij->i", r, u) / rn2
+
+    def _epoch(self, wi, sel, mu) -> kepler.Epoch:
+        """The epochs of bodies ``sel`` about well ``wi`` as a kepler.Epoch, kept while none changes
+        (what depends only on the epoch state is then derived once, not every step)."""
+        key = (wi, self._epoch_version)
+        cached = self._epochs.get(wi)
+        if cached is not None and cached[0] == key and np.array_equal(cached[1], sel):
+            return cached[2]
+        ep = kepler.Epoch(self.ep_r[sel], self.ep_v[sel], mu)
+        self._epochs[wi] = (key, sel.copy(), ep)
+        return ep
 
     def _accel(self, pos, X, gm):
         """Pull of every well at positions ``pos`` and of the n-body bodies on each other (``G m``)."""
