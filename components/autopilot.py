@@ -60,6 +60,8 @@ class Autopilot:
     max_rate: float = 1.0
     #: Relative speed at which match_velocity / flip_and_burn count as done, m/s.
     tolerance: float = 0.01
+    #: flip_and_burn: stop this far short of the target or point, m (>= 0).
+    standoff: float = 0.0
     #: Written by the system: the Δv delivered by this task so far, m/s.
     delivered: float = field(default=0.0, compare=False)
     #: Written by the system: True once the task is complete (holds never finish).
@@ -90,3 +92,28 @@ class Autopilot:
         self.aim = validate.scalar("Autopilot.aim", self.aim, positive=True, hi=math.pi)
         self.max_rate = validate.scalar("Autopilot.max_rate", self.max_rate, positive=True)
         self.tolerance = validate.scalar("Autopilot.tolerance", self.tolerance, positive=True)
+        self.standoff = validate.scalar("Autopilot.standoff", self.standoff, nonnegative=True)
+
+
+@dataclass
+class FlightPlan:
+    """A script for the autopilot: at each time (s, simulated) engage the given :class:`Autopilot`
+    settings (the autopilot system copies them onto the ship's Autopilot when the time comes).
+    ``legs``: ``[(time, Autopilot(...)), ...]`` in increasing time."""
+
+    legs: list = field(default_factory=list)
+    #: Written by the system: how many legs have been engaged.
+    next: int = field(default=0, compare=False)
+
+    def __post_init__(self):
+        last = -math.inf
+        legs = []
+        for k, leg in enumerate(self.legs):
+            if not (isinstance(leg, (tuple, list)) and len(leg) == 2 and isinstance(leg[1], Autopilot)):
+                raise TypeError(f"FlightPlan.legs[{k}] must be (time, Autopilot(...)), got {leg!r}")
+            t = validate.scalar(f"FlightPlan.legs[{k}] time", leg[0], nonnegative=True)
+            if t < last:
+                raise ValueError(f"FlightPlan.legs[{k}] time {t!r} is before the leg before it ({last!r})")
+            last = t
+            legs.append((t, leg[1]))
+        self.legs = legs

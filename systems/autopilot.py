@@ -2,12 +2,13 @@
 through the pilot's controls)."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import esper
 import numpy as np
 
-from driftframe.components.autopilot import Autopilot
+from driftframe.components.autopilot import Autopilot, FlightPlan
 from driftframe.components.body import AngularVelocity, Transform, Velocity
 from driftframe.components.control import FlightControl, FlightInput
 from driftframe.components.gravity import GravityWell
@@ -70,6 +71,9 @@ class AutopilotSystem(esper.Processor):
     is bounded by the ship's own, the turn never overshoots, and a held
     direction is held with zero input (no jitter). Roll is brought to zero.
 
+    **Plans.** A :class:`~components.autopilot.FlightPlan` switches the
+    Autopilot to its next leg at the step that holds the leg's time.
+
     **Thrust** fires only while the nose is within ``aim`` of ``d``, and never
     more than the task needs: the last step of a burn uses the throttle that
     delivers exactly what is left, so a timed burn delivers its ``dv`` to
@@ -82,8 +86,8 @@ class AutopilotSystem(esper.Processor):
     stage = "control"
     after = (InputSystem,)
     before = (ControlSystem,)
-    reads = (Autopilot, FlightControl, Transform, Velocity, AngularVelocity, GravityWell)
-    writes = (FlightInput, Autopilot)
+    reads = (Autopilot, FlightPlan, FlightControl, Transform, Velocity, AngularVelocity, GravityWell)
+    writes = (FlightInput, Autopilot, FlightPlan)
 
     def __init__(self):
         self._last_dir: dict[int, np.ndarray] = {}
@@ -130,8 +134,19 @@ class AutopilotSystem(esper.Processor):
         return d / n if n > 0 and np.isfinite(n) else None
 
     # -- the step -------------------------------------------------------------------------------
+    def _follow_plans(self, t0: float, dt: float) -> None:
+        """Engage the legs of every FlightPlan whose time has come (at the step that holds it)."""
+        for ent, (plan, ap) in esper.get_components(FlightPlan, Autopilot):
+            while plan.next < len(plan.legs) and plan.legs[plan.next][0] < t0 + 0.5 * dt:
+                leg = plan.legs[plan.next][1]
+                for f in dataclasses.fields(Autopilot):
+                    setattr(ap, f.name, getattr(leg, f.name))
+                ap.delivered, ap.done, ap.status = 0.0, False, ""
+                plan.next += 1
+
     def process(self, dt: float) -> None:
         t0 = self.world.step_count * dt
+        self._follow_plans(t0, dt)
         for ent, (ap, ctl, inp) in esper.get_components(Autopilot, FlightControl, FlightInput):
             if ap.mode == "off":
                 self._last_dir.pop(ent, None)
@@ -197,6 +212,9 @@ class AutopilotSystem(esper.Processor):
         # flip and burn: wanted velocity towards the point on the braking profile
         rel = p - x
         dist = float(np.linalg.norm(rel))
+        if ap.standoff > 0 and dist > 0:                # stop short of it, on the line towards it
+            rel = rel * max(0.0, 1.0 - ap.standoff / dist)
+            dist = float(np.linalg.norm(rel))
         speed = float(np.linalg.norm(v_rel))
         if dist <= ap.tolerance * 10.0 and speed <= ap.tolerance:
             ap.done = True
@@ -208,7 +226,7 @@ class AutopilotSystem(esper.Processor):
                                                                                  flip))
         need = v_want - v_rel
         n = float(np.linalg.norm(need))
-        ap.status = f"flip and burn: {dist:.0f} m, closing {float(-(rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
+        ap.status = f"flip and burn: {dist:.0f} m, closing {float((rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
         if n <= 0.5 * ap.tolerance:
             return None, 0.0                         # on the profile: coast, hold the attitude
         return need / n, min(1.0, n / full)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import esper
 
-from driftframe.components.autopilot import Autopilot
+from driftframe.components.autopilot import Autopilot, FlightPlan
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import warp as time_warp
 
@@ -14,7 +14,8 @@ class WarpGovernorSystem(esper.Processor):
     Each step it looks for the next event the player should see at a
     watchable speed: the earliest surface contact predicted by the gravity
     system (exact, on the bodies' conics) and the start of every scheduled
-    autopilot burn (1x while a burn is under way). The warp then allowed is the largest level whose frame
+    autopilot burn, engaged or still to come in a
+    :class:`~components.autopilot.FlightPlan` (1x while a burn is under way). The warp then allowed is the largest level whose frame
     of ``W`` steps leaves the event at least ``lead_frames`` frames away
     (``W dt lead_frames <= time to the event``); the reason goes to
     ``TimeWarp.reason`` for the HUD. Warp only changes how many steps a frame
@@ -24,7 +25,7 @@ class WarpGovernorSystem(esper.Processor):
     name = "warp"
     after = ("collision",)
     before = ("camera",)
-    reads = (Orbiting, Autopilot)
+    reads = (Orbiting, Autopilot, FlightPlan)
     writes = ()
 
     def __init__(self, lead_frames: int = 30):
@@ -44,13 +45,15 @@ class WarpGovernorSystem(esper.Processor):
         if contact is not None:
             t, ent, well = contact
             best = (t - now, f"entity {ent} reaches the surface of {well}")
-        for ent, ap in esper.get_component(Autopilot):
-            if ap.mode == "burn" and not ap.done:
-                thrust = _thrust(ent)
-                start = ap.at - (0.5 * ap.dv / thrust if thrust > 0 else 0.0)
-                ahead = max(start - now, 0.0)         # under way: hold 1x until it is done
-                if best is None or ahead < best[0]:
-                    best = (ahead, f"burn of {ap.dv:.1f} m/s")
+        burns = [(ent, ap) for ent, ap in esper.get_component(Autopilot) if ap.mode == "burn" and not ap.done]
+        for ent, plan in esper.get_component(FlightPlan):          # and the burns a plan has still to come
+            burns += [(ent, leg) for _, leg in plan.legs[plan.next:] if leg.mode == "burn"]
+        for ent, ap in burns:
+            thrust = _thrust(ent)
+            start = ap.at - (0.5 * ap.dv / thrust if thrust > 0 else 0.0)
+            ahead = max(start - now, 0.0)             # under way: hold 1x until it is done
+            if best is None or ahead < best[0]:
+                best = (ahead, f"burn of {ap.dv:.1f} m/s")
         return best
 
     def process(self, dt: float) -> None:
