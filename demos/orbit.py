@@ -26,8 +26,7 @@ LEAD = math.pi - T_TRANSFER * V2 / R2 + 60.0 / R2
 
 # Point prograde; warp x10 for the coast (the governor drops it before the second burn and says so);
 # circularise, back to x1, match the station's velocity, then flip and burn to stop 30 m short of it.
-SCRIPT = Track((Press(3.0, "switch_camera"), Press(BURN1 + 4.0, "warp_up"), Press(BURN2 + 2.0, "warp_down"),
-                Press(BURN2 + 20.0, "switch_camera")))
+SCRIPT = Track((Press(BURN1 + 4.0, "warp_up"), Press(BURN2 + 2.0, "warp_down"), Press(BURN2 + 16.0, "switch_camera")))
 
 
 def _at(radius, angle, speed):
@@ -55,4 +54,4 @@ def build(world, rng):
         (BURN2 + 5.0, Autopilot(mode="match_velocity", target=station, tolerance=0.02)),
         (BURN2 + 15.0, Autopilot(mode="flip_and_burn", target=station, standoff=30.0, tolerance=0.02)),
     ]))
-    chase_camera(world, me, mode="chase", far=20_000.0)
+    chase_camera(world, me, mode="chase", far=20_000.0, chase_distance=60.0, chase_height=25.0)
