@@ -116,12 +116,18 @@ def next_chi(chi, r, v, mu, step):
     state ``r, v``: the Taylor series ``chi + chi' step + chi'' step^2 / 2`` with
     ``chi' = sqrt(mu)/|r|`` and ``chi'' = -sqrt(mu) (r.v)/|r|^3`` (``d|r|/dt = r.v/|r|``). Good to
     ``step^3``: one Laguerre step then lands on the root, for a body propagated step after step
-    from one epoch."""
-    rn = _norm(np.atleast_2d(r))
-    rv = _dot(np.atleast_2d(r), np.atleast_2d(v))
-    sq = np.sqrt(mu)
-    d1 = sq / rn
-    return chi + step * d1 * (1.0 - 0.5 * step * rv / (rn * rn))
+    from one epoch. Where the step sweeps a large anomaly (``|alpha| dchi^2 > 0.2``: a coarse step
+    past periapsis) it gives NaN instead, and the solver starts from Kepler's equation (Danby's
+    guess), which is better there."""
+    r = np.atleast_2d(r)
+    v = np.atleast_2d(v)
+    rn2 = _dot(r, r)
+    rn = np.sqrt(rn2)
+    rv = _dot(r, v)
+    d1 = np.sqrt(mu / rn2)
+    dchi = step * d1 * (1.0 - 0.5 * step * rv / rn2)
+    alpha = 2.0 / rn - _dot(v, v) / mu
+    return np.where(np.abs(alpha) * dchi * dchi <= 0.2, chi + dchi, np.nan)
 
 
 def _as_states(r0, v0, mu, dt):
