@@ -335,8 +335,9 @@ class Epoch:
             turns = np.round(dt / self.period)
             dt_red = dt - self.period * turns
         elif longer.any():
-            turns = np.where(longer, np.round(dt / np.where(longer, self.period, 1.0)), 0.0)
-            dt_red = np.where(longer, dt - self.period * turns, dt)
+            per = np.where(longer, self.period, 1.0)        # (inf * 0 would be NaN)
+            turns = np.where(longer, np.round(dt / per), 0.0)
+            dt_red = np.where(longer, dt - per * turns, dt)
         if turns is not None and guess is not None:
             guess -= turns * self.chi_turn
         r0, v0, r0n, sqmu = self.r0, self.v0, self.r0n, self.sqmu
