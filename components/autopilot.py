@@ -23,7 +23,8 @@ Tasks that thrust:
   directions above), centred on the time ``at`` (s, simulated), delivering
   exactly ``dv``;
 * ``flip_and_burn``: accelerate towards ``target`` (an entity) or ``point``
-  (world frame, m), flip, and brake to stop there.
+  (world frame, m), flip, and brake to stop there (``standoff`` m short of
+  it); then keep station there.
 """
 from __future__ import annotations
 

@@ -13,8 +13,8 @@ TITLE = "Orbit"
 DESCRIPTION = "Hohmann transfer to a station and a rendezvous, flown by the autopilot, with time warp"
 SECONDS = 80.0
 
-# A game-sized planet (1 km, low orbit at 1.5 km: 50 m/s, 3 minutes a lap), a moon, a station at 2.5 km.
-MU, R, R1, R2 = 3.75e6, 1000.0, 1500.0, 2500.0
+# A game-sized planet (1 km, low orbit 100 m up: 58 m/s, 2 minutes a lap), a moon, a station at 1.6 km.
+MU, R, R1, R2 = 3.75e6, 1000.0, 1100.0, 1600.0
 V1, V2 = math.sqrt(MU / R1), math.sqrt(MU / R2)
 DV1 = V1 * (math.sqrt(2 * R2 / (R1 + R2)) - 1)              # Hohmann, closed form
 DV2 = V2 * (1 - math.sqrt(2 * R1 / (R1 + R2)))
@@ -38,7 +38,7 @@ def _at(radius, angle, speed):
 def build(world, rng):
     planet = world.create_entity(Transform(), GravityWell(mu=MU, radius=R),
                                  ModelRef(declare_variant(world, "planet", "sphere", scale=R, colour=(0.3, 0.5, 0.8))))
-    x, v = _at(6000.0, 2.0, math.sqrt(MU / 6000.0))
+    x, v = _at(5000.0, 2.0, math.sqrt(MU / 5000.0))
     world.create_entity(Transform(x), Velocity(v), GravityWell(mu=1e5, radius=150.0, parent=planet),
                         ModelRef(declare_variant(world, "moon", "sphere", scale=150.0, colour=(0.6, 0.6, 0.55))))
     phase = -BURN1 * V2 / R2 + (BURN1 * V1 / R1 + LEAD)      # so the station leads by LEAD at BURN1

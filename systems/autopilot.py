@@ -180,7 +180,7 @@ class AutopilotSystem(esper.Processor):
             raise ValueError(f"Autopilot {mode} of entity {ent}: FlightControl.thrust is {ctl.thrust!r}, "
                              f"so no burn can reach it (an unreachable target)")
         full = ctl.thrust * dt                      # m/s one step at full throttle gives
-        if ap.done:
+        if ap.done and mode != "flip_and_burn":     # flip-and-burn keeps station once there
             return None, 0.0
         if mode == "burn":
             d = self.direction(ent, ap.along, ap, x, v)
@@ -220,13 +220,16 @@ class AutopilotSystem(esper.Processor):
             ap.done = True
             ap.status = f"arrived ({dist:.2f} m, {speed:.3f} m/s)"
             return None, 0.0
+        if ap.done:                                  # drifted off (tides in orbit): back to the point
+            ap.status = f"keeping station: {dist:.1f} m off"
         alpha = TURN_MARGIN * ctl.angular_accel
         flip = 2.0 * math.sqrt(math.pi / alpha) + 4.0 * dt    # a half turn, bang-bang, and a margin
         v_want = (rel / dist if dist > 0 else np.zeros(3)) * float(flip_profile(dist, BRAKE_MARGIN * ctl.thrust,
                                                                                  flip))
         need = v_want - v_rel
         n = float(np.linalg.norm(need))
-        ap.status = f"flip and burn: {dist:.0f} m, closing {float((rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
+        if not ap.done:
+            ap.status = f"flip and burn: {dist:.0f} m, closing {float((rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
         if n <= 0.5 * ap.tolerance:
             return None, 0.0                         # on the profile: coast, hold the attitude
         return need / n, min(1.0, n / full)
