@@ -196,11 +196,15 @@ def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 6
         one_c3 = 1.0 - psi * c3
         one_c2 = 1.0 - psi * c2
         s_chi = s_ * chi
-        f = chi2 * (chi * c3 + s_ * c2) + r_ * chi * one_c3 - t_
+        ta = chi2 * chi * c3
+        tb = s_chi * chi * c2
+        tc = r_ * chi * one_c3
+        f = ta + tb + tc - t_
         fp = chi2 * c2 + s_chi * one_c3 + r_ * one_c2                   # = |r(chi)| > 0
-        # converged when Newton's step f/fp is within the rounding of f (a few ulp of the terms of
-        # (*)): this evaluation's c2, c3 and |r| are then the solution's, no extra pass needed
-        done = np.abs(f) <= tol * (np.abs(chi) * fp + np.abs(t_))
+        # converged when f is within the rounding of its own terms (a few ulp of the largest: near
+        # periapsis of an eccentric orbit they cancel): this evaluation's c2, c3 and |r| are then the
+        # solution's, and no extra pass is needed
+        done = np.abs(f) <= tol * (np.abs(ta) + np.abs(tb) + np.abs(tc) + np.abs(t_))
         if it == iterations - 1:
             done[:] = True                           # out of iterations: take the last iterate
         else:
@@ -231,7 +235,7 @@ def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 6
             new = chi - 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
         else:        # Newton near the root: quadratic, never stalls on a flat denominator
             new = chi - f / fp
-        leave = ~((new > lo) & (new < hi))
+        leave = ~((new >= lo) & (new <= hi))         # (a converged body, f = 0, sits on its bound)
         if leave.any():                               # bisect (or double towards an open end)
             mid = np.where(np.isfinite(hi), 0.5 * (lo + hi), np.maximum(2.0 * np.abs(lo), 1.0))
             mid = np.where(np.isfinite(lo), mid, np.minimum(-2.0 * np.abs(hi), -1.0))
