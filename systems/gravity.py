@@ -221,6 +221,16 @@ class GravitySystem(esper.Processor):
                 raise ValueError(f"entity {int(self.ents[k])} starts {float(d[k])!r} m from the centre of "
                                  f"well {wells.ents[i]}, inside its surface (radius {wells.radius[i]!r} m)")
 
+    def _release(self) -> None:
+        world = self.world
+        orbiting = world.query(Orbiting)
+        orbiting.refresh()
+        for e in orbiting.entities:
+            world.remove_component(int(e), Orbiting)
+        self._wells = None
+        self._n = 0
+        self._epoch_version += 1
+
     _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "ep_rate", "ep_q", "last_x", "last_v")
 
     def _carry(self):
@@ -278,6 +288,8 @@ class GravitySystem(esper.Processor):
         wq = world.query(GravityWell, Transform)
         changed = wq.refresh()
         if not len(wq):
+            if self._wells is not None:               # the last well went: hand the bodies back to movement
+                self._release()
             return
         bq = world.query(Transform, Velocity, optional=(Acceleration, Mass))
         if bq.refresh() or changed or self._wells is None:

@@ -267,6 +267,19 @@ def test_a_scene_without_a_well_marks_nothing_and_moves_as_before(world):
     np.testing.assert_array_equal(state(world, ship)[0], [6, 2, 3])
 
 
+def test_when_the_last_well_goes_movement_moves_the_bodies_again(world):
+    planet = world.create_entity(Transform(), GravityWell(mu=MU, radius=R_EARTH))
+    ship = world.create_entity(Transform((7e6, 0, 0)), Velocity((0, 7.5e3, 0)))
+    world.step(2)
+    world.delete_entity(planet)
+    r, v = state(world, ship)
+    world.step(3)
+    np.testing.assert_allclose(state(world, ship)[0], r + 3 * v, rtol=1e-15)
+    q = world.query(Orbiting)
+    q.refresh()
+    assert len(q) == 0
+
+
 def test_an_immovable_body_is_left_to_movement(world):
     world.create_entity(Transform(), GravityWell(mu=MU, radius=R_EARTH))
     rock = world.create_entity(Transform((1e7, 0, 0)), Velocity((5, 0, 0)), Mass(math.inf))
