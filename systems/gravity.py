@@ -64,7 +64,7 @@ import numpy as np
 from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
 from driftframe.framework import kepler
-from driftframe.framework.store import to_indices
+from driftframe.framework.store import as_index, to_indices
 from driftframe.systems.movement import MovementSystem
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
@@ -178,8 +178,8 @@ class GravitySystem(esper.Processor):
         roots = {e for i, e in enumerate(wells.ents) if wells.parent[i] < 0}
         keep = np.array([int(e) not in roots for e in ents], bool) & np.isfinite(kg)
         self.ents = ents[keep]
-        self.t_rows = to_indices(q.rows(Transform))[keep]
-        self.v_rows = to_indices(q.rows(Velocity))[keep]
+        self.t_rows = as_index(to_indices(q.rows(Transform))[keep])    # a slice when contiguous
+        self.v_rows = as_index(to_indices(q.rows(Velocity))[keep])
         self.a_rows = q.rows(Acceleration)[keep]
         self.gm = G * kg[keep]
         n = self._n = len(self.ents)
@@ -201,8 +201,6 @@ class GravitySystem(esper.Processor):
         self.ep_well = np.full(n, -1, np.intp)
         self.ep_contact = np.full(n, np.inf)             # absolute time of the next surface contact
         self.ep_chi = np.zeros(n)                         # universal anomaly at the last step (a warm start)
-        self.ep_rate = np.zeros(n)                        # sqrt(mu) / |r| then: d chi / dt
-        self.ep_q = np.zeros(n)                           # (r.v) / |r|^2 then: the second-order term
         self.last_x = np.full((n, 3), np.nan)
         self.last_v = np.full((n, 3), np.nan)
         self._epoch_version += 1
@@ -231,7 +229,7 @@ class GravitySystem(esper.Processor):
         self._n = 0
         self._epoch_version += 1
 
-    _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "ep_rate", "ep_q", "last_x", "last_v")
+    _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "last_x", "last_v")
 
     def _carry(self):
         return (list(self._wells.ents), self.ents.copy(), {k: getattr(self, k) for k in self._EPOCH})
@@ -313,8 +311,10 @@ class GravitySystem(esper.Processor):
         v = vel_t[self.v_rows]
         a = np.zeros((n, 3))
         has_a = self.a_rows >= 0
+        thrust = np.zeros(n, bool)
         if has_a.any():
             a[has_a] = world.table(Acceleration).data["linear"][self.a_rows[has_a]]
+            thrust = np.any(a != 0.0, axis=1)
         # times as step_count * dt (never summed), so a time is the same number however it was reached
         t0 = world.step_count * dt
         t1 = (world.step_count + 1) * dt
@@ -327,9 +327,11 @@ class GravitySystem(esper.Processor):
         x1 = np.empty_like(x)
         v1 = np.empty_like(v)
         events = []
-        dom = _dominant(wells, x, X0, self.moon_parent)
-        thrust = np.any(a != 0.0, axis=1)
-        edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
+        dom = _dominant(wells, x, X0, self.moon_parent) if W > 1 else np.zeros(n, np.intp)
+        if np.array_equal(x, self.last_x) and np.array_equal(v, self.last_v):
+            edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
+        else:
+            edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
         rails = ~self.nbody
         for wi in range(W):                               # parents first: a moon is placed before its bodies
             sel = np.flatnonzero(rails & (dom == wi))
@@ -365,7 +367,6 @@ class GravitySystem(esper.Processor):
             self.ep_well[k] = wi
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
-            self._set_rates(k, self.ep_r[k], self.ep_v[k], mu)
         # surface contacts in this step (the contact time was found once, exactly, for the epoch)
         for _ in range(MAX_CONTACTS):
             hit = sel[self.ep_contact[sel] <= t1]
@@ -383,32 +384,24 @@ class GravitySystem(esper.Processor):
                                              float(-un[j])))
             self.ep_r[hit], self.ep_v[hit], self.ep_t[hit] = rc, uc, tc
             self.ep_chi[hit] = 0.0
-            self._set_rates(hit, rc, uc, mu)
             # the next contact of the new epoch (an outbound body: after its next periapsis dip, if any)
             nxt = kepler.time_to_radius(rc * (1.0 + 1e-12), uc, mu, R, np.inf)
             self.ep_contact[hit] = tc + nxt
-        # from the epoch for the whole time since (no error carried from step to step); the last
-        # step's chi, moved on by d chi/dt = sqrt(mu)/|r|, starts the solver next to the root. The
-        # guess changes how fast it converges, and where only within the solver's few ulp.
-        # a warm start: chi moved on by the Taylor series of chi(t) (kepler.next_chi), from the last step
-        step = t1 - t0
-        guess = self.ep_chi[sel] + step * self.ep_rate[sel] * (1.0 - 0.5 * step * self.ep_q[sel])
-        r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[sel], guess)
-        self.ep_chi[sel] = chi
-        self._set_rates(sel, r, u, mu)
-        th = thrust[sel]
+        # from the epoch for the whole time since (no error carried from step to step), warm-started
+        # from the last step's chi moved on by its Taylor series (kepler.next_chi; the state at the
+        # step's start is the last step's result). The guess changes how fast the solver converges,
+        # and where only within its few ulp.
+        g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
+        guess = kepler.next_chi(self.ep_chi[g], x[g] - X0[wi], v[g] - V0[wi], mu, t1 - t0)
+        r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
+        self.ep_chi[g] = chi
+        th = thrust[g]
         if th.any():
-            # the second half kick; the state after it is the next step's epoch (taken then, as thrust
-            # or edited) -- here it only has to land in the body's state
+            # the second half kick; the state after it is the next step's epoch (taken then, as thrust)
             u[th] += 0.5 * dt * a[sel[th]]
             self.ep_well[sel[th]] = -1
-        x1[sel] = X1[wi] + r
-        v1[sel] = V1[wi] + u
-
-    def _set_rates(self, k, r, u, mu) -> None:
-        rn2 = np.einsum("ij,ij->i", r, r)
-        self.ep_rate[k] = np.sqrt(mu / rn2)
-        self.ep_q[k] = np.einsum("ij,ij->i", r, u) / rn2
+        x1[g] = X1[wi] + r
+        v1[g] = V1[wi] + u
 
     def _epoch(self, wi, sel, mu) -> kepler.Epoch:
         """The epochs of bodies ``sel`` about well ``wi`` as a kepler.Epoch, kept while none changes
