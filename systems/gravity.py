@@ -2,7 +2,8 @@
 
 Runs in the movement stage *before* the movement system and moves every body
 it integrates itself (marking it :class:`~components.gravity.Orbiting`, which
-the movement system skips), so no body is moved twice. A scene without a
+it claims in ``world.resources[movement.SKIP]`` so the movement system skips
+it, and which the collision system leaves out), so no body is moved twice. A scene without a
 :class:`~components.gravity.GravityWell` costs one empty esper query per step.
 
 **Which well (patched conics).** A body moves about the deepest well whose
@@ -65,6 +66,7 @@ from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
 from driftframe.framework import kepler
 from driftframe.framework.store import as_index, to_indices
+from driftframe.systems import movement
 from driftframe.systems.movement import MovementSystem
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
@@ -208,6 +210,8 @@ class GravitySystem(esper.Processor):
         orbiting.refresh()
         for e in self.ents[~np.isin(self.ents, orbiting.entities)]:
             world.add_component(int(e), Orbiting())
+        # the movement system leaves the Orbiting bodies to this system (world.resources[movement.SKIP])
+        world.resources.setdefault(movement.SKIP, {}).setdefault(Orbiting, set()).add(id(self))
         # no body may start inside a surface
         x = world.table(Transform).data["position"][self.t_rows]
         X = world.table(Transform).data["position"][wells.t_rows]
@@ -221,6 +225,7 @@ class GravitySystem(esper.Processor):
 
     def _release(self) -> None:
         world = self.world
+        world.resources.get(movement.SKIP, {}).get(Orbiting, set()).discard(id(self))
         orbiting = world.query(Orbiting)
         orbiting.refresh()
         for e in orbiting.entities:

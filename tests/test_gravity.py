@@ -333,3 +333,24 @@ def test_a_moon_needs_a_parent_and_a_velocity(world):
             w.step()
     finally:
         w.close()
+
+
+def test_an_orbiting_collider_is_moved_once_with_a_collision_system_in_the_world():
+    """The collision system integrates its colliders itself; one on rails is the gravity system's:
+    moved along its conic once, not also along the collision system's straight chord."""
+    from driftframe import CollisionSystem, SphereCollider
+    w = World(dt=1.0)
+    try:
+        w.add_system(GravitySystem())
+        w.add_system(MovementSystem())
+        w.add_system(CollisionSystem())
+        w.create_entity(Transform(), GravityWell(mu=MU, radius=R_EARTH))
+        r0, v0 = np.array([7e6, 0, 0.0]), np.array([0, 7.6e3, 0.0])
+        ship = w.create_entity(Transform(r0), Velocity(v0), SphereCollider(radius=5.0))
+        free = w.create_entity(Transform((1e9, 0, 0)), Velocity((1.0, 0, 0)), SphereCollider(radius=5.0),
+                               Mass(math.inf))
+        w.step(50)
+        np.testing.assert_allclose(state(w, ship)[0], kepler.propagate(r0, v0, MU, 50.0)[0], rtol=1e-12)
+        np.testing.assert_allclose(state(w, free)[0], [1e9 + 50.0, 0, 0], rtol=1e-15)
+    finally:
+        w.close()
