@@ -229,3 +229,26 @@ def test_orbit_points_lie_on_the_conic():
     assert rr.min() == pytest.approx(a * (1 - e), rel=1e-9)
     assert rr.max() == pytest.approx(a * (1 + e), rel=1e-3)
     assert np.all(np.abs(pts[:, 2]) < 1e-6)
+
+
+def test_the_compiled_path_gives_the_numpy_paths_states():
+    """Epoch.at with a guess for many bodies runs a compiled loop: same formulas, same states."""
+    rng = np.random.default_rng(11)
+    n = 2 * kepler.COMPILED_MIN
+    e = np.concatenate([rng.uniform(0, 0.99, n // 2), rng.uniform(1.01, 3.0, n // 2)])
+    rp = rng.uniform(7e6, 2e7, n)
+    r0 = np.zeros((n, 3))
+    r0[:, 0] = rp
+    v0 = np.zeros((n, 3))
+    v0[:, 1] = np.sqrt(MU * (1 + e) / rp)
+    ep = kepler.Epoch(r0, v0, MU)
+    r, v, chi = r0, v0, np.zeros(n)
+    for k in range(1, 40):
+        t = k * 977.0
+        guess = kepler.next_chi(chi, r, v, MU, 977.0)
+        r, v, chi = ep.at(t, guess)                                  # compiled
+        want_r, want_v = kepler.propagate(r0, v0, MU, t)              # numpy, no guess
+        np.testing.assert_allclose(r, want_r, rtol=1e-11, atol=1e-6)
+        np.testing.assert_allclose(v, want_v, rtol=1e-11, atol=1e-9)
+    E0 = energy(r0, v0)
+    assert np.max(np.abs(energy(r, v) / E0 - 1)) < 1e-12
