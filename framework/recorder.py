@@ -672,7 +672,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     """Step, render and write ``frames`` frames of ``world`` to ``path`` (.mp4, .gif or a directory).
 
     ``fps``: playback rate (default ``1 / (dt * steps_per_frame)``: real
-    time). ``steps_per_frame``: fixed steps between frames.
+    time). ``steps_per_frame``: fixed steps between frames, times the world's time warp
+    (:mod:`framework.warp`), read frame by frame.
     ``before_step(world, step_index)``: called before every step (scripted
     input). ``progress``: a tqdm bar on stderr. ``gif_scale``: GIF size
     factor. ``crf``/``preset``: x264 quality (0..51, lower is better) and
