@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 
 #: Demo names in the order ``driftframe list`` shows them.
-NAMES = ("rotation", "spin", "asteroids", "billiards", "cradle", "swarm")
+NAMES = ("rotation", "spin", "asteroids", "billiards", "cradle", "swarm", "orbit")
 
 
 def load(name: str):

@@ -34,6 +34,7 @@ STILLS = {
     "billiards": ((1.4, "lines", ""),),                    # just after the break, on the table, overhead
     "cradle": ((3.0, "lines", ""),),                       # only the last ball has left
     "swarm": ((5.0, "lines", ""),),                        # against the light: the hemisphere fill
+    "orbit": ((120.0, "lines", ""),),                      # closing on the station, the planet beside
 }
 
 

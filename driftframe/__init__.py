@@ -20,11 +20,13 @@ from driftframe.components.body import Acceleration, AngularVelocity, Mass, Tran
 from driftframe.components.camera import Camera
 from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.control import FlightControl, FlightInput, Player, RotationAssist
+from driftframe.components.gravity import GravityWell, NBody, SurfaceContact
 from driftframe.components.render import ModelRef
 from driftframe.systems.assist import RotationAssistSystem
 from driftframe.systems.camera import CameraSystem
 from driftframe.systems.collision import CollisionSystem
 from driftframe.systems.control import ControlSystem
+from driftframe.systems.gravity import GravitySystem
 from driftframe.systems.input import InputSystem
 from driftframe.systems.movement import MovementSystem
 from driftframe.systems.spin import SpinSystem
@@ -34,5 +36,5 @@ __all__ = [
     "Transform", "Velocity", "AngularVelocity", "Acceleration", "Mass", "SphereCollider", "CollisionEvent",
     "Camera", "ModelRef", "Player", "FlightInput", "FlightControl", "RotationAssist",
     "InputSystem", "ControlSystem", "RotationAssistSystem", "MovementSystem", "SpinSystem",
-    "CollisionSystem", "CameraSystem",
+    "CollisionSystem", "CameraSystem", "GravityWell", "NBody", "SurfaceContact", "GravitySystem",
 ]

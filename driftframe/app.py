@@ -23,14 +23,20 @@ from driftframe.framework.world import World
 def simulation_systems(track=None, *, collision: str = "continuous") -> list:
     """The standard per-step systems, one per job, for every stage up to collision."""
     from driftframe.systems.assist import RotationAssistSystem
+    from driftframe.systems.autopilot import AutopilotSystem
     from driftframe.systems.collision import CollisionSystem
     from driftframe.systems.control import ControlSystem
+    from driftframe.systems.gravity import GravitySystem
     from driftframe.systems.input import InputSystem
     from driftframe.systems.movement import MovementSystem
     from driftframe.systems.spin import SpinSystem
+    from driftframe.systems.warp import WarpGovernorSystem
 
-    return [InputSystem(track), ControlSystem(), RotationAssistSystem(), MovementSystem(), SpinSystem(),
-            CollisionSystem(method=collision)]
+    # gravity runs before movement in the movement stage and moves the bodies it integrates itself
+    # (marked Orbiting, which movement skips); without a GravityWell it is one empty query per step
+    # the autopilot flies through FlightInput (before control); the warp governor looks ahead after collision
+    return [InputSystem(track), AutopilotSystem(), ControlSystem(), RotationAssistSystem(), GravitySystem(),
+            MovementSystem(), SpinSystem(), CollisionSystem(method=collision), WarpGovernorSystem()]
 
 
 def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous", track=None):

@@ -256,7 +256,7 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
                 ui["overlay"] = not ui["overlay"]
             elif action == "fullscreen":
                 toggle_fullscreen()
-            elif loop.paused:          # switch_camera while paused: at once, and written down for the replay
+            elif loop.paused and action == "switch_camera":   # while paused: at once, written down for the replay
                 switch_camera(world)
                 if recorder is not None:
                     recorder.press(world.step_count, action)

@@ -42,9 +42,10 @@ HELD = {
     "kill_rotation": ("kill_rotation", True),
 }
 #: Pressed actions, fired once per press.
-PRESSED = ("switch_camera", "pause", "screenshot", "quit", "fullscreen", "overlay")
+PRESSED = ("switch_camera", "pause", "screenshot", "quit", "fullscreen", "overlay", "warp_up", "warp_down")
 #: Pressed actions that change the simulation (and so go into a saved track); the others act on the window.
-SIM_PRESSED = ("switch_camera",)
+#: (Warp changes only how many steps a frame shows, but a replayed track should warp where the flight did.)
+SIM_PRESSED = ("switch_camera", "warp_up", "warp_down")
 
 #: Default keyboard layout: action -> key names (GLFW key names without the GLFW_KEY_ prefix).
 KEYMAP = {
@@ -63,6 +64,8 @@ KEYMAP = {
     "fullscreen": ("F11",),
     "overlay": ("F3",),
     "quit": ("ESCAPE",),
+    "warp_up": ("PERIOD",),
+    "warp_down": ("COMMA",),
 }
 
 #: What each action does, in words (``driftframe keys``, ``--help``, the README).
@@ -73,6 +76,7 @@ ACTION_HELP = {
     "kill_rotation": "kill rotation (hold)", "switch_camera": "switch cockpit / chase camera",
     "pause": "pause / resume", "screenshot": "screenshot (PNG)", "fullscreen": "fullscreen on / off",
     "overlay": "overlay: frame rate and the time of each stage", "quit": "quit",
+    "warp_up": "time warp up (x10)", "warp_down": "time warp down (/10)",
 }
 
 

@@ -80,6 +80,8 @@ from pathlib import Path
 
 import numpy as np
 
+from driftframe.framework import warp as time_warp
+
 FORMATS = ("mp4", "gif", "png")
 _SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
 _PNG_NAME = "frame_{:06d}.png"
@@ -670,7 +672,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     """Step, render and write ``frames`` frames of ``world`` to ``path`` (.mp4, .gif or a directory).
 
     ``fps``: playback rate (default ``1 / (dt * steps_per_frame)``: real
-    time). ``steps_per_frame``: fixed steps between frames.
+    time). ``steps_per_frame``: fixed steps between frames, times the world's time warp
+    (:mod:`framework.warp`), read frame by frame.
     ``before_step(world, step_index)``: called before every step (scripted
     input). ``progress``: a tqdm bar on stderr. ``gif_scale``: GIF size
     factor. ``crf``/``preset``: x264 quality (0..51, lower is better) and
@@ -775,7 +778,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
                         break
                     if motion_blur > 1:
                         interpolate.start(world)
-                    for _ in range(steps_per_frame):
+                    # time warp multiplies the steps of each frame (read per frame: it can drop mid-recording)
+                    for _ in range(steps_per_frame * time_warp.factor(world)):
                         if before_step is not None:
                             before_step(world, world.step_count)
                         world.step()

@@ -51,6 +51,7 @@ import numpy as np
 
 from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.collision import CollisionEvent, SphereCollider
+from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact
 from driftframe.framework.store import as_index, to_indices
@@ -70,7 +71,7 @@ class _Layout:
     """
 
     def __init__(self, q):
-        self.version = q.version
+        self.version = q.version                    # (a tuple for a query filtered by _WithoutOrbiting)
         self.n = n = len(q)
         self.entities = q.entities
         self.t_rows = q.rows(Transform)
@@ -89,6 +90,29 @@ class _Layout:
         self.all_m = len(self.m_sel) == n
         # the Transform rows of the bodies that move (have a Velocity), for the write-back
         self.tv_rows = as_index(self.t_idx[self.v_sel]) if len(self.v_sel) else self.t_idx[self.v_sel]
+
+
+class _WithoutOrbiting:
+    """The collider query less the bodies the gravity system integrates (marked Orbiting): their path
+    over the step is a conic the gravity system has already followed, not this system's straight
+    chord, so they are left out here (their contacts with a well's surface are found on the conic
+    by the gravity system; sphere-sphere contacts of orbiting bodies are not modelled yet)."""
+
+    def __init__(self, q, orbiting):
+        keep = ~np.isin(q.entities, orbiting.entities)
+        self.version = (q.version, orbiting.version)
+        self.entities = q.entities[keep]
+        self._rows = {}
+        for T in q.types:
+            self._rows[T] = as_index(to_indices(q.rows(T))[keep])
+        for T in q.optional:
+            self._rows[T] = np.asarray(q.rows(T), np.intp)[keep]
+
+    def rows(self, T):
+        return self._rows[T]
+
+    def __len__(self) -> int:
+        return len(self.entities)
 
 
 class State:
@@ -176,7 +200,7 @@ class CollisionSystem(esper.Processor):
     """
 
     stage = "collision"
-    reads = (Transform, Velocity, Acceleration, Mass, SphereCollider)
+    reads = (Transform, Velocity, Acceleration, Mass, SphereCollider, Orbiting)
     writes = (Transform, Velocity)
 
     def __init__(self, method: str = "continuous", *, broadphase: str = "auto",
@@ -237,9 +261,12 @@ class CollisionSystem(esper.Processor):
     def _refresh(self) -> _Layout:
         q = self.world.query(Transform, SphereCollider, optional=(Velocity, Mass, Acceleration))
         q.refresh()
+        orbiting = self.world.query(Orbiting)
+        orbiting.refresh()
+        version = (q.version, orbiting.version) if len(orbiting) else q.version
         lay = self._layout
-        if lay is None or lay.version != q.version:
-            lay = self._layout = _Layout(q)
+        if lay is None or lay.version != version:
+            lay = self._layout = _Layout(_WithoutOrbiting(q, orbiting) if len(orbiting) else q)
         return lay
 
     def _now(self) -> float:

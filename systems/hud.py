@@ -1,4 +1,5 @@
-"""The heads-up display: prograde / retrograde markers, speed, spin rate, camera and assist state."""
+"""The heads-up display: prograde / retrograde markers, speed, spin rate, camera and assist state;
+in a scene with gravity also the orbit readouts and the predicted orbit line (``systems/readouts.py``)."""
 from __future__ import annotations
 
 import esper
@@ -7,11 +8,14 @@ import numpy as np
 
 from driftframe.components.body import AngularVelocity, Transform, Velocity
 from driftframe.components.camera import Camera
+from driftframe.components.autopilot import Autopilot
 from driftframe.components.control import FlightInput, Player, RotationAssist
+from driftframe.components.gravity import GravityWell
 
 TEXT_COLOUR = (0.80, 1.00, 0.80, 1.0)
 PROGRADE_COLOUR = (0.85, 1.00, 0.30, 1.0)
 RETROGRADE_COLOUR = (1.00, 0.55, 0.20, 1.0)
+ORBIT_COLOUR = (0.35, 0.75, 1.00, 0.9)
 #: Below this speed (m/s) there is no direction of travel to mark.
 MIN_SPEED = 1e-3
 
@@ -135,12 +139,16 @@ class HudSystem(esper.Processor):
 
     Draws the prograde marker where the velocity direction projects, the
     retrograde marker opposite, and text: camera, speed (m/s), spin rate
-    (rad/s), assist state. Runs in stage "render" after the scene (and
+    (rad/s), assist state; with a gravity well, the orbit readouts (apoapsis,
+    periapsis, period and the time to each, an impact warning, the closest
+    approach to the autopilot's target, the aid's status, the warp and why it
+    dropped) and the predicted orbit as a line. Runs in stage "render" after the scene (and
     skybox) so it is in the window and in recordings alike.
     """
 
     stage = "render"
-    reads = (Player, Camera, Transform, Velocity, AngularVelocity, RotationAssist, FlightInput)
+    reads = (Player, Camera, Transform, Velocity, AngularVelocity, RotationAssist, FlightInput, GravityWell,
+             Autopilot)
     writes = ()
 
     def __init__(self, render, *, font_px: int | None = None):
@@ -183,7 +191,28 @@ class HudSystem(esper.Processor):
             inp = esper.try_component(ent, FlightInput)
             on = assist.engaged or (inp is not None and inp.kill_rotation)
             out.append(f"ASSIST  {'ON' if on else 'off'} ({assist.axes})")
+        if ent is not None and esper.has_component(ent, Transform) and esper.has_component(ent, Velocity):
+            from driftframe.systems import readouts
+            out += readouts.lines(self.world, ent)         # orbit, target, autopilot, warp (none without)
         return out
+
+    def _orbit_line(self, ent, size) -> np.ndarray:
+        """Pixel segments (x0, y0, x1, y1) of ``ent``'s predicted orbit, with the full view-projection
+        (so the line is right in the cockpit and the chase camera alike); empty without a well."""
+        from driftframe.systems import readouts
+        if ent is None or not (esper.has_component(ent, Transform) and esper.has_component(ent, Velocity)):
+            return np.empty((0, 4))
+        pts = readouts.predicted_orbit(self.world, ent)
+        if pts is None:
+            return np.empty((0, 4))
+        clip = np.hstack([pts, np.ones((len(pts), 1))]) @ self.render.view_projection.T
+        front = clip[:, 3] > 1e-9
+        w, h = size
+        px = np.stack([(clip[:, 0] / clip[:, 3] + 1) * 0.5 * w, (1 - clip[:, 1] / clip[:, 3]) * 0.5 * h], 1)
+        keep = front[:-1] & front[1:]                         # segments wholly in front of the eye
+        segs = np.hstack([px[:-1], px[1:]])[keep]
+        far = np.abs(segs).max(axis=1) < 8 * max(w, h) if len(segs) else np.zeros(0, bool)
+        return segs[far]
 
     def _draw(self, data: np.ndarray, colour, textured: bool) -> None:
         if not len(data):
@@ -221,6 +250,9 @@ class HudSystem(esper.Processor):
                 if px is not None and -radius <= px[0] <= w + radius and -radius <= px[1] <= h + radius:
                     markers[kind] = px
                     self._draw(_segments_to_triangles(marker_segments(px, radius, kind), 2.0), colour, False)
+        orbit = self._orbit_line(ent, (w, h))
+        if len(orbit):
+            self._draw(_segments_to_triangles(orbit, 1.5), ORBIT_COLOUR, False)
         text = self.lines(ent)
         pad = self.font.line_height // 2
         quads = [self.font.quads(line, pad, pad + i * self.font.line_height) for i, line in enumerate(text)]
@@ -230,7 +262,7 @@ class HudSystem(esper.Processor):
                       for i, line in enumerate(self.overlay)]
         self._draw(np.vstack(quads), TEXT_COLOUR, True)
         ctx.disable(moderngl.BLEND)
-        self.last = {"markers": markers, "text": text, "overlay": list(self.overlay or [])}
+        self.last = {"markers": markers, "text": text, "overlay": list(self.overlay or []), "orbit": orbit}
 
     def release(self) -> None:
         """Release the program, buffers and font texture (``world.close()`` calls it; idempotent)."""

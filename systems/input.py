@@ -6,12 +6,21 @@ import esper
 from driftframe.components.body import Transform
 from driftframe.components.camera import Camera
 from driftframe.components.control import FlightInput, Player
+from driftframe.framework import warp as time_warp
 from driftframe.framework.input import CHANNELS, PRESSED, SIM_PRESSED, Track, TrackRecorder, intent_from_held
 
 
 def _switch_camera(world) -> None:
     from driftframe.systems.camera import switch_camera
     switch_camera(world)
+
+
+def _warp_up(world) -> None:
+    time_warp.of(world).up()
+
+
+def _warp_down(world) -> None:
+    time_warp.of(world).down()
 
 
 class InputSystem(esper.Processor):
@@ -46,7 +55,7 @@ class InputSystem(esper.Processor):
         #: Proportional input from a gamepad, channel -> value in [-1, 1] (set by the window each frame).
         self.axes: dict[str, float] = {}
         self.pressed: list[str] = []
-        self.handlers = {"switch_camera": _switch_camera}
+        self.handlers = {"switch_camera": _switch_camera, "warp_up": _warp_up, "warp_down": _warp_down}
         self.recorder: TrackRecorder | None = None
 
     def press(self, action: str) -> None:

@@ -20,6 +20,7 @@ EXPECTED = {   # (bodies with a collider, players, cameras)
     "billiards": (16, 0, 1),
     "cradle": (6, 0, 1),
     "swarm": (3001, 1, 1),
+    "orbit": (0, 1, 1),
 }
 
 

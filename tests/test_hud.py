@@ -80,3 +80,35 @@ def test_a_fixed_viewpoint_shows_only_the_camera(world, ctx):
     attach_rendering(world, ctx, size=(160, 120), own_context=False)
     world.render()
     assert world.get_system(HudSystem).last["text"] == ["CAMERA  cockpit"]
+
+
+@pytest.mark.parametrize("mode", ["cockpit", "chase"])
+def test_orbit_readouts_and_the_predicted_orbit_line_in_both_cameras(world, ctx, mode):
+    from driftframe.components.gravity import GravityWell
+    from driftframe.systems.gravity import GravitySystem
+    from driftframe.systems.hud import ORBIT_COLOUR
+
+    mu, R = 3.986e14, 6.371e6
+    world.add_system(GravitySystem())
+    world.create_entity(Transform((0, 0, 0)), GravityWell(mu=mu, radius=R))
+    r = 7e6
+    # nose along the velocity, the planet below: the orbit ahead curves down across the view
+    ship = world.create_entity(Player(), Transform((r, 0, 0), fr.look_rotation((0, 0.95, 0.3), (1, 0, 0))),
+                               Velocity((0, 7.6e3, 0)), AngularVelocity(), ModelRef("ship"))
+    world.create_entity(Camera(target=ship, mode=mode, fov=70.0))
+    render = attach_rendering(world, ctx, size=(320, 240), own_context=False)
+    world.step(1)
+    world.render()
+    hud = world.get_system(HudSystem)
+    assert any(line.startswith("APO") for line in hud.last["text"])
+    assert any(line.startswith("PERIOD") for line in hud.last["text"])
+    segs = hud.last["orbit"]
+    assert len(segs) > 5
+    img = render.read_rgba()[:, :, :3].astype(int)
+    target = np.array(ORBIT_COLOUR[:3]) * 255
+    on = 0
+    for x0, y0, x1, y1 in segs[:: max(1, len(segs) // 20)]:
+        x, y = int(round((x0 + x1) / 2)), int(round((y0 + y1) / 2))
+        if 0 <= x < 320 and 0 <= y < 240:
+            on += np.abs(img[y, x] - target).max() < 90
+    assert on >= 3, on

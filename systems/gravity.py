@@ -1,0 +1,464 @@
+"""Gravity: bodies on rails about one well (exact Kepler), or kick-drift-kick in the pull of many.
+
+Runs in the movement stage *before* the movement system and moves every body
+it integrates itself (marking it :class:`~components.gravity.Orbiting`, which
+it claims in ``world.resources[movement.SKIP]`` so the movement system skips
+it, and which the collision system leaves out), so no body is moved twice. A scene without a
+:class:`~components.gravity.GravityWell` costs one empty esper query per step.
+
+**Which well (patched conics).** A body moves about the deepest well whose
+sphere of influence holds it (a root well's is infinite; a moon's is Laplace's
+``a (m/M)^(2/5)`` unless given); ties at one depth go to the strongest pull
+``mu/d^2``. Inside a moon's sphere the body's state is taken relative to the
+moon, which follows its own conic about its parent.
+
+**Modes, per body, vectorised over all bodies of a well:**
+
+* *On rails* (the default): the exact two-body flow about the well
+  (:func:`framework.kepler.propagate`, universal variables), evaluated each
+  step from the body's *epoch* — its state about the well at the last time
+  something changed it — for the whole time since. Errors therefore never
+  build up: energy and angular momentum stay at one rounding however long it
+  runs (``benchmarks/orbit_accuracy.py``), and the state at a time ``t`` does
+  not depend on how the time was stepped (time warp changes nothing). A new
+  epoch is taken when the body thrusts, touches a surface, changes sphere of
+  influence, or when anything else (a collision, user code) changed its
+  position or velocity since this system wrote them.
+* *Thrust* (the rule when the engine fires): a body whose
+  :class:`~components.body.Acceleration` is non-zero this step takes the
+  symplectic split ``v += a dt/2; Kepler flow for dt; v += a dt/2`` — a
+  kick-drift-kick with the thrust as the kick and the exact orbit as the
+  drift. It is second order in ``dt`` for the thrust, adds exactly
+  ``a dt`` to the velocity (a timed burn delivers the Δv it asks for), and
+  is the exact orbit again the step the engine stops: the body goes straight
+  back on rails from its new state. No mode flag is kept, so nothing can
+  fall out of step.
+* *n-body* (opt-in, :class:`~components.gravity.NBody`): leapfrog
+  (kick-drift-kick, symplectic, second order) in the pull of every well and
+  of every other ``NBody`` body's :class:`~components.body.Mass`
+  (``G m``, pairwise, O(n^2)).
+
+**Surfaces.** A body on rails that reaches a well's surface sphere within the
+step is found exactly on its conic (:func:`framework.kepler.time_to_radius`;
+no sampling, so nothing tunnels at any speed or warp): it is advanced to the
+contact, its radial velocity relative to the well reversed (elastic: kinetic
+energy relative to the well, hence the orbit energy, kept to rounding), and
+advanced for the rest of the step. n-body bodies sweep the straight drift of
+their step against each sphere. Each contact is a
+:class:`~components.gravity.SurfaceContact` in ``world.events``.
+
+**Checks** (the first step, and whenever wells or bodies are added): a well
+inside another's surface, a moon whose parent is missing or not a well, and
+a body starting inside a surface are errors naming the entities and values.
+
+Frames: wells' positions come from their ``Transform``; a root well moves at
+its own constant ``Velocity`` if it has one (the movement system moves it),
+and a moon's state about its parent is its ``Transform``/``Velocity`` minus
+the parent's. Bodies with infinite :class:`~components.body.Mass` are
+kinematic obstacles and are left to the movement system.
+"""
+from __future__ import annotations
+
+import esper
+import numpy as np
+
+from driftframe.components.body import Acceleration, Mass, Transform, Velocity
+from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
+from driftframe.framework import kepler
+from driftframe.framework.store import as_index, to_indices
+from driftframe.systems import movement
+from driftframe.systems.movement import MovementSystem
+
+#: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
+MAX_CONTACTS = 4
+
+
+class _Wells:
+    """The scene's wells in depth order (parents first), their constants and the checks on them."""
+
+    def __init__(self, world, q):
+        ents = [int(e) for e in q.entities]
+        objs = q.rows(GravityWell)
+        t_rows = to_indices(q.rows(Transform))
+        pos = world.table(Transform).data["position"][t_rows]
+        has_v = world.query(GravityWell, Transform, optional=(Velocity,))
+        has_v.refresh()
+        v_rows = has_v.rows(Velocity)
+        vel = np.where((v_rows >= 0)[:, None], world.table(Velocity).data["linear"][np.maximum(v_rows, 0)], 0.0)
+        by_ent = {e: k for k, e in enumerate(ents)}
+        for k, w in enumerate(objs):
+            p = w.parent
+            if p is not None and p not in by_ent:
+                raise ValueError(f"GravityWell of entity {ents[k]}: parent {p!r} is not an entity with a "
+                                 f"GravityWell and a Transform")
+            if p is not None and v_rows[k] < 0:
+                raise ValueError(f"GravityWell of entity {ents[k]} orbits {p} but has no Velocity "
+                                 f"(a moon needs its orbital velocity)")
+        depth = []
+        for k, w in enumerate(objs):
+            seen, p, d = {ents[k]}, w.parent, 0
+            while p is not None:
+                if p in seen:
+                    raise ValueError(f"GravityWell parents form a cycle through entity {ents[k]}")
+                seen.add(p)
+                d += 1
+                p = objs[by_ent[p]].parent
+            depth.append(d)
+        order = sorted(range(len(ents)), key=lambda k: (depth[k], ents[k]))
+        self.ents = [ents[k] for k in order]
+        self.wells = [objs[k] for k in order]
+        self.depth = np.array([depth[k] for k in order], float)
+        self.t_rows = t_rows[order]
+        self.v_rows = v_rows[order]
+        self.mu = np.array([w.mu for w in self.wells])
+        self.radius = np.array([w.radius for w in self.wells])
+        index = {e: i for i, e in enumerate(self.ents)}
+        self.parent = np.array([index[w.parent] if w.parent is not None else -1 for w in self.wells], np.intp)
+        pos, vel = pos[order], vel[order]
+        self.soi = np.full(len(order), np.inf)
+        for i, w in enumerate(self.wells):
+            if w.soi is not None:
+                self.soi[i] = w.soi
+            elif w.parent is not None:
+                j = self.parent[i]
+                el = kepler.elements(pos[i] - pos[j], vel[i] - vel[j], self.mu[j])
+                a = float(el.a[0]) if el.a[0] > 0 else float(np.linalg.norm(pos[i] - pos[j]))
+                self.soi[i] = a * (w.mu / self.mu[j]) ** 0.4
+        for i in range(len(order)):
+            for j in range(i + 1, len(order)):
+                d = float(np.linalg.norm(pos[i] - pos[j]))
+                if d < self.radius[i] + self.radius[j]:
+                    raise ValueError(f"GravityWell of entity {self.ents[j]} (radius {self.radius[j]!r} m) is "
+                                     f"{d!r} m from well {self.ents[i]} (radius {self.radius[i]!r} m): "
+                                     f"a well inside another's surface")
+
+    def __len__(self):
+        return len(self.ents)
+
+
+def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
+    """Each body's well: the deepest sphere of influence holding it, then the strongest pull.
+    ``moon_parent[k] >= 0``: body k is a moon and orbits that well, whatever the spheres say."""
+    d2 = np.einsum("nwk,nwk->nw", x[:, None, :] - X[None], x[:, None, :] - X[None])
+    inside = d2 < (w.soi * w.soi)[None, :]
+    moons = np.flatnonzero(moon_parent >= 0)
+    if moons.size:
+        inside[moons] = False
+        inside[moons, moon_parent[moons]] = True
+    with np.errstate(divide="ignore"):
+        pull = w.mu[None, :] / d2
+    deepest = np.where(inside, w.depth[None, :], -1.0).max(axis=1, keepdims=True)
+    return np.argmax(np.where(inside & (w.depth[None, :] == deepest), pull, -np.inf), axis=1)
+
+
+class GravitySystem(esper.Processor):
+    """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody; writes Transform, Velocity,
+    Orbiting.  Gravity: on rails (exact Kepler from an epoch) or kick-drift-kick (n-body)."""
+
+    stage = "movement"
+    name = "gravity"
+    reads = (GravityWell, Transform, Velocity, Acceleration, Mass, NBody, Orbiting)
+    writes = (Transform, Velocity, Orbiting)
+    #: before the movement system, in whatever order the two were added: a body is marked Orbiting
+    #: (and so skipped by movement) before movement first runs
+    before = (MovementSystem,)
+
+    def __init__(self):
+        self._wells = None
+        self._n = 0
+        self._epoch_version = 0
+        self._epochs: dict = {}
+
+    # -- the scene ------------------------------------------------------------------------------
+    def _build_bodies(self, q) -> None:
+        world = self.world
+        ents = q.entities
+        wells = self._wells
+        well_of = {e: i for i, e in enumerate(wells.ents)}
+        m_rows = q.rows(Mass)
+        kg = np.where(m_rows >= 0, world.table(Mass).data["kg"][np.maximum(m_rows, 0)], 1.0)
+        roots = {e for i, e in enumerate(wells.ents) if wells.parent[i] < 0}
+        keep = np.array([int(e) not in roots for e in ents], bool) & np.isfinite(kg)
+        self.ents = ents[keep]
+        self.t_rows = as_index(to_indices(q.rows(Transform))[keep])    # a slice when contiguous
+        self.v_rows = as_index(to_indices(q.rows(Velocity))[keep])
+        self.a_rows = q.rows(Acceleration)[keep]
+        self.gm = G * kg[keep]
+        n = self._n = len(self.ents)
+        nb = world.query(NBody)
+        nb.refresh()
+        self.nbody = np.isin(self.ents, nb.entities)
+        # a moon orbits its parent: its well is fixed, never chosen by spheres of influence
+        self.moon_parent = np.full(n, -1, np.intp)
+        self.well_index = np.full(n, -1, np.intp)        # this body's own well (moons), else -1
+        for k, e in enumerate(self.ents):
+            i = well_of.get(int(e))
+            if i is not None:
+                self.moon_parent[k] = wells.parent[i]
+                self.well_index[k] = i
+        # epochs: (state about the well, time, well); -1 = take a new one
+        self.ep_r = np.zeros((n, 3))
+        self.ep_v = np.zeros((n, 3))
+        self.ep_t = np.zeros(n)
+        self.ep_well = np.full(n, -1, np.intp)
+        self.ep_contact = np.full(n, np.inf)             # absolute time of the next surface contact
+        self.ep_chi = np.zeros(n)                         # universal anomaly at the last step (a warm start)
+        self.last_x = np.full((n, 3), np.nan)
+        self.last_v = np.full((n, 3), np.nan)
+        self._epoch_version += 1
+        orbiting = world.query(Orbiting)
+        orbiting.refresh()
+        for e in self.ents[~np.isin(self.ents, orbiting.entities)]:
+            world.add_component(int(e), Orbiting())
+        # the movement system leaves the Orbiting bodies to this system (world.resources[movement.SKIP])
+        world.resources.setdefault(movement.SKIP, {}).setdefault(Orbiting, set()).add(id(self))
+        # no body may start inside a surface
+        x = world.table(Transform).data["position"][self.t_rows]
+        X = world.table(Transform).data["position"][wells.t_rows]
+        for i in range(len(wells)):
+            d = np.linalg.norm(x - X[i], axis=1)
+            inside = (d < wells.radius[i]) & (self.ents != wells.ents[i])
+            if inside.any():
+                k = int(np.flatnonzero(inside)[0])
+                raise ValueError(f"entity {int(self.ents[k])} starts {float(d[k])!r} m from the centre of "
+                                 f"well {wells.ents[i]}, inside its surface (radius {wells.radius[i]!r} m)")
+
+    def _release(self) -> None:
+        world = self.world
+        world.resources.get(movement.SKIP, {}).get(Orbiting, set()).discard(id(self))
+        orbiting = world.query(Orbiting)
+        orbiting.refresh()
+        for e in orbiting.entities:
+            world.remove_component(int(e), Orbiting)
+        self._wells = None
+        self._n = 0
+        self._epoch_version += 1
+
+    _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "last_x", "last_v")
+
+    def _carry(self):
+        return (list(self._wells.ents), self.ents.copy(), {k: getattr(self, k) for k in self._EPOCH})
+
+    def _restore(self, old) -> None:
+        ents, arrays = old
+        if not len(ents) or not self._n:
+            return
+        common, new_i, old_i = np.intersect1d(self.ents, ents, assume_unique=True, return_indices=True)
+        for k, arr in arrays.items():
+            getattr(self, k)[new_i] = arr[old_i]
+
+    def reference(self, entity: int):
+        """The well ``entity`` moves about now, as ``(well entity, mu, radius, X, V)`` (its centre's
+        position and velocity, world frame), or None in a scene without wells or for a root well.
+        For orbit readouts and flight aids: prograde means along the velocity relative to this well."""
+        world = self.world
+        wq = world.query(GravityWell, Transform)
+        wq.refresh()
+        if not len(wq):
+            return None
+        wells = self._wells if self._wells is not None else _Wells(world, wq)
+        pos_t = world.table(Transform).data["position"]
+        vel_t = world.table(Velocity).data["linear"]
+        X = pos_t[wells.t_rows]
+        V = np.where((wells.v_rows >= 0)[:, None], vel_t[np.maximum(wells.v_rows, 0)], 0.0)
+        x = world.columns(Transform, [entity]).position
+        if entity in wells.ents:
+            i = wells.ents.index(entity)
+            if wells.parent[i] < 0:
+                return None
+            wi = int(wells.parent[i])
+        else:
+            wi = int(_dominant(wells, x, X, np.full(1, -1, np.intp))[0])
+        return wells.ents[wi], float(wells.mu[wi]), float(wells.radius[wi]), X[wi].copy(), V[wi].copy()
+
+    def next_contact(self):
+        """``(time, entity, well)`` of the earliest predicted surface contact of a body on rails
+        (absolute seconds, exact on its conic), or None. For the warp governor."""
+        if not self._n:
+            return None
+        valid = self.ep_well >= 0
+        if not valid.any():
+            return None
+        t = np.where(valid, self.ep_contact, np.inf)
+        k = int(np.argmin(t))
+        if not np.isfinite(t[k]):
+            return None
+        return float(t[k]), int(self.ents[k]), self._wells.ents[int(self.ep_well[k])]
+
+    # -- the step -------------------------------------------------------------------------------
+    def process(self, dt: float) -> None:
+        world = self.world
+        wq = world.query(GravityWell, Transform)
+        changed = wq.refresh()
+        if not len(wq):
+            if self._wells is not None:               # the last well went: hand the bodies back to movement
+                self._release()
+            return
+        bq = world.query(Transform, Velocity, optional=(Acceleration, Mass))
+        if bq.refresh() or changed or self._wells is None:
+            # any structural change anywhere gives esper new lists: rebuild, but keep the epochs of the
+            # bodies that are still here about the same wells (so nothing is re-anchored for nothing)
+            old = self._carry() if self._wells is not None else None
+            self._wells = _Wells(world, wq)
+            self._build_bodies(bq)
+            if old is not None and old[0] == self._wells.ents:
+                self._restore(old[1:])
+            self._epoch_version += 1
+            wq.refresh()                                  # Orbiting may have been added: new lists
+            bq.refresh()
+        n = self._n
+        if not n:
+            return
+        wells = self._wells
+        pos_t = world.table(Transform).data["position"]
+        vel_t = world.table(Velocity).data["linear"]
+        x = pos_t[self.t_rows]
+        v = vel_t[self.v_rows]
+        a = np.zeros((n, 3))
+        has_a = self.a_rows >= 0
+        thrust = np.zeros(n, bool)
+        if has_a.any():
+            a[has_a] = world.table(Acceleration).data["linear"][self.a_rows[has_a]]
+            thrust = np.any(a != 0.0, axis=1)
+        # times as step_count * dt (never summed), so a time is the same number however it was reached
+        t0 = world.step_count * dt
+        t1 = (world.step_count + 1) * dt
+        W = len(wells)
+        X0 = pos_t[wells.t_rows]
+        V0 = np.where((wells.v_rows >= 0)[:, None], vel_t[np.maximum(wells.v_rows, 0)], 0.0)
+        # root wells move at their own velocity (the movement system moves them); moons as bodies below
+        X1 = X0 + V0 * dt
+        V1 = V0.copy()
+        x1 = np.empty_like(x)
+        v1 = np.empty_like(v)
+        events = []
+        dom = _dominant(wells, x, X0, self.moon_parent) if W > 1 else np.zeros(n, np.intp)
+        if np.array_equal(x, self.last_x) and np.array_equal(v, self.last_v):
+            edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
+        else:
+            edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
+        rails = ~self.nbody
+        for wi in range(W):                               # parents first: a moon is placed before its bodies
+            sel = np.flatnonzero(rails & (dom == wi))
+            if sel.size:
+                self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events)
+            # wells whose parent is wi: their state at t1 is now known
+            for wj in np.flatnonzero(wells.parent == wi):
+                kk = int(np.flatnonzero(self.well_index == wj)[0])
+                X1[wj] = x1[kk]
+                V1[wj] = v1[kk]
+        nb = np.flatnonzero(self.nbody)
+        if nb.size:
+            self._leapfrog(nb, x, v, a, X0, X1, dt, t0, x1, v1, events)
+        pos_t[self.t_rows] = x1
+        vel_t[self.v_rows] = v1
+        self.last_x = x1
+        self.last_v = v1
+        for ev in events:
+            world.emit(ev)
+
+    def _rails(self, sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events):
+        wells = self._wells
+        mu, R = wells.mu[wi], wells.radius[wi]
+        dt = t1 - t0
+        # a new epoch where the engine fires, the well changed, or someone else moved the body
+        new = thrust[sel] | edited[sel] | (self.ep_well[sel] != wi)
+        if new.any():
+            self._epoch_version += 1
+            k = sel[new]
+            self.ep_r[k] = x[k] - X0[wi]
+            self.ep_v[k] = v[k] - V0[wi] + 0.5 * dt * a[k]           # thrust: the first half kick
+            self.ep_t[k] = t0
+            self.ep_well[k] = wi
+            self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
+            self.ep_chi[k] = 0.0
+        # surface contacts in this step (the contact time was found once, exactly, for the epoch)
+        for _ in range(MAX_CONTACTS):
+            hit = sel[self.ep_contact[sel] <= t1]
+            if not hit.size:
+                break
+            self._epoch_version += 1
+            tc = self.ep_contact[hit]
+            rc, uc = kepler.propagate(self.ep_r[hit], self.ep_v[hit], mu, tc - self.ep_t[hit])
+            n_hat = rc / np.linalg.norm(rc, axis=1, keepdims=True)
+            un = np.einsum("ij,ij->i", uc, n_hat)
+            speed = np.linalg.norm(uc, axis=1)
+            uc = uc - 2.0 * un[:, None] * n_hat                        # elastic: reverse the radial part
+            for j, k in enumerate(hit):
+                events.append(SurfaceContact(int(self.ents[k]), wells.ents[wi], float(tc[j]), float(speed[j]),
+                                             float(-un[j])))
+            self.ep_r[hit], self.ep_v[hit], self.ep_t[hit] = rc, uc, tc
+            self.ep_chi[hit] = 0.0
+            # the next contact of the new epoch (an outbound body: after its next periapsis dip, if any)
+            nxt = kepler.time_to_radius(rc * (1.0 + 1e-12), uc, mu, R, np.inf)
+            self.ep_contact[hit] = tc + nxt
+        # from the epoch for the whole time since (no error carried from step to step), warm-started
+        # from the last step's chi moved on by its Taylor series (kepler.next_chi; the state at the
+        # step's start is the last step's result). The guess changes how fast the solver converges,
+        # and where only within its few ulp.
+        g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
+        guess = kepler.next_chi(self.ep_chi[g], x[g] - X0[wi], v[g] - V0[wi], mu, t1 - t0)
+        r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
+        self.ep_chi[g] = chi
+        th = thrust[g]
+        if th.any():
+            # the second half kick; the state after it is the next step's epoch (taken then, as thrust)
+            u[th] += 0.5 * dt * a[sel[th]]
+            self.ep_well[sel[th]] = -1
+        x1[g] = X1[wi] + r
+        v1[g] = V1[wi] + u
+
+    def _epoch(self, wi, sel, mu) -> kepler.Epoch:
+        """The epochs of bodies ``sel`` about well ``wi`` as a kepler.Epoch, kept while none changes
+        (what depends only on the epoch state is then derived once, not every step)."""
+        key = (wi, self._epoch_version)
+        cached = self._epochs.get(wi)
+        if cached is not None and cached[0] == key and np.array_equal(cached[1], sel):
+            return cached[2]
+        ep = kepler.Epoch(self.ep_r[sel], self.ep_v[sel], mu)
+        self._epochs[wi] = (key, sel.copy(), ep)
+        return ep
+
+    def _accel(self, pos, X, gm):
+        """Pull of every well at positions ``pos`` and of the n-body bodies on each other (``G m``)."""
+        w = self._wells
+        acc = np.zeros_like(pos)
+        for wi in range(len(X)):
+            d = pos - X[wi]
+            r2 = np.einsum("ij,ij->i", d, d)
+            acc -= (w.mu[wi] / (r2 * np.sqrt(r2)))[:, None] * d
+        if len(pos) > 1:
+            d = pos[:, None, :] - pos[None, :, :]
+            r2 = np.einsum("ijk,ijk->ij", d, d)
+            np.fill_diagonal(r2, np.inf)
+            acc -= np.einsum("ij,ijk->ik", gm[None, :] / (r2 * np.sqrt(r2)), d)
+        return acc
+
+    def _leapfrog(self, sel, x, v, a, X0, X1, dt, t0, x1, v1, events):
+        w = self._wells
+        gm = self.gm[sel]
+        p = x[sel]
+        u = v[sel] + 0.5 * dt * (self._accel(p, X0, gm) + a[sel])
+        q = p + u * dt
+        # the drift is straight: sweep it (relative to each well, which moves straight over the step too)
+        for wi in range(len(X0)):
+            d0 = p - X0[wi]
+            w_rel = u - (X1[wi] - X0[wi]) / dt
+            aa = np.einsum("ij,ij->i", w_rel, w_rel)
+            bb = np.einsum("ij,ij->i", d0, w_rel)
+            cc = np.einsum("ij,ij->i", d0, d0) - w.radius[wi] ** 2
+            disc = bb * bb - aa * cc
+            with np.errstate(invalid="ignore", divide="ignore"):
+                s = cc / (-bb + np.sqrt(np.maximum(disc, 0.0)))     # smaller root, written without cancelling
+            for k in np.flatnonzero((bb < 0) & (disc >= 0) & (cc > 0) & (s <= dt)):
+                dc = d0[k] + w_rel[k] * s[k]
+                n_hat = dc / np.linalg.norm(dc)
+                un = float(w_rel[k] @ n_hat)
+                w_new = w_rel[k] - 2.0 * un * n_hat
+                events.append(SurfaceContact(int(self.ents[sel[k]]), w.ents[wi], float(t0 + s[k]),
+                                             float(np.linalg.norm(w_rel[k])), -un))
+                u[k] = w_new + (X1[wi] - X0[wi]) / dt
+                q[k] = X1[wi] + dc + w_new * (dt - s[k])           # relative drift from contact to step end
+        u = u + 0.5 * dt * (self._accel(q, X1, gm) + a[sel])
+        x1[sel] = q
+        v1[sel] = u

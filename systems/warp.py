@@ -1,0 +1,79 @@
+"""The warp governor: time warp drops before a predicted surface contact or a scheduled burn."""
+from __future__ import annotations
+
+import esper
+
+from driftframe.components.autopilot import Autopilot, FlightPlan
+from driftframe.components.gravity import Orbiting
+from driftframe.framework import warp as time_warp
+
+
+class WarpGovernorSystem(esper.Processor):
+    """Reads Orbiting, Autopilot; writes the world's TimeWarp limit.  Warp drops before events.
+
+    Each step it looks for the next event the player should see at a
+    watchable speed: the earliest surface contact predicted by the gravity
+    system (exact, on the bodies' conics) and the start of every scheduled
+    autopilot burn, engaged or still to come in a
+    :class:`~components.autopilot.FlightPlan` (1x while a burn is under way). The warp then allowed is the largest level whose frame
+    of ``W`` steps leaves the event at least ``lead_frames`` frames away
+    (``W dt lead_frames <= time to the event``); the reason goes to
+    ``TimeWarp.reason`` for the HUD. Warp only changes how many steps a frame
+    shows, never the steps, so dropping it changes nothing in the simulation.
+    """
+
+    name = "warp"
+    after = ("collision",)
+    before = ("camera",)
+    reads = (Orbiting, Autopilot, FlightPlan)
+    writes = ()
+
+    def __init__(self, lead_frames: int = 30):
+        if isinstance(lead_frames, bool) or not isinstance(lead_frames, int) or lead_frames < 1:
+            raise ValueError(f"lead_frames must be an int >= 1, got {lead_frames!r}")
+        self.lead_frames = lead_frames
+
+    def next_event(self):
+        """``(seconds from now, what)`` of the next event to slow down for, or None."""
+        from driftframe.systems.gravity import GravitySystem
+
+        world = self.world
+        now = (world.step_count + 1) * world.dt          # this step has run: the state is at its end
+        best = None
+        g = world.get_system(GravitySystem)
+        contact = g.next_contact() if g is not None else None
+        if contact is not None:
+            t, ent, well = contact
+            best = (t - now, f"entity {ent} reaches the surface of {well}")
+        burns = [(ent, ap) for ent, ap in esper.get_component(Autopilot) if ap.mode == "burn" and not ap.done]
+        for ent, plan in esper.get_component(FlightPlan):          # and the burns a plan has still to come
+            burns += [(ent, leg) for _, leg in plan.legs[plan.next:] if leg.mode == "burn"]
+        for ent, ap in burns:
+            thrust = _thrust(ent)
+            start = ap.at - (0.5 * ap.dv / thrust if thrust > 0 else 0.0)
+            ahead = max(start - now, 0.0)             # under way: hold 1x until it is done
+            if best is None or ahead < best[0]:
+                best = (ahead, f"burn of {ap.dv:.1f} m/s")
+        return best
+
+    def process(self, dt: float) -> None:
+        warp = self.world.resources.get("warp")
+        if warp is None or warp.requested == 1:
+            if warp is not None:
+                warp.limit, warp.reason = None, ""
+            return
+        event = self.next_event()
+        if event is None or event[0] < 0:
+            warp.limit, warp.reason = None, ""
+            return
+        ahead, what = event
+        allowed = ahead / (dt * self.lead_frames)
+        limit = max([lv for lv in time_warp.LEVELS if lv <= allowed] or [1])
+        warp.limit = limit
+        warp.reason = f"{what} in {ahead:.0f} s" if limit < warp.requested else ""
+
+
+def _thrust(ent) -> float:
+    from driftframe.components.control import FlightControl
+    ctl = esper.try_component(ent, FlightControl)
+    return ctl.thrust if ctl is not None else 0.0

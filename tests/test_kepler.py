@@ -1,0 +1,254 @@
+"""The universal-variable Kepler propagator against closed forms (framework/kepler.py)."""
+import numpy as np
+import pytest
+
+from driftframe.framework import kepler
+
+MU = 3.986004418e14           # Earth, m^3/s^2
+
+
+def periapsis_state(a, e, mu=MU):
+    """State at periapsis of the conic (a, e) in the x-y plane, periapsis on +x."""
+    rp = a * (1.0 - e)
+    vp = np.sqrt(mu * (1.0 + e) / rp)
+    return np.array([rp, 0.0, 0.0]), np.array([0.0, vp, 0.0])
+
+
+def ellipse_at(a, e, M):
+    """Closed form: position on the ellipse at mean anomaly M (Kepler's equation by Newton)."""
+    E = M if e < 0.8 else np.pi
+    for _ in range(100):
+        E -= (E - e * np.sin(E) - M) / (1.0 - e * np.cos(E))
+    return np.array([a * (np.cos(E) - e), a * np.sqrt(1.0 - e * e) * np.sin(E), 0.0])
+
+
+def energy(r, v, mu=MU):
+    return 0.5 * np.sum(v * v, axis=-1) - mu / np.linalg.norm(r, axis=-1)
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5, 0.9, 0.99])
+@pytest.mark.parametrize("frac", [0.013, 0.25, 0.5, 0.77])
+def test_ellipse_position_matches_keplers_equation(e, frac):
+    a = 1.2e7
+    r0, v0 = periapsis_state(a, e)
+    P = 2 * np.pi * np.sqrt(a ** 3 / MU)
+    r, v = kepler.propagate(r0, v0, MU, frac * P)
+    np.testing.assert_allclose(r, ellipse_at(a, e, 2 * np.pi * frac), rtol=0, atol=2e-14 * a * 50)
+    # v^2/2 - mu/r cancels by 2/(1 - e) at periapsis: that is the rounding of the energy itself
+    assert abs(energy(r, v) / energy(r0, v0) - 1) < 4e-15 * (1 + 2 / (1 - e))
+
+
+@pytest.mark.parametrize("e", [0.0, 0.5, 0.9, 0.99])
+def test_keplers_third_law_one_period_returns_to_the_start(e):
+    a = 9e6
+    r0, v0 = periapsis_state(a, e)
+    P = 2 * np.pi * np.sqrt(a ** 3 / MU)
+    r, v = kepler.propagate(r0, v0, MU, P)
+    np.testing.assert_allclose(r, r0, atol=1e-12 * a)
+    # the period from the state carries the rounding of v^2/2 - mu/r (2/(1 - e) ulp at periapsis),
+    # and there the velocity turns at mu/rp^2 per second
+    np.testing.assert_allclose(v, v0, atol=1e-12 * np.linalg.norm(v0) + 3 * MU / r0[0] ** 2 * 2.2e-16 * P * 2 / (1 - e))
+    # half a period later the body is at apoapsis a (1 + e)
+    r, _ = kepler.propagate(r0, v0, MU, 0.5 * P)
+    assert np.linalg.norm(r) == pytest.approx(a * (1 + e), rel=1e-13)
+
+
+@pytest.mark.parametrize("e", [1.01, 1.5, 3.0, 30.0])
+@pytest.mark.parametrize("t", [-2e5, 60.0, 3.6e3, 1e6])
+def test_hyperbola_matches_the_hyperbolic_keplers_equation(e, t):
+    rp = 7e6
+    r0, v0 = periapsis_state(rp / (1 - e), e)
+    a = rp / (1 - e)
+    n = np.sqrt(MU / (-a) ** 3)
+    M = n * t
+    H = np.arcsinh(M / e)
+    for _ in range(200):
+        H -= (e * np.sinh(H) - H - M) / (e * np.cosh(H) - 1)
+    want = np.array([a * (np.cosh(H) - e), -a * np.sqrt(e * e - 1) * np.sinh(H), 0.0])
+    r, v = kepler.propagate(r0, v0, MU, t)
+    np.testing.assert_allclose(r, want, rtol=0, atol=1e-12 * np.linalg.norm(want))
+    assert abs(energy(r, v) / energy(r0, v0) - 1) < 1e-12
+
+
+@pytest.mark.parametrize("e", [1.0 - 1e-9, 1.0 + 1e-9])
+def test_near_parabolic_orbits_are_time_reversible(e):
+    """Where Kepler's equation in E or H loses its digits, the universal form does not."""
+    rp = 7e6
+    r0, v0 = periapsis_state(rp / (1 - e), e)
+    r0 = kepler.propagate(r0, v0, MU, -4e3)
+    r, v = kepler.propagate(r0[0], r0[1], MU, 9e4)
+    back, bv = kepler.propagate(r, v, MU, -9e4)
+    np.testing.assert_allclose(back, r0[0], rtol=1e-12)
+    np.testing.assert_allclose(bv, r0[1], rtol=1e-11)
+    assert abs(energy(r, v) - energy(*r0)) < 1e-14 * MU / rp
+
+
+def test_parabola_and_radial_orbits_keep_their_energy():
+    rp = 7e6
+    r, v = kepler.propagate([rp, 0, 0], [0, np.sqrt(2 * MU / rp), 0], MU, 5e4)     # parabola: energy 0
+    assert abs(energy(r, v)) < 1e-15 * MU / rp
+    r0, v0 = np.array([7e6, 0, 0.0]), np.array([3000.0, 0, 0])                    # radial, outbound
+    r, v = kepler.propagate(r0, v0, MU, 700.0)
+    assert r[1] == r[2] == v[1] == v[2] == 0.0
+    assert abs(energy(r, v) / energy(r0, v0) - 1) < 1e-14
+    # a radial body thrown up comes back down through its start with the speed reversed
+    el = kepler.elements(r0, v0, MU)
+    back = 2 * (el.time_to_apoapsis[0])
+    r, v = kepler.propagate(r0, v0, MU, back)
+    np.testing.assert_allclose(r, r0, rtol=1e-10)
+    np.testing.assert_allclose(v, -v0, rtol=1e-8)
+
+
+def test_stumpff_is_continuous_where_the_series_meets_the_closed_forms():
+    for p in (1.0, -1.0):
+        c2, c3 = kepler.stumpff(np.array([p * (1 - 1e-15), p * (1 + 1e-15)]))   # series | closed form
+        assert abs(c2[0] - c2[1]) < 3e-16 and abs(c3[0] - c3[1]) < 3e-16
+    # identities: 1 - psi c2 = cos sqrt(psi), 1 - psi c3 = sin(x)/x
+    psi = np.array([-30.0, -1.5, -0.3, 1e-9, 0.4, 2.0, 39.0])
+    c2, c3 = kepler.stumpff(psi)
+    x = np.sqrt(np.abs(psi))
+    cos = np.where(psi > 0, np.cos(x), np.cosh(x))
+    sinc = np.where(psi > 0, np.sin(x) / x, np.sinh(x) / x)
+    np.testing.assert_allclose(1 - psi * c2, cos, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(1 - psi * c3, sinc, rtol=1e-14, atol=1e-15)
+    c2, c3 = kepler.stumpff(np.array([0.0]))
+    assert c2[0] == 0.5 and c3[0] == pytest.approx(1 / 6, rel=1e-16)
+
+
+def test_vectorised_over_mixed_conics_is_the_same_as_one_at_a_time():
+    rng = np.random.default_rng(3)
+    n = 40
+    r0 = rng.normal(size=(n, 3)) * 8e6
+    v0 = rng.normal(size=(n, 3)) * 9e3
+    dt = rng.uniform(-3e3, 3e4, n)
+    r, v = kepler.propagate(r0, v0, MU, dt)
+    for k in range(n):
+        rk, vk = kepler.propagate(r0[k], v0[k], MU, dt[k])
+        np.testing.assert_allclose(r[k], rk, rtol=1e-13, atol=1e-6)
+        np.testing.assert_allclose(v[k], vk, rtol=1e-13, atol=1e-9)
+
+
+@pytest.mark.parametrize("e, bound", [(0.0, 1e-12), (0.5, 1e-12), (0.9, 1e-10), (0.99, 1e-8)])
+def test_energy_and_angular_momentum_kept_in_many_short_steps(e, bound):
+    """300 orbits at 10 steps per orbit, each step from the last (as a thrusting body goes):
+    the drift is the rounding of the state, repeated at the same phases every orbit (v^2/2 and
+    mu/r cancel by 2/(1 - e) at periapsis). On rails the gravity system propagates from an epoch
+    instead, which keeps a single rounding however long it runs (test_gravity.py)."""
+    a = 1e7
+    r, v = periapsis_state(a, e)
+    r = np.repeat(r[None], 4, 0)
+    v = np.repeat(v[None], 4, 0)
+    P = 2 * np.pi * np.sqrt(a ** 3 / MU)
+    E0, h0 = energy(r, v), np.linalg.norm(np.cross(r, v), axis=1)
+    for _ in range(3_000):
+        r, v = kepler.propagate(r, v, MU, P / 10)
+    assert np.max(np.abs(energy(r, v) / E0 - 1)) < bound
+    assert np.max(np.abs(np.linalg.norm(np.cross(r, v), axis=1) / h0 - 1)) < bound
+
+
+def test_elements_readouts_against_closed_forms():
+    a, e = 1.1e7, 0.6
+    r0, v0 = periapsis_state(a, e)
+    P = 2 * np.pi * np.sqrt(a ** 3 / MU)
+    r, v = kepler.propagate(r0, v0, MU, 0.3 * P)
+    el = kepler.elements(r, v, MU)
+    assert el.a[0] == pytest.approx(a, rel=1e-13)
+    assert el.e[0] == pytest.approx(e, rel=1e-13)
+    assert el.periapsis[0] == pytest.approx(a * (1 - e), rel=1e-13)
+    assert el.apoapsis[0] == pytest.approx(a * (1 + e), rel=1e-13)
+    assert el.period[0] == pytest.approx(P, rel=1e-13)
+    assert el.time_to_periapsis[0] == pytest.approx(0.7 * P, rel=1e-12)
+    assert el.time_to_apoapsis[0] == pytest.approx(0.2 * P, rel=1e-12)
+    # hyperbola: open, periapsis ahead then behind
+    r0, v0 = periapsis_state(7e6 / (1 - 2.0), 2.0)
+    r, v = kepler.propagate(r0, v0, MU, -500.0)
+    el = kepler.elements(r, v, MU)
+    assert el.time_to_periapsis[0] == pytest.approx(500.0, rel=1e-10)
+    assert el.periapsis[0] == pytest.approx(7e6, rel=1e-13)
+    assert np.isinf(el.apoapsis[0]) and np.isinf(el.period[0]) and np.isinf(el.time_to_apoapsis[0])
+
+
+def test_hohmann_transfer_dv_reaches_the_closed_form_apoapsis():
+    r1, r2 = 7e6, 4.2164e7
+    dv1 = np.sqrt(MU / r1) * (np.sqrt(2 * r2 / (r1 + r2)) - 1)
+    dv2 = np.sqrt(MU / r2) * (1 - np.sqrt(2 * r1 / (r1 + r2)))
+    r, v = np.array([r1, 0, 0.0]), np.array([0, np.sqrt(MU / r1) + dv1, 0.0])
+    el = kepler.elements(r, v, MU)
+    assert el.apoapsis[0] == pytest.approx(r2, rel=1e-12)
+    t_half = np.pi * np.sqrt(((r1 + r2) / 2) ** 3 / MU)
+    assert el.time_to_apoapsis[0] == pytest.approx(t_half, rel=1e-12)
+    r, v = kepler.propagate(r, v, MU, t_half)
+    v = v + dv2 * v / np.linalg.norm(v)
+    el = kepler.elements(r, v, MU)
+    assert el.e[0] < 1e-11
+    assert np.linalg.norm(r) == pytest.approx(r2, rel=1e-12)
+
+
+def test_time_to_radius_finds_the_surface_crossing_exactly():
+    R = 6.371e6
+    # a steep fall at 10 km/s from 20,000 km: the crossing is on the conic, whatever the horizon
+    r0, v0 = np.array([2e7, 0.0, 1e6]), np.array([-1e4, 0.0, 0.0])
+    t = kepler.time_to_radius(r0, v0, MU, R, 1e9)[0]
+    assert np.isfinite(t)
+    r, _ = kepler.propagate(r0, v0, MU, t)
+    assert np.linalg.norm(r) == pytest.approx(R, rel=1e-12)
+    ts = np.linspace(0, t, 200)[:-1]
+    rs, _ = kepler.propagate(np.repeat(r0[None], ts.size, 0), np.repeat(v0[None], ts.size, 0), MU, ts)
+    assert np.all(np.linalg.norm(rs, axis=1) > R)
+    # beyond the horizon: none; an orbit above the surface: none; a hyperbola going away: none
+    assert np.isinf(kepler.time_to_radius(r0, v0, MU, R, 0.5 * t)[0])
+    rc, vc = periapsis_state(7e6, 0.0)
+    assert np.isinf(kepler.time_to_radius(rc, vc, MU, R, 1e9)[0])
+    assert np.isinf(kepler.time_to_radius(r0, -v0 * 3, MU, R, 1e9)[0])
+    # an ellipse that dips under the surface later, after apoapsis: found on the way in
+    r1, v1 = np.array([7e6, 0, 0.0]), np.array([100.0, 7000.0, 0])
+    t = kepler.time_to_radius(r1, v1, MU, R, 1e9)[0]
+    r, v = kepler.propagate(r1, v1, MU, t)
+    assert np.linalg.norm(r) == pytest.approx(R, rel=1e-12) and r @ v < 0
+
+
+def test_closest_approach_of_two_orbits():
+    # two circular orbits in one plane, 1 degree apart in phase: they never come closer than now,
+    # but a crossing ellipse meets the circle at a known point
+    r1, v1 = np.array([7e6, 0, 0.0]), np.array([0, np.sqrt(MU / 7e6), 0.0])
+    rp, vp = periapsis_state(8e6, 0.125)          # periapsis 7e6 on +x: same point, faster
+    t, d = kepler.closest_approach(r1, v1, rp, vp, MU, 3000.0)
+    assert t == pytest.approx(0.0, abs=1e-6) and d == pytest.approx(0.0, abs=1e-6)
+    P = 2 * np.pi * np.sqrt(7e6 ** 3 / MU)
+    back1, bv1 = kepler.propagate(r1, v1, MU, -0.1 * P)
+    backp, bvp = kepler.propagate(rp, vp, MU, -0.1 * P)
+    t, d = kepler.closest_approach(back1, bv1, backp, bvp, MU, 0.3 * P)
+    assert t == pytest.approx(0.1 * P, rel=1e-6) and d < 1e-2
+
+
+def test_orbit_points_lie_on_the_conic():
+    a, e = 1e7, 0.7
+    r0, v0 = periapsis_state(a, e)
+    pts = kepler.orbit_points(r0, v0, MU, 64)
+    rr = np.linalg.norm(pts, axis=1)
+    assert rr.min() == pytest.approx(a * (1 - e), rel=1e-9)
+    assert rr.max() == pytest.approx(a * (1 + e), rel=1e-3)
+    assert np.all(np.abs(pts[:, 2]) < 1e-6)
+
+
+def test_the_compiled_path_gives_the_numpy_paths_states():
+    """Epoch.at with a guess for many bodies runs a compiled loop: same formulas, same states."""
+    rng = np.random.default_rng(11)
+    n = 2 * kepler.COMPILED_MIN
+    e = np.concatenate([rng.uniform(0, 0.99, n // 2), rng.uniform(1.01, 3.0, n // 2)])
+    rp = rng.uniform(7e6, 2e7, n)
+    r0 = np.zeros((n, 3))
+    r0[:, 0] = rp
+    v0 = np.zeros((n, 3))
+    v0[:, 1] = np.sqrt(MU * (1 + e) / rp)
+    ep = kepler.Epoch(r0, v0, MU)
+    r, v, chi = r0, v0, np.zeros(n)
+    for k in range(1, 40):
+        t = k * 977.0
+        guess = kepler.next_chi(chi, r, v, MU, 977.0)
+        r, v, chi = ep.at(t, guess)                                  # compiled
+        want_r, want_v = kepler.propagate(r0, v0, MU, t)              # numpy, no guess
+        np.testing.assert_allclose(r, want_r, rtol=1e-11, atol=1e-6)
+        np.testing.assert_allclose(v, want_v, rtol=1e-11, atol=1e-9)
+    E0 = energy(r0, v0)
+    assert np.max(np.abs(energy(r, v) / E0 - 1)) < 1e-12

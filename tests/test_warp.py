@@ -1,0 +1,115 @@
+"""Time warp: the same states at every warp, and the warp drops before a contact or a burn."""
+import math
+
+import numpy as np
+import pytest
+
+from driftframe import (Acceleration, AngularVelocity, ControlSystem, FixedStepLoop, FlightControl, FlightInput,
+                        MovementSystem, SpinSystem, Transform, Velocity, World)
+from driftframe.components.autopilot import Autopilot
+from driftframe.components.gravity import GravityWell, SurfaceContact
+from driftframe.framework import kepler
+from driftframe.framework import warp as time_warp
+from driftframe.systems.autopilot import AutopilotSystem
+from driftframe.systems.gravity import GravitySystem
+from driftframe.systems.input import InputSystem
+from driftframe.systems.warp import WarpGovernorSystem
+
+MU = 3.986004418e14
+R = 6.371e6
+
+
+def scene(dt=1.0):
+    w = World(dt=dt)
+    for s in (InputSystem(), AutopilotSystem(), ControlSystem(), GravitySystem(), MovementSystem(), SpinSystem(),
+              WarpGovernorSystem(lead_frames=3)):
+        w.add_system(s)
+    w.create_entity(Transform(), GravityWell(mu=MU, radius=R))
+    # a ship that burns retrograde at t = 1,500 s, and a rock on its way down
+    ship = w.create_entity(Transform((7e6, 0, 0)), Velocity((0, 7.6e3, 100.0)), AngularVelocity(), Acceleration(),
+                           FlightInput(), FlightControl(thrust=20.0),
+                           Autopilot(mode="burn", dv=60.0, along="retrograde", at=1500.0))
+    rock = w.create_entity(Transform((2e7, 1e6, 0)), Velocity((-6e3, 0, 0)))
+    hits = []
+    w.subscribe(SurfaceContact, hits.append)
+    return w, ship, rock, hits
+
+
+class Clock:
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+def test_levels_and_requests():
+    warp = time_warp.TimeWarp()
+    assert warp.factor == 1
+    for want in (10, 100, 1_000, 10_000, 100_000, 100_000):
+        warp.up()
+        assert warp.requested == want
+    warp.limit = 100
+    assert warp.factor == 100 and warp.dropped
+    with pytest.raises(ValueError, match=r"warp factor must be one of .* got 7"):
+        warp.request(7)
+
+
+def test_states_after_T_are_the_same_at_1x_and_10000x():
+    """The loop at 10,000x takes the same fixed steps as at 1x: bit-identical states and contacts."""
+    runs = []
+    for factor in (1, 10_000):
+        w, ship, rock, hits = scene()
+        try:
+            time_warp.of(w).request(factor)
+            w.step()                                  # one step at 1x: the governor has looked ahead
+            clock = Clock()
+            loop = FixedStepLoop(w, clock)
+            factors = []
+            while w.step_count < 3000:
+                clock.t += w.dt                       # one owed step per frame
+                loop.tick()
+                factors.append(time_warp.factor(w))
+            n = w.step_count
+            runs.append((n, w, hits, factors, rock))
+        except BaseException:
+            w.close()
+            raise
+    (n1, w1, h1, f1, rock), (n2, w2, h2, f2, _) = runs
+    try:
+        assert max(f1) == 1 and max(f2) > 1                      # it did warp ...
+        assert n2 >= 3000
+        w1.step(n2 - n1)                                          # ... and the 1x run is brought level
+        assert w1.step_count == w2.step_count
+        assert w1.state_hash() == w2.state_hash()
+        assert [(h.entity, h.time) for h in h1] == [(h.entity, h.time) for h in h2]
+        assert [h.entity for h in h1] == [rock]                   # the rock's impact, in both
+    finally:
+        w1.close()
+        w2.close()
+
+
+def test_warp_drops_before_the_burn_and_the_contact_and_says_why():
+    w, ship, rock, hits = scene()
+    try:
+        warp = time_warp.of(w)
+        warp.request(100_000)
+        t_hit = kepler.time_to_radius([2e7, 1e6, 0], [-6e3, 0, 0], MU, R, 1e9)[0]
+        burn = (1500.0 - 1.5, 1500.0 + 1.5)                     # 60 m/s at 20 m/s^2, centred on 1,500 s
+        seen = []
+        while w.time < 1900.0:
+            w.step()
+            seen.append((w.time, warp.factor, warp.reason))
+        # a frame at the warp in force never runs into the next event (lead: 3 frames); 1x while burning
+        for t, f, why in seen:
+            if burn[0] <= t <= burn[1]:
+                assert f == 1
+                continue
+            nxt = min((x for x in (t_hit, burn[0]) if x > t), default=math.inf)
+            assert f * w.dt * 3 <= max(nxt - t, w.dt * 3) + 1e-9
+        assert any("burn" in why for _, _, why in seen)
+        assert any("surface" in why for _, _, why in seen)
+        assert seen[-1][1] == 100_000                            # nothing ahead: back to the request
+        assert len(hits) == 1
+    finally:
+        w.close()
