@@ -174,23 +174,27 @@ class Table:
             return
         rows = self.alloc(n)
         # group by source table so a bulk block moves in one array copy per field
-        sources: dict[int, tuple] = {}
-        for k, c in enumerate(comps):
-            src = c._table
-            group = sources.get(id(src))
-            if group is None:
-                sources[id(src)] = group = (src, [], [])
-            group[1].append(k)
-            group[2].append(c._row)
-        for src, ks, src_rows in sources.values():
-            ks = np.asarray(ks, np.intp)
+        tables = list(map(_TABLE, comps))
+        src_rows = np.fromiter(map(_ROW, comps), np.intp, n)
+        if tables.count(tables[0]) == n:
+            groups = [(tables[0], slice(None))]
+        else:
+            ids = np.fromiter(map(id, tables), np.int64, n)
+            _, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
+            groups = [(tables[f], np.flatnonzero(inverse == k)) for k, f in enumerate(first.tolist())]
+        for src, ks in groups:
             for name in self.fields:
-                self.data[name][rows[ks]] = src.data[name][src_rows]
-        owner = self.owner
+                self.data[name][rows[ks]] = src.data[name][src_rows[ks]]
         for c, row in zip(comps, rows.tolist()):
             c._table = self
             c._row = row
-            owner[row] = c
+        lo, hi = int(rows[0]), int(rows[-1]) + 1
+        if hi - lo == n and (n == 1 or (np.diff(rows) == 1).all()):
+            self.owner[lo:hi] = comps
+        else:
+            owner = self.owner
+            for c, row in zip(comps, rows.tolist()):
+                owner[row] = c
         self.entity[rows] = entities
         self.version += 1
         self._by_entity = None

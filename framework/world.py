@@ -159,9 +159,13 @@ class World:
 
     def create_entity(self, *components) -> int:
         """``esper.create_entity`` in this world; columnar components move into its tables at once."""
-        self.activate()
+        self.sync()
+        for comp in components:
+            if isinstance(comp, Columnar):
+                self._check_new([comp])
         ent = esper.create_entity(*components)
         self._attach_now(ent, components)
+        self._own_change()
         return ent
 
     def create_entities(self, *columns) -> list[int]:
@@ -177,37 +181,67 @@ class World:
         for c in cols:
             if len(c) != n:
                 raise ValueError(f"create_entities: component lists differ in length ({len(c)} != {n})")
-        self.activate()
+        self.sync()
+        columnar = [c for c in cols if n and isinstance(c[0], Columnar)]
+        for c in columnar:
+            self._check_new(c)
         create = esper.create_entity
         ents = [create(*comps) for comps in zip(*cols)]
-        self.sync()
+        ids = np.asarray(ents, np.int64)
+        for c in columnar:
+            self.table(type(c[0])).attach(ids, list(c))
+        self._own_change()
         return ents
+
+    def _check_new(self, comps) -> None:
+        """Components about to join this world: not in another entity, of this world or another."""
+        sources = {id(t): t for t in map(_TABLE, comps)}            # a few: one per bulk block
+        for t in sources.values():
+            if t.world is None:
+                continue
+            comp = next(c for c in comps if c._table is t)
+            if t.world == self.name:
+                raise ValueError(f"the same {type(comp).__name__} object is on entity {int(t.entity[comp._row])} "
+                                 "already; give each entity its own (copy.copy(component))")
+            self._check_free(comp, -1)
+        if len(comps) > 1 and len(set(map(id, comps))) != len(comps):
+            raise ValueError(f"the same {type(comps[0]).__name__} object is given to two new entities; give "
+                             "each its own (copy.copy(component))")
+
+    def _own_change(self) -> None:
+        # the world's own add/remove keeps its tables right: only esper's own calls need a reconcile
+        self._probe = esper.get_component(_Probe)
 
     def add_component(self, entity: int, component) -> None:
         """``esper.add_component`` in this world (a component of that type already there is replaced)."""
-        self.activate()
+        self.sync()
         old = esper.try_component(entity, type(component))
         if old is not None and old is not component and isinstance(old, Columnar) and old._table.world == self.name:
             old._table.detach([old._row])
+        if isinstance(component, Columnar) and component is not old:
+            self._check_new([component])
         esper.add_component(entity, component)
         self._attach_now(entity, (component,))
+        self._own_change()
 
     def remove_component(self, entity: int, component_type):
         """``esper.remove_component`` in this world; the component keeps its values, its row is freed."""
-        self.activate()
+        self.sync()
         comp = esper.remove_component(entity, component_type)
         if isinstance(comp, Columnar) and comp._table.world == self.name:
             comp._table.detach([comp._row])
+        self._own_change()
         return comp
 
     def delete_entity(self, entity: int) -> None:
         """Delete ``entity`` now; its columnar rows are freed (its components keep their values)."""
-        self.activate()
+        self.sync()
         if esper.entity_exists(entity):
             for comp in esper.components_for_entity(entity):
                 if isinstance(comp, Columnar) and comp._table.world == self.name:
                     comp._table.detach([comp._row])
         esper.delete_entity(entity, immediate=True)
+        self._own_change()
 
     def _attach_now(self, ent: int, components) -> None:
         for comp in components:
@@ -268,8 +302,11 @@ class World:
         ents = np.fromiter(map(_FIRST, lst), np.int64, n)
         comps = list(map(_SECOND, lst))
         tables = list(map(_TABLE, comps))
-        if tables.count(table) == n:
+        count = tables.count(table)
+        if count == n:
             mine = np.ones(n, bool)
+        elif count == 0:
+            mine = np.zeros(n, bool)
         else:
             mine = np.fromiter((t is table for t in tables), bool, n)
         k_mine = np.flatnonzero(mine)
@@ -289,14 +326,16 @@ class World:
         if len(k_mine) < n:
             k_new = np.flatnonzero(~mine)
             new = [comps[k] for k in k_new]
-            if len({id(c) for c in new}) != len(new):
+            if len(set(map(id, new))) != len(new):
                 seen_ids: dict[int, int] = {}
                 for k, c in zip(k_new, new):
                     if id(c) in seen_ids:
                         self._shared_error(cls, seen_ids[id(c)], int(ents[k]))
                     seen_ids[id(c)] = int(ents[k])
-            for k, c in zip(k_new, new):
-                self._check_free(c, int(ents[k]))
+            sources = {id(t): t for t in map(_TABLE, new)}          # a few: one per bulk block
+            if any(t.world is not None and t.world != self.name for t in sources.values()):
+                for k, c in zip(k_new, new):
+                    self._check_free(c, int(ents[k]))
             table.attach(ents[k_new], new)
         self._synced[cls] = lst
 
