@@ -282,28 +282,18 @@ class NeighbourList:
         r = np.array(radii, np.float64)
         d = np.asarray(step_disp, np.float64)
         n = len(r)
-        if n:
-            typical = float(np.median(d))
-            size = float(np.median(r))
-        else:
-            typical = size = 0.0
-        # room for skin_steps steps at the body's own speed (at least the median's; never
-        # thinner than a millionth of a radius, for scenes at rest)
-        skin = self.skin_steps * np.maximum(d, max(typical, 1e-6 * size))
-        # a body whose skin dwarfs the others' would make huge cells and many pairs: sweep it instead
-        swept = skin > 8.0 * float(np.median(skin)) + 4.0 * float(r.max()) if n else np.zeros(0, bool)
-        reach = r + skin
+        skin, swept, reach = _territory(r, d, self.skin_steps)     # one compiled pass (medians and all)
         slow = np.flatnonzero(~swept)
+        got = None
         if self.method in ("auto", "grid") and len(slow) > ALL_PAIRS_MAX:
-            # the grid's candidates, then the exact sphere test in one compiled pass (the same pairs
-            # as sphere_pairs, without its per-axis fancy-indexed box tests)
-            cs, rs = np.ascontiguousarray(c[:, slow]), np.ascontiguousarray(reach[slow])
-            i, j = _grid_regular(cs - rs, cs + rs, exact=False)
-            keep = _within(cs, rs, i.astype(np.int64), j.astype(np.int64))
-            i, j = i[keep], j[keep]
+            # one compiled pass: counting sort into a dense grid, then the exact sphere test over the
+            # half stencil (the same pairs as sphere_pairs; their order does not matter to the solver)
+            got = _grid_build(c, reach, swept, len(slow))
+        if got is not None:
+            self.i, self.j = got
         else:
             i, j = sphere_pairs(c[:, slow], reach[slow], self.method, soa=True)
-        self.i, self.j = slow[i], slow[j]
+            self.i, self.j = slow[i], slow[j]
         self.centre, self.radius, self.skin, self.reach, self.swept = c, r, skin, reach, swept
         # x order of the territories' low ends, for territories()
         lo_x = c[0] - reach
@@ -410,3 +400,206 @@ def _within(c, reach, i, j):
         R = reach[a] + reach[b]
         out[k] = dx * dx + dy * dy + dz * dz <= R * R
     return out
+
+
+def _grid_build(c, reach, swept, n_slow):
+    """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`; None for a scene too sparse
+    for a dense grid (the caller falls back on the sorted-key grid)."""
+    h, hh, bx, by, bz, nx, ny, nz = _grid_setup(c, reach, swept)
+    if not h > 0 or float(nx) * float(ny) * float(nz) > 8.0 * n_slow + 4096:
+        return None
+    cap = 8 * n_slow + 64
+    while True:
+        oi = np.empty(cap, np.int64)
+        oj = np.empty(cap, np.int64)
+        p = _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, oi, oj)
+        if p <= cap:
+            return oi[:p], oj[:p]
+        cap = p
+
+
+@njit(cache=True)
+def _grid_setup(c, reach, swept):
+    """Cell side ``h``, the largest ordinary reach ``hh``, low corner and cells per axis.
+
+    Ordinary bodies have a reach of at most twice the median's; ``h`` is a hair over twice the largest
+    of those (so rounding in a cell index never separates an ordinary pair by two cells). A few bodies
+    made fast by collisions must not inflate every cell: they search a wider block of cells instead
+    (:func:`_grid_pairs`). A ghost layer each side spares the stencil its bounds tests."""
+    m = 0
+    for k in range(reach.shape[0]):
+        if not swept[k]:
+            m += 1
+    if m == 0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0
+    rs = np.empty(m)
+    m = 0
+    for k in range(reach.shape[0]):
+        if not swept[k]:
+            rs[m] = reach[k]
+            m += 1
+    cut = 2.0 * np.median(rs)
+    hh = 0.0
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for k in range(reach.shape[0]):
+        if swept[k]:
+            continue
+        if reach[k] <= cut:
+            hh = max(hh, reach[k])
+        for d in range(3):
+            lo[d] = min(lo[d], c[d, k])
+            hi[d] = max(hi[d], c[d, k])
+    h = 2.0 * hh * (1.0 + 1e-9)
+    if not h > 0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0
+    dims = np.empty(3, np.int64)
+    for d in range(3):
+        dims[d] = int(min(np.floor((hi[d] - lo[d]) / h), 4e6)) + 3     # capped: never overflows
+    return h, hh, lo[0], lo[1], lo[2], dims[0], dims[1], dims[2]
+
+
+@njit(cache=True)
+def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, oi, oj):
+    """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
+
+    Cells of side ``h > 2 hh`` by centre, so a pair of ordinary bodies (reach <= ``hh``) lies in the
+    same or neighbouring cells: a counting sort files the bodies (O(n + cells)), and each ordinary body
+    tests the later ordinary bodies of its own cell and those of the 13 cells of a half stencil. A large
+    body (reach > ``hh``) tests every body in the block of cells its reach plus the largest can span
+    (large-large pairs once, from the lower index).
+
+    Writes the pairs into ``oi``, ``oj`` as far as they hold and returns how many there are (the
+    caller gives larger arrays and calls again when they did not hold them all: growing arrays
+    inside the loop would cost reference counting on every iteration)."""
+    n = reach.shape[0]
+    cell = np.full(n, -1, np.int64)
+    ncell = nx * ny * nz
+    start = np.zeros(ncell + 1, np.int64)
+    big = 0.0
+    for k in range(n):
+        if swept[k]:
+            continue
+        big = max(big, reach[k])
+        ix = int((c[0, k] - bx) / h) + 1
+        iy = int((c[1, k] - by) / h) + 1
+        iz = int((c[2, k] - bz) / h) + 1
+        q = (ix * ny + iy) * nz + iz
+        cell[k] = q
+        start[q + 1] += 1
+    for q in range(ncell):
+        start[q + 1] += start[q]
+    fill = start[:-1].copy()
+    m = start[ncell]
+    body = np.empty(m, np.int64)
+    for k in range(n):
+        q = cell[k]
+        if q >= 0:
+            body[fill[q]] = k
+            fill[q] += 1
+    # coordinates and reaches in cell order: the stencil reads them contiguously
+    sx = np.empty(m)
+    sy = np.empty(m)
+    sz = np.empty(m)
+    sr = np.empty(m)
+    for s in range(m):
+        k = body[s]
+        sx[s] = c[0, k]
+        sy[s] = c[1, k]
+        sz[s] = c[2, k]
+        sr[s] = reach[k]
+    # the 13 neighbour cells after this one in (x, y, z) order
+    offs = np.empty(13, np.int64)
+    o = 0
+    for dx in range(-1, 2):
+        for dy in range(-1, 2):
+            for dz in range(-1, 2):
+                if dx > 0 or (dx == 0 and (dy > 0 or (dy == 0 and dz > 0))):
+                    offs[o] = (dx * ny + dy) * nz + dz
+                    o += 1
+    cap = oi.shape[0]
+    p = 0
+    for q in range(ncell):
+        a0 = start[q]
+        a1 = start[q + 1]
+        for s in range(a0, a1):
+            a = body[s]
+            ax = sx[s]
+            ay = sy[s]
+            az = sz[s]
+            ar = sr[s]
+            if ar > hh:
+                continue                                  # a large body: its own search below
+            for t in range(-1, 13):
+                if t < 0:
+                    b0 = s + 1
+                    b1 = a1
+                else:
+                    qq = q + offs[t]
+                    b0 = start[qq]
+                    b1 = start[qq + 1]
+                for u in range(b0, b1):
+                    if sr[u] > hh:
+                        continue                          # found from the large body's side
+                    dx_ = sx[u] - ax
+                    dy_ = sy[u] - ay
+                    dz_ = sz[u] - az
+                    R = ar + sr[u]
+                    if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
+                        if p < cap:
+                            b = body[u]
+                            oi[p] = min(a, b)
+                            oj[p] = max(a, b)
+                        p += 1
+    for s in range(m):
+        ar = sr[s]
+        if ar <= hh:
+            continue
+        a = body[s]
+        ax = sx[s]
+        ay = sy[s]
+        az = sz[s]
+        w = int((ar + big) / h) + 2
+        ix = int((ax - bx) / h) + 1
+        iy = int((ay - by) / h) + 1
+        iz = int((az - bz) / h) + 1
+        for gx in range(max(ix - w, 0), min(ix + w, nx - 1) + 1):
+            for gy in range(max(iy - w, 0), min(iy + w, ny - 1) + 1):
+                for gz in range(max(iz - w, 0), min(iz + w, nz - 1) + 1):
+                    qq = (gx * ny + gy) * nz + gz
+                    for u in range(start[qq], start[qq + 1]):
+                        b = body[u]
+                        if b == a or (sr[u] > hh and b < a):
+                            continue
+                        dx_ = sx[u] - ax
+                        dy_ = sy[u] - ay
+                        dz_ = sz[u] - az
+                        R = ar + sr[u]
+                        if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
+                            if p < cap:
+                                oi[p] = min(a, b)
+                                oj[p] = max(a, b)
+                            p += 1
+    return p
+
+
+@njit(cache=True)
+def _territory(r, d, skin_steps):
+    """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
+
+    Room for ``skin_steps`` steps at the body's own speed ``d`` per step (at least the median's; never
+    thinner than a millionth of the median radius, for scenes at rest); a body whose skin dwarfs the
+    others' (more than 8 median skins + 4 largest radii; a bullet among asteroids) would make huge
+    cells and many pairs: it is swept instead."""
+    n = r.shape[0]
+    skin = np.empty(n)
+    swept = np.zeros(n, np.bool_)
+    if n == 0:
+        return skin, swept, r + skin
+    floor_ = max(np.median(d), 1e-6 * np.median(r))
+    for k in range(n):
+        skin[k] = skin_steps * max(d[k], floor_)
+    limit = 8.0 * np.median(skin) + 4.0 * r.max()
+    for k in range(n):
+        swept[k] = skin[k] > limit
+    return skin, swept, r + skin

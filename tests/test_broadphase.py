@@ -148,3 +148,41 @@ def test_unknown_method_is_rejected_with_its_name():
         bp.NeighbourList(method="octree")
     with pytest.raises(ValueError, match=r"\(n, 3\)"):
         bp.box_pairs(np.zeros((2, 3)), np.ones((3, 3)))
+
+
+def _brute(c, reach, swept):
+    """Every pair i < j of not-swept bodies with |c_i - c_j| <= reach_i + reach_j, by testing all."""
+    k = np.flatnonzero(~swept)
+    i, j = np.triu_indices(len(k), 1)
+    i, j = k[i], k[j]
+    d2 = ((c[:, j] - c[:, i]) ** 2).sum(axis=0)
+    keep = d2 <= (reach[i] + reach[j]) ** 2
+    return set(zip(i[keep].tolist(), j[keep].tolist()))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_grid_build_lists_the_same_pairs_with_a_few_fast_bodies_among_slow_ones(seed):
+    # bodies made fast by collisions have reaches several times the median: they search a wider block
+    # of cells instead of inflating every cell; the pairs must be exactly those of testing every pair
+    rng = np.random.default_rng(seed)
+    n = 1500
+    c = rng.uniform(0, 30, (n, 3))
+    r = rng.uniform(0.25, 0.75, n)
+    d = rng.uniform(0.0, 0.05, n)
+    d[rng.choice(n, 40, replace=False)] *= rng.uniform(4, 12, 40)
+    nl = bp.NeighbourList()
+    nl.build(c.T, r, d)
+    assert (nl.reach > 2 * np.median(nl.reach)).sum() > 0           # the wide-search path runs
+    got = list(zip(nl.i.tolist(), nl.j.tolist()))
+    assert all(a < b for a, b in got) and len(set(got)) == len(got)   # ordered, each pair once
+    assert set(got) == _brute(nl.centre, nl.reach, nl.swept)
+
+
+def test_compiled_grid_build_grows_its_output_for_a_crowd():
+    # 300 spheres in a ball of their own size: ~n^2/2 pairs, far more than the first guess of 8 per body
+    rng = np.random.default_rng(5)
+    c = rng.normal(0, 0.3, (300, 3))
+    nl = bp.NeighbourList()
+    nl.build(c.T, np.full(300, 0.5), np.full(300, 0.01))
+    assert len(nl.i) > 8 * 300 + 64
+    assert set(zip(nl.i.tolist(), nl.j.tolist())) == _brute(nl.centre, nl.reach, nl.swept)
