@@ -363,10 +363,16 @@ def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
 
 
 @njit(cache=True)
-def mark_strays(x, u, dt, centre, skin, swept):
+def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     """Mark as swept every listed body whose path ``x + u t``, 0 <= t <= dt, leaves its territory
     (either end at its skin's distance or more from its build centre; a ball is convex).
-    ``x``, ``u``: (n, 3); ``centre``: (3, n). Returns ``(newly swept, swept now)``."""
+    ``x``, ``u``: (n, 3); ``centre``: (3, n). Returns ``(newly swept, swept now)``, or ``(-1, -1)``
+    and marks nothing when the radii ``r`` are not those of the build (``built_r``): rebuild."""
+    if r.shape[0] != built_r.shape[0]:
+        return -1, -1
+    for k in range(r.shape[0]):
+        if r[k] != built_r[k]:
+            return -1, -1
     total = 0
     new = 0
     for k in range(x.shape[0]):

@@ -234,6 +234,7 @@ class CollisionSystem(esper.Processor):
         self._reported_overlap = None
         self._bad: set[int] = set()
         self._t_last_layout = None
+        self._all_live = None
         self.stats = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "overlaps": 0,
                       "sequential": 0, "left_out": 0}
 
@@ -313,7 +314,7 @@ class CollisionSystem(esper.Processor):
         n = lay.n
         x1, v1 = st.end_of_step(lay, dt)
         bad = st.bad(lay)
-        live = np.ones(n, np.bool_)
+        live = self._live(n)
         u = st.v0 if st.a is None else st.v0 + (0.5 * dt) * st.a
         x = st.x0.copy()
         inv, r, e = st.inv, st.r, st.e
@@ -351,12 +352,12 @@ class CollisionSystem(esper.Processor):
             out = contact.solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, self.max_contacts)
         else:
             nl = self._list
-            rebuild = (self._list_dirty or self._list_layout is not lay or len(nl.radius) != n
-                       or not np.array_equal(nl.radius, r))
+            rebuild = self._list_dirty or self._list_layout is not lay or len(nl.radius) != n
             if not rebuild:
                 # the list no longer speaks for bodies whose path leaves their territory: they are swept
-                new, total = bp.mark_strays(x, u, dt, nl.centre, nl.skin, nl.swept)
-                rebuild = new > 0 and total > nl.budget          # too many to sweep each step: rebuild
+                # (and a change of radius anywhere means a rebuild: mark_strays says -1)
+                new, total = bp.mark_strays(x, u, dt, nl.centre, nl.skin, nl.swept, r, nl.radius)
+                rebuild = new < 0 or (new > 0 and total > nl.budget)   # too many to sweep each step: rebuild
             if rebuild:
                 nl.build(x.T, r, np.sqrt((u * u).sum(axis=1)) * dt)
                 self._list_layout = lay
@@ -372,16 +373,16 @@ class CollisionSystem(esper.Processor):
                                      order, lo_x, float(width), int(nl.budget))
         changed, ev, ev_n, ev_x, stats, flags = out
         self._t_last = t_last + now
-        self.stats["pairs"] = int(stats[0])
-        self.stats["contacts"] = int(stats[1])
-        self.stats["waves"] = int(stats[2])
-        self.stats["swept"] += int(stats[3])
-        self.stats["overlaps"] = int(stats[4])
-        self.stats["sequential"] = int(stats[8])
-        if flags & 32:
-            self._list_dirty = True
-        self._flags(flags, lay)
-        if stats[4] and self._reported_overlap is not lay:
+        s = stats.tolist()
+        st_ = self.stats
+        st_["pairs"], st_["contacts"], st_["waves"] = int(s[0]), int(s[1]), int(s[2])
+        st_["swept"] += int(s[3])
+        st_["overlaps"], st_["sequential"] = int(s[4]), int(s[8])
+        if flags:
+            if flags & 32:
+                self._list_dirty = True
+            self._flags(flags, lay)
+        if s[4] and self._reported_overlap is not lay:
             self._reported_overlap = lay
             i, j = int(stats[5]), int(stats[6])
             warnings.warn(f"collision: {int(stats[4])} pairs of spheres overlap at t = {self._now()!r} s; the "
@@ -389,7 +390,7 @@ class CollisionSystem(esper.Processor):
                           f"{float(stats[7]):.6g} of r_a + r_b apart. Pairs that approach bounce at once, the "
                           f"rest separate (use driftframe.framework.placement to place bodies apart)",
                           RuntimeWarning, stacklevel=3)
-        if changed.any():
+        if (s[1] or s[2] or flags) and changed.any():          # no contact, no wave, no flag: nothing changed
             ch = np.flatnonzero(changed)
             x1[ch] = x[ch] + u[ch] * dt
             vend = u[ch]
@@ -401,6 +402,13 @@ class CollisionSystem(esper.Processor):
         self._write(lay, x1, v1)
         if len(ev) and self.events and self.world is not None:
             self._emit(lay, ev, ev_n, ev_x)
+
+    def _live(self, n: int) -> np.ndarray:
+        """All True, n long (the kernels only read it): one array kept, not one made per step."""
+        live = self._all_live
+        if live is None or len(live) != n:
+            live = self._all_live = np.ones(n, np.bool_)
+        return live
 
     def _report_bad(self, lay, st, bad):
         now = set()

@@ -15,6 +15,11 @@ from driftframe.framework.store import as_index, to_indices
 SKIP = "movement.skip"
 
 
+def _some(rows) -> bool:
+    """Rows to touch: a slice (never empty, see store.as_index) or a non-empty index array."""
+    return isinstance(rows, slice) or len(rows) > 0
+
+
 class MovementSystem(esper.Processor):
     """Reads Velocity, Acceleration; writes Transform.position, Velocity.  x += v dt (+ a dt^2/2).
 
@@ -68,14 +73,16 @@ class MovementSystem(esper.Processor):
         free.refresh()
         if len(free):
             t_rows, v_rows = self._rows(free, (Transform, Velocity), skip)
-            pos = world.table(Transform).data["position"]
-            vel = world.table(Velocity).data["linear"]
-            pos[t_rows] += vel[v_rows] * dt
+            if _some(t_rows):               # all claimed (e.g. every body a collider): nothing to move here
+                pos = world.table(Transform).data["position"]
+                vel = world.table(Velocity).data["linear"]
+                pos[t_rows] += vel[v_rows] * dt
 
         acc = world.query(Transform, Velocity, Acceleration)
         acc.refresh()
         if len(acc):
             t_rows, v_rows, a_rows = self._rows(acc, (Transform, Velocity, Acceleration), skip)
+        if len(acc) and _some(t_rows):
             pos = world.table(Transform).data["position"]
             vel = world.table(Velocity).data["linear"]
             a = world.table(Acceleration).data["linear"][a_rows]
