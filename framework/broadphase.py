@@ -409,19 +409,25 @@ def _within(c, reach, i, j):
 
 
 def _grid_build(c, reach, swept, n_slow):
-    """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`; None for a scene too sparse
-    for a dense grid (the caller falls back on the sorted-key grid)."""
+    """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`; None when the scene spans
+    too many cells for int64 keys (the caller falls back on sort and sweep)."""
     h, hh, bx, by, bz, nx, ny, nz = _grid_setup(c, reach, swept)
-    if not h > 0 or float(nx) * float(ny) * float(nz) > 8.0 * n_slow + 4096:
+    if not h > 0 or max(nx, ny, nz) > _KEY_SPAN:
         return None
+    # a dense table of cells when they are few; sorted keys and binary searches when the scene is sparse
+    dense = float(nx) * float(ny) * float(nz) <= 8.0 * n_slow + 4096
     cap = 8 * n_slow + 64
     while True:
         oi = np.empty(cap, np.int64)
         oj = np.empty(cap, np.int64)
-        p = _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, oi, oj)
+        p = _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj)
         if p <= cap:
             return oi[:p], oj[:p]
         cap = p
+
+
+#: Cells per axis at most (with the ghost layers), so that a cell key (x * ny + y) * nz + z fits in int64.
+_KEY_SPAN = 2_000_000
 
 
 @njit(cache=True)
@@ -461,28 +467,28 @@ def _grid_setup(c, reach, swept):
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0
     dims = np.empty(3, np.int64)
     for d in range(3):
-        dims[d] = int(min(np.floor((hi[d] - lo[d]) / h), 4e6)) + 3     # capped: never overflows
+        dims[d] = int(min(np.floor((hi[d] - lo[d]) / h), 4e6)) + 3     # capped: the int never overflows
     return h, hh, lo[0], lo[1], lo[2], dims[0], dims[1], dims[2]
 
 
 @njit(cache=True)
-def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, oi, oj):
+def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
 
     Cells of side ``h > 2 hh`` by centre, so a pair of ordinary bodies (reach <= ``hh``) lies in the
-    same or neighbouring cells: a counting sort files the bodies (O(n + cells)), and each ordinary body
-    tests the later ordinary bodies of its own cell and those of the 13 cells of a half stencil. A large
-    body (reach > ``hh``) tests every body in the block of cells its reach plus the largest can span
-    (large-large pairs once, from the lower index).
+    same or neighbouring cells. The bodies are filed by cell (``dense``: a counting sort into a table of
+    all cells, O(n + cells); else a sort of the occupied cells' keys, found by binary search), and each
+    ordinary body tests the later ordinary bodies of its own cell and those of the 13 cells of a half
+    stencil. A large body (reach > ``hh``) tests every body in the block of cells its reach plus the
+    largest can span (large-large pairs once, from the lower index).
 
     Writes the pairs into ``oi``, ``oj`` as far as they hold and returns how many there are (the
     caller gives larger arrays and calls again when they did not hold them all: growing arrays
     inside the loop would cost reference counting on every iteration)."""
     n = reach.shape[0]
     cell = np.full(n, -1, np.int64)
-    ncell = nx * ny * nz
-    start = np.zeros(ncell + 1, np.int64)
     big = 0.0
+    m = 0
     for k in range(n):
         if swept[k]:
             continue
@@ -490,19 +496,51 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, oi, oj):
         ix = int((c[0, k] - bx) / h) + 1
         iy = int((c[1, k] - by) / h) + 1
         iz = int((c[2, k] - bz) / h) + 1
-        q = (ix * ny + iy) * nz + iz
-        cell[k] = q
-        start[q + 1] += 1
-    for q in range(ncell):
-        start[q + 1] += start[q]
-    fill = start[:-1].copy()
-    m = start[ncell]
+        cell[k] = (ix * ny + iy) * nz + iz
+        m += 1
     body = np.empty(m, np.int64)
-    for k in range(n):
-        q = cell[k]
-        if q >= 0:
-            body[fill[q]] = k
-            fill[q] += 1
+    if dense:
+        ncell = nx * ny * nz
+        start = np.zeros(ncell + 1, np.int64)
+        for k in range(n):
+            if cell[k] >= 0:
+                start[cell[k] + 1] += 1
+        for q in range(ncell):
+            start[q + 1] += start[q]
+        fill = start[:-1].copy()
+        for k in range(n):
+            q = cell[k]
+            if q >= 0:
+                body[fill[q]] = k
+                fill[q] += 1
+        ukey = np.empty(0, np.int64)
+        ustart = np.empty(0, np.int64)
+        nu = 0
+    else:
+        start = np.empty(0, np.int64)
+        keys = np.empty(m, np.int64)
+        idx = np.empty(m, np.int64)
+        j = 0
+        for k in range(n):
+            if cell[k] >= 0:
+                keys[j] = cell[k]
+                idx[j] = k
+                j += 1
+        order = np.argsort(keys, kind="mergesort")
+        nu = 0
+        for s in range(m):
+            body[s] = idx[order[s]]
+            if s == 0 or keys[order[s]] != keys[order[s - 1]]:
+                nu += 1
+        ukey = np.empty(nu, np.int64)
+        ustart = np.empty(nu + 1, np.int64)
+        nu = 0
+        for s in range(m):
+            if s == 0 or keys[order[s]] != keys[order[s - 1]]:
+                ukey[nu] = keys[order[s]]
+                ustart[nu] = s
+                nu += 1
+        ustart[nu] = m
     # coordinates and reaches in cell order: the stencil reads them contiguously
     sx = np.empty(m)
     sy = np.empty(m)
@@ -525,38 +563,57 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, oi, oj):
                     o += 1
     cap = oi.shape[0]
     p = 0
-    for q in range(ncell):
-        a0 = start[q]
-        a1 = start[q + 1]
-        for s in range(a0, a1):
-            a = body[s]
-            ax = sx[s]
-            ay = sy[s]
-            az = sz[s]
-            ar = sr[s]
-            if ar > hh:
-                continue                                  # a large body: its own search below
-            for t in range(-1, 13):
-                if t < 0:
-                    b0 = s + 1
-                    b1 = a1
-                else:
-                    qq = q + offs[t]
+    a1 = 0
+    for s in range(m):
+        a = body[s]
+        q = cell[a]
+        if s >= a1:                                       # the first body of its cell: where the cell ends
+            if dense:
+                b0 = start[q]
+                b1 = start[q + 1]
+            else:
+                b0 = 0
+                b1 = 0
+                kk = np.searchsorted(ukey, q)
+                if kk < nu and ukey[kk] == q:
+                    b0 = ustart[kk]
+                    b1 = ustart[kk + 1]
+            a1 = b1
+        ax = sx[s]
+        ay = sy[s]
+        az = sz[s]
+        ar = sr[s]
+        if ar > hh:
+            continue                                      # a large body: its own search below
+        for t in range(-1, 13):
+            if t < 0:
+                b0 = s + 1
+                b1 = a1
+            else:
+                qq = q + offs[t]
+                if dense:
                     b0 = start[qq]
                     b1 = start[qq + 1]
-                for u in range(b0, b1):
-                    if sr[u] > hh:
-                        continue                          # found from the large body's side
-                    dx_ = sx[u] - ax
-                    dy_ = sy[u] - ay
-                    dz_ = sz[u] - az
-                    R = ar + sr[u]
-                    if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
-                        if p < cap:
-                            b = body[u]
-                            oi[p] = min(a, b)
-                            oj[p] = max(a, b)
-                        p += 1
+                else:
+                    b0 = 0
+                    b1 = 0
+                    kk = np.searchsorted(ukey, qq)
+                    if kk < nu and ukey[kk] == qq:
+                        b0 = ustart[kk]
+                        b1 = ustart[kk + 1]
+            for u in range(b0, b1):
+                if sr[u] > hh:
+                    continue                              # found from the large body's side
+                dx_ = sx[u] - ax
+                dy_ = sy[u] - ay
+                dz_ = sz[u] - az
+                R = ar + sr[u]
+                if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
+                    if p < cap:
+                        b = body[u]
+                        oi[p] = min(a, b)
+                        oj[p] = max(a, b)
+                    p += 1
     for s in range(m):
         ar = sr[s]
         if ar <= hh:
@@ -573,7 +630,17 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, oi, oj):
             for gy in range(max(iy - w, 0), min(iy + w, ny - 1) + 1):
                 for gz in range(max(iz - w, 0), min(iz + w, nz - 1) + 1):
                     qq = (gx * ny + gy) * nz + gz
-                    for u in range(start[qq], start[qq + 1]):
+                    if dense:
+                        b0 = start[qq]
+                        b1 = start[qq + 1]
+                    else:
+                        b0 = 0
+                        b1 = 0
+                        kk = np.searchsorted(ukey, qq)
+                        if kk < nu and ukey[kk] == qq:
+                            b0 = ustart[kk]
+                            b1 = ustart[kk + 1]
+                    for u in range(b0, b1):
                         b = body[u]
                         if b == a or (sr[u] > hh and b < a):
                             continue

@@ -186,3 +186,16 @@ def test_compiled_grid_build_grows_its_output_for_a_crowd():
     nl.build(c.T, np.full(300, 0.5), np.full(300, 0.01))
     assert len(nl.i) > 8 * 300 + 64
     assert set(zip(nl.i.tolist(), nl.j.tolist())) == _brute(nl.centre, nl.reach, nl.swept)
+
+
+def test_compiled_grid_build_on_a_sparse_scene_uses_sorted_cells_and_finds_the_same_pairs():
+    # clusters a kilometre apart: far more cells than bodies, so the cells are found by binary search
+    rng = np.random.default_rng(7)
+    c = np.concatenate([rng.uniform(0, 6, (100, 3)) + off for off in ((0, 0, 0), (1000, 0, 0), (0, 900, 700))])
+    r = rng.uniform(0.25, 0.75, len(c))
+    nl = bp.NeighbourList()
+    nl.build(c.T, r, np.full(len(c), 0.02))
+    h, hh, *_, nx, ny, nz = bp._grid_setup(nl.centre, nl.reach, nl.swept)
+    assert nx * ny * nz > 8 * len(c) + 4096                           # the sparse path
+    want = _brute(nl.centre, nl.reach, nl.swept)
+    assert len(want) > 100 and set(zip(nl.i.tolist(), nl.j.tolist())) == want
