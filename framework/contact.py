@@ -126,7 +126,7 @@ def _grow_i(a, n):
     return b
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def toi(i, j, t, x, u, r, inv, spd, dt):
     """Earliest time of impact in [t, dt] of bodies i, j (paths x + u t'); (-1, 0) when none.
 
@@ -184,12 +184,12 @@ def toi(i, j, t, x, u, r, inv, spd, dt):
 
 # -- binary heap of (time, pair, version, slack) ------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _less(ht, hp, a, b):
     return ht[a] < ht[b] or (ht[a] == ht[b] and hp[a] < hp[b])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _swap(ht, hp, hv, hs, a, b):
     ht[a], ht[b] = ht[b], ht[a]
     hp[a], hp[b] = hp[b], hp[a]
@@ -197,7 +197,7 @@ def _swap(ht, hp, hv, hs, a, b):
     hs[a], hs[b] = hs[b], hs[a]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sift_up(ht, hp, hv, hs, k):
     while k > 0:
         parent = (k - 1) >> 1
@@ -208,7 +208,7 @@ def _sift_up(ht, hp, hv, hs, k):
             break
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sift_down(ht, hp, hv, hs, k, n):
     while True:
         a = 2 * k + 1
@@ -499,6 +499,8 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
     sub = np.empty(DENSE_MAX, np.int64)
     act = np.empty(DENSE_MAX, np.bool_)
     cs = np.empty(wcap, np.int64)
+    rhs_buf = np.empty(wcap)
+    one = np.zeros(1, np.int64)
     moved = np.empty(n, np.int64)
     dv = np.zeros((n, 3))
     # events
@@ -646,11 +648,16 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
             while parent[a] != a:
                 a = parent[a]
             wroot[k] = a
-        rhs = np.empty(K)
+        if rhs_buf.shape[0] < K:
+            rhs_buf = np.empty(wcap)
+        rhs = rhs_buf                                      # kept across waves: no allocation per contact
         for k in range(K):
             rhs[k] = -(1.0 + we[k]) * wvn[k]
             wlam[k] = 0.0
-        ordk = np.argsort(wroot[:K], kind="mergesort")   # islands together, wave order inside
+        if K == 1:
+            ordk = one                                     # a lone contact (most waves): nothing to sort
+        else:
+            ordk = np.argsort(wroot[:K], kind="mergesort")   # islands together, wave order inside
         nm = 0
         s = 0
         while s < K:
