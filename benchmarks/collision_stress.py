@@ -462,12 +462,13 @@ pybullet (`stepSimulation()`, as elastic as it goes), in the same process, in tu
 steps unless the row says otherwise (fields of 10,000: 60 steps; 100,000: 20; crystals: 30, the first step is
 the bar). Times in ms: median (mean) / worst step. Ratio: driftframe mean / pybullet mean (the bars are on
 means: a neighbour-list rebuild every ~8 steps is in the mean, not the median), with the ratio of medians in
-brackets. The machine is shared and noisy (load average {load}, 2 cores): single steps of either engine spike
-when the scheduler runs another process (a time slice, ~4-5 ms here). So the gas and converging rows are run
-{reps} times from a fresh scene, the fields of 50 and 500 {5 * reps} times and of 10,000 {reps} times (100,000:
-once), each run interleaving both engines, and "mean" is the median over the runs of each run's mean; the gas
-rows' worst/mean is the median over the runs of each run's worst step / its mean, the worst column the worst
-of all runs. Beside it, the same in CPU time of the stepping thread (what the step itself cost).
+brackets. The machine is shared and noisy (2 cores; load average at the end {load}): single steps of
+either engine spike when the scheduler runs another process (a time slice, ~4-5 ms here). So the gas and
+converging rows are run {reps} times from a fresh scene, the fields of 50 and 500 {5 * reps} times and of
+10,000 {reps} times (100,000: once), each run interleaving both engines, and "mean" is the median over the
+runs of each run's mean; the gas rows' worst/mean is the median over the runs of each run's worst step / its
+mean, the worst column the worst of all runs. Beside it, the same in CPU time of the stepping thread (what
+the step itself cost).
 {'' if bullet else 'pybullet is not installed here: its column is empty.'}
 
 {table}
