@@ -283,23 +283,21 @@ class NeighbourList:
         d = np.asarray(step_disp, np.float64)
         n = len(r)
         skin, swept, reach = _territory(r, d, self.skin_steps)     # one compiled pass (medians and all)
-        slow = np.flatnonzero(~swept)
+        n_slow = n - int(np.count_nonzero(swept))
         got = None
-        if self.method in ("auto", "grid") and len(slow) > ALL_PAIRS_MAX:
+        if self.method in ("auto", "grid") and n_slow > ALL_PAIRS_MAX:
             # one compiled pass: counting sort into a dense grid, then the exact sphere test over the
             # half stencil (the same pairs as sphere_pairs; their order does not matter to the solver)
-            got = _grid_build(c, reach, swept, len(slow))
+            got = _grid_build(c, reach, swept, n_slow)
         if got is not None:
             self.i, self.j = got
         else:
+            slow = np.flatnonzero(~swept)
             i, j = sphere_pairs(c[:, slow], reach[slow], self.method, soa=True)
             self.i, self.j = slow[i], slow[j]
         self.centre, self.radius, self.skin, self.reach, self.swept = c, r, skin, reach, swept
         # x order of the territories' low ends, for territories()
-        lo_x = c[0] - reach
-        self._order = np.argsort(lo_x, kind="stable")
-        self._lo_x = lo_x[self._order]
-        self._width = 2.0 * float(reach[slow].max()) if len(slow) else 0.0
+        self._order, self._lo_x, self._width = _x_order(c, reach, swept)
         # each swept body costs a query per step, a build ~n log n: allow a few
         self.budget = 2 + n // 128
         self.builds += 1
@@ -320,7 +318,7 @@ class NeighbourList:
 
     def kernel_arrays(self):
         """The arrays :func:`territory_query` reads: ``(centre, skin, reach, order, lo_x, width)``."""
-        return (self.centre, self.skin, self.reach, self._order.astype(np.int64), self._lo_x, self._width)
+        return (self.centre, self.skin, self.reach, self._order.astype(np.int64, copy=False), self._lo_x, self._width)
 
     def territories(self, lo, hi) -> np.ndarray:
         """Listed (not swept) bodies whose territory box overlaps the box ``[lo, hi]`` (3-vectors)."""
@@ -676,3 +674,16 @@ def _territory(r, d, skin_steps):
     for k in range(n):
         swept[k] = skin[k] > limit
     return skin, swept, r + skin
+
+
+@njit(cache=True)
+def _x_order(c, reach, swept):
+    """The territories' low ends in x, sorted (a stable sort), their order, and twice the largest
+    listed reach: what :meth:`NeighbourList.territories` and :func:`territory_query` search."""
+    lo_x = c[0] - reach
+    order = np.argsort(lo_x, kind="mergesort")
+    width = 0.0
+    for k in range(reach.shape[0]):
+        if not swept[k]:
+            width = max(width, 2.0 * reach[k])
+    return order, lo_x[order], width
