@@ -379,11 +379,11 @@ def report(res, quick, bullet, started):
                      f"p99 {_ms(d['p99'])} (events on: {_ms(ev)})",
                      f"{_ms(pb(f'gas{frac}'))} ({_ms(pb(f'gas{frac}', 'mean'))}) / {_ms(pb(f'gas{frac}', 'worst'))}",
                      f"{ratio:.2f} ({rmed:.2f})",
-                     f"energy rise {d['rise']:.1e}; worst/mean {wr:.1f} (median of the runs; pybullet's: {noise:.1f}); "
-                     f"in CPU time worst {_ms(d['cpu_worst'])} / mean {_ms(d['cpu_mean'])} = {cpu_wr:.1f}",
+                     f"energy rise {d['rise']:.1e}; worst/mean {wr:.2f} (median of the runs; pybullet's: {noise:.2f}); "
+                     f"in CPU time worst {_ms(d['cpu_worst'])} / mean {_ms(d['cpu_mean'])} = {cpu_wr:.2f}",
                      "mean <= 0.5x, worst <= 5x mean",
-                     bar(f"gas {frac:.0%}", ok, f"ratio {ratio:.2f}, worst/mean {wr:.1f}, pybullet's worst/mean "
-                                               f"{noise:.1f}, in CPU time {cpu_wr:.1f}")])
+                     bar(f"gas {frac:.0%}", ok, f"ratio {ratio:.2f}, worst/mean {wr:.2f}, pybullet's worst/mean "
+                                               f"{noise:.2f}, in CPU time {cpu_wr:.2f}")])
     for e in (0.0, 0.5):
         d = res[f"conv{e}"]["driftframe"]
         ratio = d["mean"] / pb(f"conv{e}", "mean")
