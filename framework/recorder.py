@@ -16,13 +16,15 @@ Formats, from the path (or ``format=``):
 
 * ``.mp4`` — H.264 (libx264, 4:2:0) through the ffmpeg that the
   ``imageio-ffmpeg`` wheel ships (x264 preset ``veryfast`` with ``subme=1``,
-  crf 20 by default). A shader converts each frame to NV12 (BT.709, limited
-  range; the video is tagged so) and flips it, so ffmpeg, in its own
-  process, only encodes, overlapping rendering. Flags pin everything that
-  could vary (thread count, ``+bitexact``, no metadata): the same frames
-  give the same bytes on every run. Width and height must be even (a width
-  that is not a multiple of 4, or a window's screen, goes the slower way:
-  RGBA piped to ffmpeg, which converts with the same matrix).
+  crf 20 by default). RGBA frames are piped to ffmpeg, in its own process,
+  which flips and converts them (BT.709, limited range; the video is tagged
+  so) and encodes, overlapping rendering. ``gpu_yuv=True`` converts to NV12
+  in a shader instead, with the same matrix: faster only while other work
+  loads the CPU (on a quiet 2-core machine it was 0.56 of bare against 0.61
+  for the default; ``benchmarks/record_throughput.py``). Flags pin
+  everything that could vary (thread count, ``+bitexact``, no metadata):
+  the same frames give the same bytes on every run. Width and height must
+  be even.
 * ``.gif`` — scaled by ``gif_scale`` (default 1/2: GIF is for previews), 256
   colours per frame (Pillow's fast octree, no dithering), looping, written
   frame by frame as they come (memory stays at a frame or two, however long
@@ -686,8 +688,9 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     ``interpolate`` (see the module docstring). ``handle_signals``: turn
     SIGTERM and SIGHUP into an interrupt while recording (main thread only).
     ``gpu_yuv``: for MP4, convert frames to NV12 in a shader and hand ffmpeg
-    finished planes (default: whenever the target is off-screen and its width
-    a multiple of 4; False: ffmpeg converts RGBA itself, the slower way).
+    finished planes (an off-screen target whose width is a multiple of 4);
+    the default (None or False) pipes RGBA and lets ffmpeg convert, which
+    measured faster on a quiet machine.
     Returns a :class:`RecordResult`. See the module docstring for what
     happens on Ctrl-C and on failure.
     """
@@ -734,7 +737,7 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     if gpu_yuv and not yuv_ok:
         raise ValueError(f"gpu_yuv needs an MP4 output from an off-screen target whose width is a multiple of 4, "
                          f"got {fmt} at {size[0]}x{size[1]}")
-    use_yuv = yuv_ok if gpu_yuv is None else bool(gpu_yuv)
+    use_yuv = bool(gpu_yuv)
 
     from tqdm import tqdm
 
