@@ -225,6 +225,26 @@ def _sift_down(ht, hp, hv, hs, k, n):
 
 # -- dense solve ------------------------------------------------------------------------------
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _kick(b, sg, lam, c, inv, bmark, wave, dv, moved, nm, wn):
+    """Add body ``b``'s share ``sg * lam * inv[b]`` of contact ``c``'s impulse along its normal to ``dv``.
+
+    ``dv`` holds this wave's velocity changes: a body's row is zeroed and the body listed in
+    ``moved`` the first time the wave touches it (``bmark``). Returns the new count of moved bodies.
+    """
+    if inv[b] > 0.0:
+        if bmark[b] != wave:
+            bmark[b] = wave
+            dv[b, 0] = dv[b, 1] = dv[b, 2] = 0.0
+            moved[nm] = b
+            nm += 1
+        g = sg * lam * inv[b]
+        dv[b, 0] += g * wn[c, 0]
+        dv[b, 1] += g * wn[c, 1]
+        dv[b, 2] += g * wn[c, 2]
+    return nm
+
+
 @njit(cache=True, error_model="numpy")
 def solve_psd(A, y, m, out):
     """Solve ``A[:m, :m] out = y[:m]`` for a symmetric positive semi-definite A (A and y are overwritten).
@@ -682,17 +702,8 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                 i, j = wi[c], wj[c]
                 lam = rhs[c] / (inv[i] + inv[j])
                 wlam[c] = lam
-                for b, sg in ((i, -1.0), (j, 1.0)):
-                    if inv[b] > 0.0:
-                        if bmark[b] != waves:
-                            bmark[b] = waves
-                            dv[b, 0] = dv[b, 1] = dv[b, 2] = 0.0
-                            moved[nm] = b
-                            nm += 1
-                        g = sg * lam * inv[b]
-                        dv[b, 0] += g * wn[c, 0]
-                        dv[b, 1] += g * wn[c, 1]
-                        dv[b, 2] += g * wn[c, 2]
+                nm = _kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                nm = _kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
             elif m <= DENSE_MAX:
                 _island_dense(cs, m, wi, wj, wn, rhs, inv, wlam, A, y, sub, act)
                 for a in range(m):
@@ -700,17 +711,8 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                     lam = wlam[c]
                     if lam == 0.0:
                         continue
-                    for b, sg in ((wi[c], -1.0), (wj[c], 1.0)):
-                        if inv[b] > 0.0:
-                            if bmark[b] != waves:
-                                bmark[b] = waves
-                                dv[b, 0] = dv[b, 1] = dv[b, 2] = 0.0
-                                moved[nm] = b
-                                nm += 1
-                            g = sg * lam * inv[b]
-                            dv[b, 0] += g * wn[c, 0]
-                            dv[b, 1] += g * wn[c, 1]
-                            dv[b, 2] += g * wn[c, 2]
+                    nm = _kick(wi[c], -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                    nm = _kick(wj[c], 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
             else:
                 stats[8] += 1
                 # contact by contact in pair order, each on the bodies' current velocities
@@ -733,17 +735,8 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                         continue
                     lam = -(1.0 + we[c]) * vn / (inv[i] + inv[j])
                     wlam[c] = lam
-                    for b, sg in ((i, -1.0), (j, 1.0)):
-                        if inv[b] > 0.0:
-                            if bmark[b] != waves:
-                                bmark[b] = waves
-                                dv[b, 0] = dv[b, 1] = dv[b, 2] = 0.0
-                                moved[nm] = b
-                                nm += 1
-                            g = sg * lam * inv[b]
-                            dv[b, 0] += g * wn[c, 0]
-                            dv[b, 1] += g * wn[c, 1]
-                            dv[b, 2] += g * wn[c, 2]
+                    nm = _kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                    nm = _kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
             s = f
         # -- bookkeeping of the bodies that took an impulse; events --
         for k in range(K):
