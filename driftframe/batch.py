@@ -252,14 +252,12 @@ def _number(value, name, err) -> float:
 
 
 def _steps_per_frame(fps: float, dt: float, err=SpecError) -> int:
-    """Whole simulation steps per recorded frame: ``fps`` must divide the simulation rate ``1/dt``."""
-    ratio = 1.0 / (fps * dt)
-    k = round(ratio)
-    if k < 1 or abs(ratio - k) > 1e-9:
-        rate = 1.0 / dt
-        ok = ", ".join(f"{rate / n:g}" for n in range(1, 7) if abs(rate / n - round(rate / n)) < 1e-9)
-        raise err(f"fps must divide the {rate:g} Hz simulation rate ({ok}, ...), got {fps:g}")
-    return k
+    """Whole simulation steps per recorded frame (:func:`driftframe.framework.recorder.steps_per_frame`)."""
+    from driftframe.framework.recorder import steps_per_frame
+    try:
+        return steps_per_frame(fps, dt)
+    except ValueError as e:
+        raise err(str(e)) from None
 
 
 def _demo_module(name, err):

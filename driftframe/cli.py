@@ -236,13 +236,11 @@ def _load_demo(name):
 
 def steps_per_frame(fps: float, dt: float) -> int:
     """Whole simulation steps per recorded frame; a UsageError if ``fps`` does not divide 1/dt."""
-    ratio = 1.0 / (fps * dt)
-    k = round(ratio)
-    if k < 1 or abs(ratio - k) > 1e-9:
-        rate = 1.0 / dt
-        ok = ", ".join(f"{rate / n:g}" for n in range(1, 7) if abs(rate / n - round(rate / n)) < 1e-9)
-        raise UsageError(f"--fps must divide the {rate:g} Hz simulation rate ({ok}, ...), got {fps:g}")
-    return k
+    from driftframe.framework.recorder import steps_per_frame as whole_steps
+    try:
+        return whole_steps(fps, dt, name="--fps")
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
 
 def _apply_track(args, demo):

@@ -965,3 +965,18 @@ class _YuvConverter:
         for obj in (self._vao, self._prog, self._fbo, *self._planes, self._rgb):
             obj.release()
         self._planes = []
+
+
+def steps_per_frame(fps: float, dt: float, *, name: str = "fps") -> int:
+    """Whole simulation steps per recorded frame: ``fps`` must divide the simulation rate ``1/dt``.
+
+    A recording is one frame per ``k`` fixed steps, never a frame between
+    steps; a ValueError (naming ``name`` and the rates that work) otherwise.
+    """
+    ratio = 1.0 / (fps * dt)
+    k = round(ratio)
+    if k < 1 or abs(ratio - k) > 1e-9:
+        rate = 1.0 / dt
+        ok = ", ".join(f"{rate / n:g}" for n in range(1, 7) if abs(rate / n - round(rate / n)) < 1e-9)
+        raise ValueError(f"{name} must divide the {rate:g} Hz simulation rate ({ok}, ...), got {fps:g}")
+    return k
