@@ -469,18 +469,6 @@ def _grid_setup(c, reach, swept):
     return h, hh, lo[0], lo[1], lo[2], dims[0], dims[1], dims[2]
 
 
-@njit(cache=True, inline="always")
-def _cell(qq, dense, start, ukey, ustart, nu):
-    """Slots ``[b0, b1)`` of cell ``qq`` in the sorted bodies: a dense table, or the occupied cells'
-    sorted keys (a sparse scene) found by binary search; an empty range for an empty cell."""
-    if dense:
-        return start[qq], start[qq + 1]
-    kk = np.searchsorted(ukey, qq)
-    if kk < nu and ukey[kk] == qq:
-        return ustart[kk], ustart[kk + 1]
-    return 0, 0
-
-
 @njit(cache=True)
 def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
@@ -600,7 +588,17 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                 b0 = s + 1
                 b1 = a1
             else:
-                b0, b1 = _cell(q + offs[t], dense, start, ukey, ustart, nu)
+                qq = q + offs[t]
+                if dense:
+                    b0 = start[qq]
+                    b1 = start[qq + 1]
+                else:
+                    b0 = 0
+                    b1 = 0
+                    kk = np.searchsorted(ukey, qq)
+                    if kk < nu and ukey[kk] == qq:
+                        b0 = ustart[kk]
+                        b1 = ustart[kk + 1]
             for u in range(b0, b1):
                 if sr[u] > hh:
                     continue                              # found from the large body's side
@@ -629,7 +627,17 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
         for gx in range(max(ix - w, 0), min(ix + w, nx - 1) + 1):
             for gy in range(max(iy - w, 0), min(iy + w, ny - 1) + 1):
                 for gz in range(max(iz - w, 0), min(iz + w, nz - 1) + 1):
-                    b0, b1 = _cell((gx * ny + gy) * nz + gz, dense, start, ukey, ustart, nu)
+                    qq = (gx * ny + gy) * nz + gz
+                    if dense:
+                        b0 = start[qq]
+                        b1 = start[qq + 1]
+                    else:
+                        b0 = 0
+                        b1 = 0
+                        kk = np.searchsorted(ukey, qq)
+                        if kk < nu and ukey[kk] == qq:
+                            b0 = ustart[kk]
+                            b1 = ustart[kk + 1]
                     for u in range(b0, b1):
                         b = body[u]
                         if b == a or (sr[u] > hh and b < a):
