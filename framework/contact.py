@@ -127,27 +127,27 @@ def _grow_i(a, n):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def toi(i, j, t, x, u, r, inv, spd, dt):
-    """Earliest time of impact in [t, dt] of bodies i, j (paths x + u t'); (-1, 0) when none.
+def toi(ex, ey, ez, wx, wy, wz, R, inv_sum, speeds, t, dt):
+    """Earliest time of impact in [t, dt] of bodies i, j on paths ``x + u t'``; (-1, 0) when none.
 
-    Returns ``(time, slack)``; ``slack`` is how long before ``time`` the gap is already
-    below ``TOUCH R`` (capped at ``SLACK_MAX dt``).
+    ``e``: ``x_j - x_i``; ``w``: ``u_j - u_i``; ``R = r_i + r_j``; ``inv_sum =
+    inv_i + inv_j``; ``speeds = |u_i| + |u_j|``. Returns ``(time, slack)``;
+    ``slack`` is how long before ``time`` the gap is already below ``TOUCH R``
+    (capped at ``SLACK_MAX dt``). Scalars only: numba counts a reference to
+    every array an inlined function receives (an atomic operation), which
+    in the solver's loops cost more than the arithmetic.
     """
-    if inv[i] + inv[j] == 0.0:
+    if inv_sum == 0.0:
         return -1.0, 0.0                                   # two immovable bodies pass through
-    wx = u[j, 0] - u[i, 0]
-    wy = u[j, 1] - u[i, 1]
-    wz = u[j, 2] - u[i, 2]
-    dx = x[j, 0] - x[i, 0] + wx * t
-    dy = x[j, 1] - x[i, 1] + wy * t
-    dz = x[j, 2] - x[i, 2] + wz * t
+    dx = ex + wx * t
+    dy = ey + wy * t
+    dz = ez + wz * t
     b = dx * wx + dy * wy + dz * wz                        # |d| times the normal relative velocity
     if not (b < 0.0):
         return -1.0, 0.0                                   # separating (or at rest): most pairs end here
     dd = dx * dx + dy * dy + dz * dz
-    R = r[i] + r[j]
     dist = math.sqrt(dd)
-    if not (b < -APPROACH * (spd[i] + spd[j]) * dist) or not (dist > CENTRED * R):
+    if not (b < -APPROACH * speeds * dist) or not (dist > CENTRED * R):
         return -1.0, 0.0
     c = dd - R * R
     a = wx * wx + wy * wy + wz * wz
@@ -160,11 +160,11 @@ def toi(i, j, t, x, u, r, inv, spd, dt):
         h = c / (math.sqrt(disc) - b)
         if dist > 4.0 * R:
             # c keeps ~eps |d|^2 / R^2 of relative error: solve once more from the estimate
-            ex = dx + wx * h
-            ey = dy + wy * h
-            ez = dz + wz * h
-            c2 = ex * ex + ey * ey + ez * ez - R * R
-            b2 = ex * wx + ey * wy + ez * wz
+            fx = dx + wx * h
+            fy = dy + wy * h
+            fz = dz + wz * h
+            c2 = fx * fx + fy * fy + fz * fz - R * R
+            b2 = fx * wx + fy * wy + fz * wz
             disc2 = b2 * b2 - a * c2
             if disc2 < 0.0:
                 disc2 = 0.0
@@ -182,45 +182,55 @@ def toi(i, j, t, x, u, r, inv, spd, dt):
     return tc, slack
 
 
-# -- binary heap of (time, pair, version, slack) ------------------------------------------------
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _less(ht, hp, a, b):
-    return ht[a] < ht[b] or (ht[a] == ht[b] and hp[a] < hp[b])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _swap(ht, hp, hv, hs, a, b):
-    ht[a], ht[b] = ht[b], ht[a]
-    hp[a], hp[b] = hp[b], hp[a]
-    hv[a], hv[b] = hv[b], hv[a]
-    hs[a], hs[b] = hs[b], hs[a]
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _sift_up(ht, hp, hv, hs, k):
+# The heap is one (cap, 4) array of rows (time, pair, version, slack): numba counts a reference to
+# every array a function call receives (an atomic operation, before and after the call), and with
+# four arrays those counts were two thirds of a dense gas's solve. Pair and version are whole
+# numbers held exactly in float64 (below 2^53). Order: by time, then by pair.
+@njit(cache=True, error_model="numpy")
+def _sift_up(H, k):
+    t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
     while k > 0:
-        parent = (k - 1) >> 1
-        if _less(ht, hp, k, parent):
-            _swap(ht, hp, hv, hs, k, parent)
-            k = parent
+        q = (k - 1) >> 1
+        if t < H[q, 0] or (t == H[q, 0] and p < H[q, 1]):
+            H[k, 0], H[k, 1], H[k, 2], H[k, 3] = H[q, 0], H[q, 1], H[q, 2], H[q, 3]
+            k = q
         else:
             break
+    H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _sift_down(ht, hp, hv, hs, k, n):
+@njit(cache=True, error_model="numpy")
+def _sift_down(H, k, n):
+    t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
     while True:
         a = 2 * k + 1
         if a >= n:
             break
         b = a + 1
-        m = b if (b < n and _less(ht, hp, b, a)) else a
-        if _less(ht, hp, m, k):
-            _swap(ht, hp, hv, hs, k, m)
-            k = m
+        if b < n and (H[b, 0] < H[a, 0] or (H[b, 0] == H[a, 0] and H[b, 1] < H[a, 1])):
+            a = b
+        if H[a, 0] < t or (H[a, 0] == t and H[a, 1] < p):
+            H[k, 0], H[k, 1], H[k, 2], H[k, 3] = H[a, 0], H[a, 1], H[a, 2], H[a, 3]
+            k = a
         else:
             break
+    H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
+
+
+@njit(cache=True, error_model="numpy")
+def _pop(H, n):
+    """Remove the root of a heap of ``n + 1`` rows (already read): the last row to the root, sifted down."""
+    if n > 0:
+        H[0, 0], H[0, 1], H[0, 2], H[0, 3] = H[n, 0], H[n, 1], H[n, 2], H[n, 3]
+        _sift_down(H, 0, n)
+
+
+@njit(cache=True, error_model="numpy")
+def _push(H, n, t, p, v, s):
+    """Add a row to a heap of ``n`` rows, which has room for it (the caller grows ``H`` before a loop
+    of pushes: an array reassigned inside a loop is reference-counted on every pass)."""
+    H[n, 0], H[n, 1], H[n, 2], H[n, 3] = t, p, v, s
+    _sift_up(H, n)
 
 
 # -- dense solve ------------------------------------------------------------------------------
@@ -341,6 +351,17 @@ def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
 # -- the step ---------------------------------------------------------------------------------
 
 @njit(cache=True, error_model="numpy")
+def _wave_scratch(cap):
+    """A wave's arrays for up to ``cap`` contacts: pair, i, j, island root, island members, normal,
+    normal velocity, restitution, impulse, stuck; the entries put back (time, pair, version, slack);
+    right-hand side."""
+    return (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
+            np.empty(cap, np.int64), np.empty((cap, 3)), np.empty(cap), np.empty(cap), np.empty(cap),
+            np.zeros(cap, np.bool_), np.empty(cap), np.empty(cap, np.int64), np.empty(cap, np.int64),
+            np.empty(cap), np.empty(cap))
+
+
+@njit(cache=True, error_model="numpy")
 def _link(p, i, j, head, nxt):
     nxt[2 * p] = head[i]
     head[i] = 2 * p
@@ -384,11 +405,7 @@ def all_pairs(n):
 @njit(cache=True, error_model="numpy")
 def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
     """Every candidate pair's time of impact from t = 0, into a heap; and the overlaps at the start."""
-    hcap = 1024
-    ht = np.empty(hcap)
-    hp = np.empty(hcap, np.int64)
-    hv = np.empty(hcap, np.int64)
-    hs = np.empty(hcap)
+    H = np.empty((max(2 * P, 1024), 4))                   # room for every pair, and as many again
     hn = 0
     overlaps = 0
     worst = _INF
@@ -409,15 +426,12 @@ def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
             overlaps += 1
             if q < worst:
                 worst, wi_, wj_ = q, i, j
-        tp, sl = toi(i, j, 0.0, x, u, r, inv, spd, dt)
+        tp, sl = toi(dx, dy, dz, u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
+                      R, inv[i] + inv[j], spd[i] + spd[j], 0.0, dt)
         if tp >= 0.0:
-            if hn == hcap:
-                hcap *= 2
-                ht, hs = _grow_f(ht, hcap), _grow_f(hs, hcap)
-                hp, hv = _grow_i(hp, hcap), _grow_i(hv, hcap)
-            ht[hn], hp[hn], hv[hn], hs[hn] = tp, p, 0, sl
+            H[hn, 0], H[hn, 1], H[hn, 2], H[hn, 3] = tp, p, 0.0, sl
             hn += 1
-    return ht, hp, hv, hs, hn, overlaps, worst, wi_, wj_
+    return H, hn, overlaps, worst, wi_, wj_
 
 
 @njit(cache=True, error_model="numpy")
@@ -476,10 +490,9 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
         stats[3] = n_swept
 
     # -- heap of pending contacts --
-    ht, hp, hv, hs, hn, overlaps, worst, wi_, wj_ = _initial(PI, PJ, P, x, u, r, inv, live, spd, dt)
-    hcap = ht.shape[0]
+    H, hn, overlaps, worst, wi_, wj_ = _initial(PI, PJ, P, x, u, r, inv, live, spd, dt)
     for k in range((hn >> 1) - 1, -1, -1):
-        _sift_down(ht, hp, hv, hs, k, hn)
+        _sift_down(H, k, hn)
     stats[4] = overlaps
     stats[5], stats[6], stats[7] = wi_, wj_, worst
     if hn == 0:                                            # no contact this step
@@ -499,54 +512,47 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
     sseen = np.full(n, -1, np.int64)
     squeue = np.empty(n, np.int64)
     same = SLACK_MAX * dt
-    # wave scratch (grown as needed)
+    # wave scratch, per wave (a wave holds at most one valid entry per pair and per heap entry: it is
+    # made large enough before each wave, never inside the loops that fill it, where an array that
+    # may be replaced is reference-counted on every pass)
     wcap = 64
-    wp = np.empty(wcap, np.int64)
-    wi = np.empty(wcap, np.int64)
-    wj = np.empty(wcap, np.int64)
-    wn = np.empty((wcap, 3))
-    wvn = np.empty(wcap)
-    we = np.empty(wcap)
-    wlam = np.empty(wcap)
-    wroot = np.empty(wcap, np.int64)
-    wstick = np.zeros(wcap, np.bool_)
-    back_t = np.empty(wcap)
-    back_p = np.empty(wcap, np.int64)
-    back_v = np.empty(wcap, np.int64)
-    back_s = np.empty(wcap)
+    wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = _wave_scratch(wcap)
     A = np.empty((DENSE_MAX, DENSE_MAX))
     y = np.empty(DENSE_MAX)
     sub = np.empty(DENSE_MAX, np.int64)
     act = np.empty(DENSE_MAX, np.bool_)
-    cs = np.empty(wcap, np.int64)
-    rhs_buf = np.empty(wcap)
     one = np.zeros(1, np.int64)
     moved = np.empty(n, np.int64)
     dv = np.zeros((n, 3))
+    tosweep = np.empty(n, np.int64)                       # moved bodies whose path left their cover
+    newlo = np.empty((n, 3))                               # ... and their new path boxes
+    newhi = np.empty((n, 3))
     # events
-    ecap = 64
-    ev = np.empty((ecap, 4))
-    ev_n = np.empty((ecap, 3))
-    ev_x = np.empty((ecap, 6))
+    ev = np.empty((64, 4))
+    ev_n = np.empty((64, 3))
+    ev_x = np.empty((64, 6))
     ne = 0
 
     waves = 0
     limit = 64 * (n + P) + 100_000
     while hn > 0:
         # -- pop the earliest valid entry --
-        t0 = ht[0]
-        p0 = hp[0]
-        v0 = hv[0]
+        t0 = H[0, 0]
+        p0 = int(H[0, 1])
+        v0 = int(H[0, 2])
         hn -= 1
-        if hn > 0:
-            _swap(ht, hp, hv, hs, 0, hn)
-            _sift_down(ht, hp, hv, hs, 0, hn)
+        _pop(H, hn)
         if v0 != ver[p0]:
             continue
         if waves >= limit:
             flags |= F_LIMIT
             break
         # -- the wave: every valid entry within its own slack of t0 --
+        need = min(P, hn) + 1                              # entries it can take (valid ones: one per pair)
+        if need > wcap:
+            wcap = max(2 * wcap, need)
+            wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = \
+                _wave_scratch(wcap)
         K = 0
         nb = 0
         horizon = t0 + SLACK_MAX * dt
@@ -568,25 +574,16 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                 else:
                     nx = ny = nz = vn = 0.0
                 if vn < -APPROACH * (spd[i] + spd[j]):
-                    if K == wcap:
-                        wcap *= 2
-                        wp, wi, wj, wroot, cs = (_grow_i(wp, wcap), _grow_i(wi, wcap), _grow_i(wj, wcap),
-                                                 _grow_i(wroot, wcap), _grow_i(cs, wcap))
-                        wstick = np.zeros(wcap, np.bool_)
-                        wn, wvn, we, wlam = _grow_f(wn, wcap), _grow_f(wvn, wcap), _grow_f(we, wcap), \
-                            _grow_f(wlam, wcap)
                     wp[K], wi[K], wj[K] = cand_p, i, j
                     wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
                     wvn[K] = vn
                     K += 1
-            if hn == 0 or ht[0] > horizon:
+            if hn == 0 or H[0, 0] > horizon:
                 break
-            tp, pp, vv, ss = ht[0], hp[0], hv[0], hs[0]
+            tp, pp, vv, ss = H[0, 0], int(H[0, 1]), int(H[0, 2]), H[0, 3]
             stats[9] += 1
             hn -= 1
-            if hn > 0:
-                _swap(ht, hp, hv, hs, 0, hn)
-                _sift_down(ht, hp, hv, hs, 0, hn)
+            _pop(H, hn)
             if vv != ver[pp]:
                 cand_ok = False
                 continue
@@ -595,21 +592,15 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                 cand_ok = True
                 ver[pp] += 1                               # taken: its entry is void from now on
             else:
-                if nb == back_t.shape[0]:
-                    back_t, back_s = _grow_f(back_t, 2 * nb), _grow_f(back_s, 2 * nb)
-                    back_p, back_v = _grow_i(back_p, 2 * nb), _grow_i(back_v, 2 * nb)
                 back_t[nb], back_p[nb], back_v[nb], back_s[nb] = tp, pp, vv, ss
                 nb += 1
                 cand_ok = False
         ver[p0] += 1
         stats[11] += nb
+        if hn + nb > H.shape[0]:
+            H = _grow_f(H, hn + nb)
         for b in range(nb):                                # not this instant: back into the heap
-            if hn == hcap:
-                hcap *= 2
-                ht, hs = _grow_f(ht, hcap), _grow_f(hs, hcap)
-                hp, hv = _grow_i(hp, hcap), _grow_i(hv, hcap)
-            ht[hn], hp[hn], hv[hn], hs[hn] = back_t[b], back_p[b], back_v[b], back_s[b]
-            _sift_up(ht, hp, hv, hs, hn)
+            _push(H, hn, back_t[b], back_p[b], back_v[b], back_s[b])
             hn += 1
         if K == 0:
             continue
@@ -668,9 +659,6 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
             while parent[a] != a:
                 a = parent[a]
             wroot[k] = a
-        if rhs_buf.shape[0] < K:
-            rhs_buf = np.empty(wcap)
-        rhs = rhs_buf                                      # kept across waves: no allocation per contact
         for k in range(K):
             rhs[k] = -(1.0 + we[k]) * wvn[k]
             wlam[k] = 0.0
@@ -739,6 +727,8 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                     nm = _kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
             s = f
         # -- bookkeeping of the bodies that took an impulse; events --
+        if ne + K > ev.shape[0]:
+            ev, ev_n, ev_x = _grow_f(ev, ne + K), _grow_f(ev_n, ne + K), _grow_f(ev_x, ne + K)
         for k in range(K):
             if not (wlam[k] > 0.0):
                 continue
@@ -750,9 +740,6 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                     t_last[b] = t
                     if min(e[i], e[j]) < 1.0:
                         count[b] += 1                      # the cap is on inelastic contacts
-            if ne == ecap:
-                ecap *= 2
-                ev, ev_n, ev_x = _grow_f(ev, ecap), _grow_f(ev_n, ecap), _grow_f(ev_x, ecap)
             ev[ne, 0], ev[ne, 1], ev[ne, 2], ev[ne, 3] = i, j, t, wlam[k]
             for d in range(3):
                 ev_n[ne, d] = wn[k, d]
@@ -769,41 +756,44 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
             changed[b] = True
         # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
         if listed:
+            # first which (the loop that may replace the pair arrays runs only over those: see _push)
+            ns = 0
             for a in range(nm):
                 b = moved[a]
-                ex = x[b, 0] + u[b, 0] * dt
-                ey = x[b, 1] + u[b, 1] * dt
-                ez = x[b, 2] + u[b, 2] * dt
                 if not swept[b]:
-                    ox = ex - centre[0, b]
-                    oy = ey - centre[1, b]
-                    oz = ez - centre[2, b]
+                    ox = x[b, 0] + u[b, 0] * dt - centre[0, b]
+                    oy = x[b, 1] + u[b, 1] * dt - centre[1, b]
+                    oz = x[b, 2] + u[b, 2] * dt - centre[2, b]
                     if ox * ox + oy * oy + oz * oz < skin[b] * skin[b]:
                         continue                           # still inside its territory (a ball: convex)
                 inside = swept[b]
-                lo = np.empty(3)
-                hi = np.empty(3)
                 for d in range(3):
                     a0 = x[b, d] + u[b, d] * t
                     a1 = x[b, d] + u[b, d] * dt
-                    lo[d] = min(a0, a1) - r[b]
-                    hi[d] = max(a0, a1) + r[b]
-                    if lo[d] < blo[b, d] or hi[d] > bhi[b, d]:
+                    newlo[ns, d] = min(a0, a1) - r[b]
+                    newhi[ns, d] = max(a0, a1) + r[b]
+                    if newlo[ns, d] < blo[b, d] or newhi[ns, d] > bhi[b, d]:
                         inside = False
                 if inside:
                     continue                               # swept: still inside its box
+                tosweep[ns] = b
+                ns += 1
+            for q in range(ns):
+                b = tosweep[q]
                 if not swept[b]:
                     swept[b] = True
                     n_swept += 1
                     if n_swept > budget:
                         flags |= 32                        # the list should be rebuilt
                 for d in range(3):
-                    blo[b, d] = lo[d]
-                    bhi[b, d] = hi[d]
+                    blo[b, d] = newlo[q, d]
+                    bhi[b, d] = newhi[q, d]
                 stats[3] += 1
                 P, PI, PJ, nxt, ver, mark = _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
                                                    centre, reach, order, lo_x, width, False)
-        # -- re-examine every pair of the bodies that changed, from t on --
+        # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
+        if hn + P > H.shape[0]:
+            H = _grow_f(H, hn + P)
         for a in range(nm):
             b = moved[a]
             node = head[b]
@@ -817,14 +807,11 @@ def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                 i, j = PI[p], PJ[p]
                 if not (live[i] and live[j]):
                     continue
-                tp, sl = toi(i, j, t, x, u, r, inv, spd, dt)
+                tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
+                              u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
+                              r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], t, dt)
                 if tp >= 0.0:
-                    if hn == hcap:
-                        hcap *= 2
-                        ht, hs = _grow_f(ht, hcap), _grow_f(hs, hcap)
-                        hp, hv = _grow_i(hp, hcap), _grow_i(hv, hcap)
-                    ht[hn], hp[hn], hv[hn], hs[hn] = tp, p, ver[p], sl
-                    _sift_up(ht, hp, hv, hs, hn)
+                    _push(H, hn, tp, p, ver[p], sl)
                     hn += 1
                     stats[10] += 1
     stats[0] = P
