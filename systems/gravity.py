@@ -397,7 +397,7 @@ class GravitySystem(esper.Processor):
         # step's start is the last step's result). The guess changes how fast the solver converges,
         # and where only within its few ulp.
         g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
-        guess = kepler.next_chi(self.ep_chi[g], x[g] - X0[wi], v[g] - V0[wi], mu, t1 - t0)
+        guess = kepler.next_chi(self.ep_chi[g], x[g], v[g], mu, t1 - t0, origin=(X0[wi], V0[wi]))
         r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
         self.ep_chi[g] = chi
         th = thrust[g]

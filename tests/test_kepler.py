@@ -252,3 +252,24 @@ def test_the_compiled_path_gives_the_numpy_paths_states():
         np.testing.assert_allclose(v, want_v, rtol=1e-11, atol=1e-9)
     E0 = energy(r0, v0)
     assert np.max(np.abs(energy(r, v) / E0 - 1)) < 1e-12
+
+
+def test_next_chi_compiled_and_numpy_paths_agree_and_origin_is_subtracted():
+    # from COMPILED_MIN bodies one compiled pass; below, numpy: the same formulas
+    rng = np.random.default_rng(3)
+    n = kepler.COMPILED_MIN
+    r = rng.uniform(-2e7, 2e7, (n, 3)) + np.array([7e6, 0.0, 0.0])
+    v = rng.uniform(-5e3, 5e3, (n, 3))
+    chi = rng.uniform(0.0, 1e3, n)
+    X, V = np.array([1e6, -2e6, 3e5]), np.array([10.0, -20.0, 5.0])
+    nans = 0
+    for step in (30.0, 3000.0):
+        big = kepler.next_chi(chi, r + X, v + V, MU, step, origin=(X, V))
+        small = np.concatenate([kepler.next_chi(chi[k:k + 1], r[k:k + 1], v[k:k + 1], MU, step)
+                                for k in range(n)])
+        np.testing.assert_array_equal(np.isnan(big), np.isnan(small))   # coarse steps past periapsis: NaN
+        nans += int(np.isnan(small).sum())
+        ok = np.isfinite(small)
+        assert ok.sum() > n // 4
+        np.testing.assert_allclose(big[ok], small[ok], rtol=1e-13)
+    assert nans > 0
