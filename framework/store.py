@@ -355,6 +355,16 @@ _FIRST = itemgetter(0)
 _SECOND = itemgetter(1)
 
 
+def in_sorted(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Which elements of ``a`` are in ``b``, which must be sorted ascending (a query's entities are):
+    a binary search each (``np.isin`` sorts both and cost five times as much on a few dozen)."""
+    if len(b) == 0:
+        return np.zeros(len(a), bool)
+    k = np.searchsorted(b, a)
+    np.minimum(k, len(b) - 1, out=k)
+    return b[k] == a
+
+
 def as_index(rows: np.ndarray):
     """A slice when ``rows`` is one contiguous ascending run (much faster to gather), else ``rows``."""
     if len(rows) and rows[-1] - rows[0] == len(rows) - 1 and (len(rows) == 1 or np.all(np.diff(rows) == 1)):

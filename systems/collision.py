@@ -54,7 +54,7 @@ from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact
-from driftframe.framework.store import as_index, to_indices
+from driftframe.framework.store import as_index, in_sorted, to_indices
 from driftframe.systems import movement
 
 METHODS = ("continuous", "articles")
@@ -76,7 +76,8 @@ class _Layout:
         self.entities = q.entities
         self.t_rows = q.rows(Transform)
         self.c_rows = q.rows(SphereCollider)
-        self.t_idx = to_indices(self.t_rows)
+        self.t_idx = np.ascontiguousarray(to_indices(self.t_rows), np.intp)
+        self.c_idx = np.ascontiguousarray(to_indices(self.c_rows), np.intp)
 
         def optional(T):
             k = np.asarray(q.rows(T), np.intp)
@@ -90,6 +91,7 @@ class _Layout:
         self.all_m = len(self.m_sel) == n
         # the Transform rows of the bodies that move (have a Velocity), for the write-back
         self.tv_rows = as_index(self.t_idx[self.v_sel]) if len(self.v_sel) else self.t_idx[self.v_sel]
+        self.buffers = None                         # State's arrays for this layout (see State)
 
 
 class _WithoutOrbiting:
@@ -99,7 +101,7 @@ class _WithoutOrbiting:
     by the gravity system; sphere-sphere contacts of orbiting bodies are not modelled yet)."""
 
     def __init__(self, q, orbiting):
-        keep = ~np.isin(q.entities, orbiting.entities)
+        keep = ~in_sorted(q.entities, orbiting.entities)
         self.version = (q.version, orbiting.version)
         self.entities = q.entities[keep]
         self._rows = {}
@@ -116,34 +118,25 @@ class _WithoutOrbiting:
 
 
 class State:
-    """The colliders' start-of-step state, gathered in packed order (ascending entity id)."""
+    """The colliders' start-of-step state, gathered in packed order (ascending entity id) in one
+    compiled pass (:func:`~driftframe.framework.contact.gather_bodies`), with the solver's copies
+    ``x`` (= ``x0``) and ``u`` (the step's mean velocity ``v0 + a dt/2``)."""
 
     def __init__(self, world, lay: _Layout, dt: float):
         n = lay.n
-        self.x0 = np.ascontiguousarray(world.table(Transform).data["position"][lay.t_rows], np.float64)
-        vel = world.table(Velocity).data["linear"]
-        if lay.all_v:
-            self.v0 = np.array(vel[lay.v_rows], np.float64)
-        else:
-            self.v0 = np.zeros((n, 3))
-            self.v0[lay.v_sel] = vel[lay.v_rows]
-        self.a = None
-        if len(lay.a_sel):
-            self.a = np.zeros((n, 3))
-            self.a[lay.a_sel] = world.table(Acceleration).data["linear"][lay.a_rows]
-        kg = world.table(Mass).data["kg"]
-        if lay.all_m:
-            with np.errstate(divide="ignore"):
-                self.inv = 1.0 / kg[lay.m_rows]
-        else:
-            self.inv = np.ones(n)
-            with np.errstate(divide="ignore"):
-                self.inv[lay.m_sel] = 1.0 / kg[lay.m_rows]
-        if not lay.all_v:
-            self.inv[lay.v_idx < 0] = 0.0
+        if lay.buffers is None:                     # made once per layout, refilled every step
+            lay.buffers = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)) if len(lay.a_sel) else None,
+                           np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
+                           np.empty(n, np.bool_))
+        self.x0, self.v0, self.a, self.inv, self.r, self.e, self.x, self.u, self.live = lay.buffers
+        acc = world.table(Acceleration).data["linear"] if self.a is not None else _NO_N3
         col = world.table(SphereCollider).data
-        self.r = np.ascontiguousarray(col["radius"][lay.c_rows], np.float64)
-        self.e = np.ascontiguousarray(col["restitution"][lay.c_rows], np.float64)
+        self.n_bad, self.moving = contact.gather_bodies(
+            world.table(Transform).data["position"], world.table(Velocity).data["linear"], acc,
+            world.table(Mass).data["kg"], col["radius"], col["restitution"],
+            lay.t_idx, lay.v_idx, lay.a_idx, lay.m_idx, lay.c_idx, float(dt),
+            self.x0, self.v0, self.a if self.a is not None else _NO_N3, self.inv, self.r, self.e,
+            self.x, self.u, self.live)
 
     def end_of_step(self, lay: _Layout, dt: float):
         """x1, v1 of every body as the movement system computes them (no contact)."""
@@ -155,12 +148,8 @@ class State:
         return x1, v1
 
     def bad(self, lay: _Layout) -> np.ndarray | None:
-        """Bodies with a non-finite or invalid field, or None (one compiled pass over the arrays)."""
-        live = np.empty(lay.n, np.bool_)
-        a = self.a if self.a is not None else _NO_N3
-        if contact.check_bodies(self.x0, self.v0, a, self.r, self.e, self.inv, live) == 0:
-            return None
-        return ~live
+        """Bodies with a non-finite or invalid field, or None (found by the gather)."""
+        return ~self.live if self.n_bad else None
 
     def describe(self, k: int) -> str:
         """Which field of body k is bad, and its value."""
@@ -234,7 +223,7 @@ class CollisionSystem(esper.Processor):
         self._reported_overlap = None
         self._bad: set[int] = set()
         self._t_last_layout = None
-        self._all_live = None
+        self._none_changed = None
         self.stats = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "overlaps": 0,
                       "sequential": 0, "left_out": 0}
 
@@ -309,20 +298,29 @@ class CollisionSystem(esper.Processor):
             pos[lay.tv_rows] = x1[lay.v_sel]
             vel[lay.v_rows] = v1[lay.v_sel]
 
+    def _finish(self, lay: _Layout, st: State, changed: np.ndarray, dt: float) -> None:
+        """The continuous solver's end of step into the columns (one compiled pass)."""
+        contact.scatter_bodies(self.world.table(Transform).data["position"],
+                               self.world.table(Velocity).data["linear"], lay.t_idx, lay.v_idx, st.x0, st.v0,
+                               st.a if st.a is not None else _NO_N3, st.x, st.u, changed, float(dt))
+
+    def _unchanged(self, n: int) -> np.ndarray:
+        """All False, n long (read only): one array kept."""
+        z = self._none_changed
+        if z is None or len(z) != n:
+            z = self._none_changed = np.zeros(n, np.bool_)
+        return z
+
     # -- continuous -----------------------------------------------------------
     def _continuous(self, lay: _Layout, st: State, dt: float) -> None:
         n = lay.n
-        x1, v1 = st.end_of_step(lay, dt)
         bad = st.bad(lay)
-        live = self._live(n)
-        u = st.v0 if st.a is None else st.v0 + (0.5 * dt) * st.a
-        x = st.x0.copy()
+        live = st.live
+        x, u = st.x, st.u
         inv, r, e = st.inv, st.r, st.e
         if bad is not None:
-            live = ~bad
             self._report_bad(lay, st, bad)
             x[bad] = 0.0                                     # the kernel never reads them (not live)
-            u = u.copy()
             u[bad] = 0.0
             inv = np.where(bad, 0.0, inv)
             r = np.where(bad, 1.0, r)
@@ -330,12 +328,9 @@ class CollisionSystem(esper.Processor):
             self.stats["left_out"] = int(bad.sum())
         elif self._bad:
             self._bad.clear()
-        if n < 2 or not u.any():
-            self._write(lay, x1, v1)                         # nothing moves relative to anything: no contact
+        if n < 2 or not st.moving:
+            self._finish(lay, st, self._unchanged(n), dt)    # nothing moves relative to anything: no contact
             return
-        u = np.ascontiguousarray(u, np.float64)
-        if u is st.v0:
-            u = u.copy()
         t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
         # last contact of each body (absolute time), for the TC model across steps
         now = self._now()
@@ -390,25 +385,11 @@ class CollisionSystem(esper.Processor):
                           f"{float(stats[7]):.6g} of r_a + r_b apart. Pairs that approach bounce at once, the "
                           f"rest separate (use driftframe.framework.placement to place bodies apart)",
                           RuntimeWarning, stacklevel=3)
-        if (s[1] or s[2] or flags) and changed.any():          # no contact, no wave, no flag: nothing changed
-            ch = np.flatnonzero(changed)
-            x1[ch] = x[ch] + u[ch] * dt
-            vend = u[ch]
-            if st.a is not None:
-                vend = vend + (0.5 * dt) * st.a[ch]         # give back the a dt/2 of the average
-            if v1 is st.v0:
-                v1 = v1.copy()
-            v1[ch] = vend
-        self._write(lay, x1, v1)
+        if not (s[1] or s[2] or flags):
+            changed = self._unchanged(n)                    # no contact, no wave, no flag: nothing changed
+        self._finish(lay, st, changed, dt)
         if len(ev) and self.events and self.world is not None:
             self._emit(lay, ev, ev_n, ev_x)
-
-    def _live(self, n: int) -> np.ndarray:
-        """All True, n long (the kernels only read it): one array kept, not one made per step."""
-        live = self._all_live
-        if live is None or len(live) != n:
-            live = self._all_live = np.ones(n, np.bool_)
-        return live
 
     def _report_bad(self, lay, st, bad):
         now = set()

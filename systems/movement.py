@@ -7,7 +7,7 @@ import numpy as np
 
 from driftframe.components.body import Acceleration, Transform, Velocity
 from driftframe.components.collision import SphereCollider
-from driftframe.framework.store import as_index, to_indices
+from driftframe.framework.store import as_index, in_sorted, to_indices
 
 #: ``world.resources[SKIP]``: ``{component class: set of claiming systems}``: the bodies with that
 #: component are integrated by the claiming system itself (the collision system moves its colliders
@@ -58,7 +58,7 @@ class MovementSystem(esper.Processor):
                 c = world.query(cls)
                 c.refresh()
                 claimed.append(c.entities)
-            keep = ~np.isin(q.entities, np.concatenate(claimed))
+            keep = ~in_sorted(q.entities, claimed[0] if len(claimed) == 1 else np.sort(np.concatenate(claimed)))
             if not keep.all():
                 rows = tuple(as_index(to_indices(r)[keep]) if keep.any() else np.empty(0, np.intp)
                              for r in rows)

@@ -248,3 +248,13 @@ def test_unknown_field_and_too_many_arguments_are_clear_errors():
         Velocity(speed=3)
     with pytest.raises(TypeError, match="at most 1 positional"):
         Velocity((1, 2, 3), (4, 5, 6))
+
+
+def test_in_sorted_is_membership_in_a_sorted_array():
+    from driftframe.framework.store import in_sorted
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        a = rng.integers(0, 60, rng.integers(0, 40))
+        b = np.unique(rng.integers(0, 60, rng.integers(0, 40)))
+        assert np.array_equal(in_sorted(a, b), np.isin(a, b))
+    assert in_sorted(np.array([1, 2]), np.empty(0, np.int64)).tolist() == [False, False]
