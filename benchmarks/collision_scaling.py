@@ -412,7 +412,8 @@ def main(argv=None) -> int:
              + f"`ALL_PAIRS_MAX` = {bp.ALL_PAIRS_MAX} spheres (below, the measured crossover"
              + (f": the neighbour list first wins at {cross_at[0]} spheres" if cross_at else "")
              + ") and above that keeps a neighbour list, reused for several steps (each body's skin is 8 "
-               "steps of its own travel), so the broad phase is paid for only every few steps (the list "
+               "steps of its own travel, up to 4 times that where a cost model of builds against pairs says "
+               "so: small sparse scenes), so the broad phase is paid for only every few steps (the list "
                "builds column). The list is built with the grid: its territories are wider than one step's "
                "sweep, which favours the grid earlier (table below). scipy's k-d tree is measured, not used: "
                "scipy stays a benchmark-only dependency.")
