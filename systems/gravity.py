@@ -59,11 +59,15 @@ kinematic obstacles and are left to the movement system.
 """
 from __future__ import annotations
 
+import warnings
+
 import esper
 import numpy as np
 
 from driftframe.components.body import Acceleration, Mass, Transform, Velocity
+from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
+from driftframe.framework import broadphase as bp
 from driftframe.framework import kepler
 from driftframe.framework.store import as_index, to_indices
 from driftframe.systems import movement
@@ -71,6 +75,12 @@ from driftframe.systems.movement import MovementSystem
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
 MAX_CONTACTS = 4
+#: Most sphere-sphere contacts one body on rails may have in one step; past it, its further contacts
+#: in that step are not looked for (a warning says so once): only a resting or jammed cluster gets there.
+MAX_SPHERE_CONTACTS = 16
+
+
+_NO_BODIES = np.empty(0, np.intp)
 
 
 class _Wells:
@@ -157,7 +167,7 @@ class GravitySystem(esper.Processor):
 
     stage = "movement"
     name = "gravity"
-    reads = (GravityWell, Transform, Velocity, Acceleration, Mass, NBody, Orbiting)
+    reads = (GravityWell, Transform, Velocity, Acceleration, Mass, NBody, Orbiting, SphereCollider)
     writes = (Transform, Velocity, Orbiting)
     #: before the movement system, in whatever order the two were added: a body is marked Orbiting
     #: (and so skipped by movement) before movement first runs
@@ -168,6 +178,8 @@ class GravitySystem(esper.Processor):
         self._n = 0
         self._epoch_version = 0
         self._epochs: dict = {}
+        self._n_col = 0
+        self._warned: set = set()
 
     # -- the scene ------------------------------------------------------------------------------
     def _build_bodies(self, q) -> None:
@@ -184,6 +196,7 @@ class GravitySystem(esper.Processor):
         self.v_rows = as_index(to_indices(q.rows(Velocity))[keep])
         self.a_rows = q.rows(Acceleration)[keep]
         self.gm = G * kg[keep]
+        self.m_rows = m_rows[keep]
         n = self._n = len(self.ents)
         nb = world.query(NBody)
         nb.refresh()
@@ -196,6 +209,18 @@ class GravitySystem(esper.Processor):
             if i is not None:
                 self.moon_parent[k] = wells.parent[i]
                 self.well_index[k] = i
+        # the bodies on rails that collide as spheres (SphereCollider rows, -1: none). A moon is a well
+        # (bodies hit its surface); n-body bodies drift straight, and their sphere contacts are not modelled
+        self.c_rows = np.full(n, -1, np.intp)
+        cq = world.query(SphereCollider)
+        cq.refresh()
+        if len(cq) and n:
+            ce = cq.entities
+            at = np.minimum(np.searchsorted(ce, self.ents), len(ce) - 1)
+            has = ce[at] == self.ents
+            self.c_rows[has] = to_indices(cq.rows(SphereCollider))[at[has]]
+        self.c_rows[(self.well_index >= 0) | self.nbody] = -1
+        self._n_col = int(np.count_nonzero(self.c_rows >= 0))
         # epochs: (state about the well, time, well); -1 = take a new one
         self.ep_r = np.zeros((n, 3))
         self.ep_v = np.zeros((n, 3))
@@ -372,26 +397,10 @@ class GravitySystem(esper.Processor):
             self.ep_well[k] = wi
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
-        # surface contacts in this step (the contact time was found once, exactly, for the epoch)
-        for _ in range(MAX_CONTACTS):
-            hit = sel[self.ep_contact[sel] <= t1]
-            if not hit.size:
-                break
-            self._epoch_version += 1
-            tc = self.ep_contact[hit]
-            rc, uc = kepler.propagate(self.ep_r[hit], self.ep_v[hit], mu, tc - self.ep_t[hit])
-            n_hat = rc / np.linalg.norm(rc, axis=1, keepdims=True)
-            un = np.einsum("ij,ij->i", uc, n_hat)
-            speed = np.linalg.norm(uc, axis=1)
-            uc = uc - 2.0 * un[:, None] * n_hat                        # elastic: reverse the radial part
-            for j, k in enumerate(hit):
-                events.append(SurfaceContact(int(self.ents[k]), wells.ents[wi], float(tc[j]), float(speed[j]),
-                                             float(-un[j])))
-            self.ep_r[hit], self.ep_v[hit], self.ep_t[hit] = rc, uc, tc
-            self.ep_chi[hit] = 0.0
-            # the next contact of the new epoch (an outbound body: after its next periapsis dip, if any)
-            nxt = kepler.time_to_radius(rc * (1.0 + 1e-12), uc, mu, R, np.inf)
-            self.ep_contact[hit] = tc + nxt
+        # the colliders among them: sphere-sphere contacts are looked for only where two or more collide
+        cs = sel[self.c_rows[sel] >= 0] if self._n_col >= 2 else _NO_BODIES
+        if cs.size < 2:
+            self._surfaces(sel, wi, t1, events)
         # from the epoch for the whole time since (no error carried from step to step), warm-started
         # from the last step's chi moved on by its Taylor series (kepler.next_chi; the state at the
         # step's start is the last step's result). The guess changes how fast the solver converges,
@@ -399,6 +408,14 @@ class GravitySystem(esper.Processor):
         g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
         guess = kepler.next_chi(self.ep_chi[g], x[g], v[g], mu, t1 - t0, origin=(X0[wi], V0[wi]))
         r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
+        if cs.size >= 2:
+            # contacts along the conics, in time order with the surface contacts; the bodies they
+            # touched (new epochs) get their end-of-step state again
+            touched = self._sphere_contacts(sel, cs, wi, x, v, a, X0, V0, t0, t1, r, u, events)
+            if touched.size:
+                p = np.searchsorted(sel, touched)
+                r[p], u[p], chi[p] = kepler.Epoch(self.ep_r[touched], self.ep_v[touched], mu).at(
+                    t1 - self.ep_t[touched], guess[p])
         self.ep_chi[g] = chi
         th = thrust[g]
         if th.any():
@@ -407,6 +424,229 @@ class GravitySystem(esper.Processor):
             self.ep_well[sel[th]] = -1
         x1[g] = X1[wi] + r
         v1[g] = V1[wi] + u
+
+    def _surfaces(self, sel, wi, t1, events):
+        """The surface contacts of bodies ``sel`` up to ``t1``, each body's in its own time order."""
+        for _ in range(MAX_CONTACTS):
+            hit = sel[self.ep_contact[sel] <= t1]
+            if not hit.size:
+                break
+            self._bounce(hit, wi, events)
+
+    def _bounce(self, hit, wi, events):
+        """Bodies ``hit`` touch well ``wi``'s surface at their ``ep_contact``: one elastic bounce each."""
+        wells = self._wells
+        mu, R = wells.mu[wi], wells.radius[wi]
+        self._epoch_version += 1
+        tc = self.ep_contact[hit]
+        rc, uc = kepler.propagate(self.ep_r[hit], self.ep_v[hit], mu, tc - self.ep_t[hit])
+        n_hat = rc / np.linalg.norm(rc, axis=1, keepdims=True)
+        un = np.einsum("ij,ij->i", uc, n_hat)
+        speed = np.linalg.norm(uc, axis=1)
+        uc = uc - 2.0 * un[:, None] * n_hat                        # elastic: reverse the radial part
+        for j, k in enumerate(hit):
+            events.append(SurfaceContact(int(self.ents[k]), wells.ents[wi], float(tc[j]), float(speed[j]),
+                                         float(-un[j])))
+        self.ep_r[hit], self.ep_v[hit], self.ep_t[hit] = rc, uc, tc
+        self.ep_chi[hit] = 0.0
+        # the next contact of the new epoch (an outbound body: after its next periapsis dip, if any)
+        nxt = kepler.time_to_radius(rc * (1.0 + 1e-12), uc, mu, R, np.inf)
+        self.ep_contact[hit] = tc + nxt
+
+    # -- sphere-sphere contacts along the conics ------------------------------------------------
+    def _reach(self, k, p, w, p_end, w_end, span, mu, R, t1):
+        """Boxes ``lo, hi`` (m, about the well) that hold the centres of bodies ``k`` from the state
+        ``p, w`` over the ``span`` s up to ``t1`` (ending at ``p_end, w_end`` when no surface is in
+        the way), and ``A``, a bound on their acceleration there (m/s^2).
+
+        ``A = mu / rho^2`` with ``rho`` a lower bound on the distance to the well's centre over the
+        span: the smaller end distance while the distance is monotonic (no apsis passed), else the
+        periapsis ``q``; never less than the surface radius ``R`` (a body on rails never goes below
+        it), so a radial orbit (``q -> 0``) stays bounded. The path leaves its chord by at most
+        ``A span^2 / 8`` (the chord error of a curve with ``|p''| <= A``), so the box of the two ends
+        grown by that holds it. A body that touches the surface within the span (its path is two
+        conics) gets the box of the sphere it can reach at its top speed instead (speed at
+        ``max(q, R)``; a bounce keeps the speed and, being radial, ``q``)."""
+        rn = kepler._norm(p)
+        rn_e = kepler._norm(p_end)
+        w2 = kepler._dot(w, w)
+        energy = 0.5 * w2 - mu / rn
+        h2 = kepler._dot(np.cross(p, w), np.cross(p, w))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            e = np.sqrt(np.maximum(1.0 + 2.0 * energy * h2 / (mu * mu), 0.0))
+            q = h2 / mu / (1.0 + e)
+            alpha = -2.0 * energy / mu
+            half_period = np.where(alpha > 0, np.pi / np.sqrt(mu * np.abs(alpha) ** 3), np.inf)
+        apsis = ((kepler._dot(p, w) <= 0) & (kepler._dot(p_end, w_end) >= 0)) | (span >= half_period)
+        rho = np.maximum(np.where(apsis, q, np.minimum(rn, rn_e)), R)
+        A = mu / (rho * rho)
+        ball = self.ep_contact[k] <= t1
+        grow = 0.125 * A * span * span + 1e-12 * (rn + rn_e)      # (+ the rounding of the states)
+        lo = np.minimum(p, p_end)
+        hi = np.maximum(p, p_end)
+        if ball.any():
+            vmax = np.sqrt(2.0 * np.maximum(energy + mu / np.maximum(q, R), 0.0))
+            grow = np.where(ball, vmax * span + 1e-12 * rn, grow)
+            lo = np.where(ball[:, None], p, lo)
+            hi = np.where(ball[:, None], p, hi)
+            A = np.where(ball, mu / np.maximum(q, R) ** 2, A)
+        return lo - grow[:, None], hi + grow[:, None], A
+
+    def _sphere_contacts(self, sel, cs, wi, x, v, a, X0, V0, t0, t1, r1, u1, events):
+        """Contacts of the colliders ``cs`` (bodies on rails about well ``wi``) with each other within
+        the step, exact on their conics, in time order together with the surface contacts of ``sel``;
+        returns the bodies given new epochs (whose end-of-step state ``r1, u1`` is stale)."""
+        wells = self._wells
+        mu, R = wells.mu[wi], wells.radius[wi]
+        col = self.world.table(SphereCollider).data
+        rad = col["radius"][self.c_rows[cs]].astype(np.float64)
+        span = t1 - t0
+        pc = np.searchsorted(sel, cs)
+        # the conic's state at the step's start, about the well (thrust: after the first half kick)
+        p0 = x[cs] - X0[wi]
+        w0 = v[cs] - V0[wi] + 0.5 * span * a[cs]
+        lo, hi, A = self._reach(cs, p0, w0, r1[pc], u1[pc], span, mu, R, t1)
+        lo -= rad[:, None]
+        hi += rad[:, None]
+        pa, pb = bp.box_pairs(lo, hi)
+        touched = []
+        if not len(pa):                                   # the usual step: nobody near anybody
+            hit0 = self.ep_t[sel].copy()
+            self._surfaces(sel, wi, t1, events)
+            return sel[self.ep_t[sel] != hit0]
+        pa = pa.astype(np.intp)
+        pb = pb.astype(np.intp)
+        ts = np.full(len(pa), t0)                         # each pair is known to be apart up to ts ...
+        tc = np.full(len(pa), np.nan)                     # ... and touches at tc (inf: not before ts; NaN: look)
+        count = np.zeros(len(cs), np.intp)
+        for _ in range(64 + 4 * len(cs)):
+            need = np.flatnonzero(np.isnan(tc))
+            if need.size:
+                ka, kb = cs[pa[need]], cs[pb[need]]
+                # a pair is followed up to the first surface contact of either (its path changes there)
+                upto = np.minimum(t1, np.minimum(self.ep_contact[ka], self.ep_contact[kb]))
+                start = np.maximum(ts[need], np.maximum(self.ep_t[ka], self.ep_t[kb]))
+                t, stuck = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka],
+                                                self.ep_r[kb], self.ep_v[kb], self.ep_t[kb], mu,
+                                                rad[pa[need]] + rad[pb[need]], start, upto,
+                                                A[pa[need]] + A[pb[need]])
+                t = np.where(start <= upto, t, np.inf)
+                tc[need] = t
+                ts[need] = np.where(np.isfinite(t), start, upto)
+                if stuck.any():
+                    self._warn_once("graze", f"gravity: bodies {int(self.ents[ka[stuck][0]])} and "
+                                             f"{int(self.ents[kb[stuck][0]])} graze too slowly to converge; "
+                                             "their contact (if any) in this step is not resolved")
+            k = int(np.argmin(tc))
+            tp = float(tc[k])
+            surf = self.ep_contact[sel]
+            ts_min = float(surf.min())
+            if not min(tp, ts_min) <= t1:
+                break
+            if ts_min < tp:                               # surface contacts come first
+                hit = sel[(surf < tp) & (surf <= t1)]
+                self._bounce(hit, wi, events)
+                touched.append(hit)
+                moved = np.isin(cs, hit)
+                # their pairs were followed up to the bounce: on from there, on the new conic
+                again = (moved[pa] | moved[pb]) & (ts < t1)
+                tc[again] = np.nan
+                continue
+            ia, ib = int(pa[k]), int(pb[k])
+            i, j = int(cs[ia]), int(cs[ib])
+            pe, we = self._collide(i, j, wi, tp, X0, V0, t0, t1, events)
+            touched.append(np.array([i, j]))
+            count[ia] += 1
+            count[ib] += 1
+            # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
+            two = np.array([ia, ib])
+            lo2, hi2, A2 = self._reach(cs[two], self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R, t1)
+            lo[two] = lo2 - rad[two, None]
+            hi[two] = hi2 + rad[two, None]
+            A[two] = A2
+            mine = np.isin(pa, two) | np.isin(pb, two)
+            tc[mine] = np.nan
+            ts[mine] = tp
+            add_a, add_b = [], []
+            for c in (ia, ib):
+                over = np.all((lo[c] <= hi) & (hi[c] >= lo), axis=1)
+                over[c] = False
+                have = np.concatenate([pb[pa == c], pa[pb == c]])
+                for o in np.flatnonzero(over):
+                    if o not in have and not (c == ib and o == ia):
+                        add_a.append(min(c, o))
+                        add_b.append(max(c, o))
+            if add_a:
+                pa = np.concatenate([pa, np.array(add_a, np.intp)])
+                pb = np.concatenate([pb, np.array(add_b, np.intp)])
+                ts = np.concatenate([ts, np.full(len(add_a), tp)])
+                tc = np.concatenate([tc, np.full(len(add_a), np.nan)])
+            full = count >= MAX_SPHERE_CONTACTS
+            if full.any():
+                drop = full[pa] | full[pb]
+                tc[drop] = np.inf
+                ts[drop] = t1
+                self._warn_once("cap", f"gravity: a body on rails met {MAX_SPHERE_CONTACTS} sphere contacts "
+                                       "in one step; its further contacts in that step are not resolved")
+        else:
+            self._warn_once("events", "gravity: too many contacts in one step; the rest of that step's "
+                                      "contacts are not resolved")
+        if not touched:
+            return _NO_BODIES
+        return np.unique(np.concatenate(touched))
+
+    def _collide(self, i, j, wi, tc, X0, V0, t0, t1, events):
+        """Bodies ``i`` and ``j`` touch at ``tc``: the impulse along the line of centres (masses from
+        Mass, 1 kg without; restitution the smaller of the two), new epochs for both at ``tc``, their
+        next surface contacts, the CollisionEvent. Returns their states about the well at ``t1``."""
+        world = self.world
+        wells = self._wells
+        mu, R = wells.mu[wi], wells.radius[wi]
+        k = np.array([i, j])
+        rc, uc = kepler.propagate(self.ep_r[k], self.ep_v[k], mu, tc - self.ep_t[k])
+        d = rc[1] - rc[0]
+        nrm = d / np.linalg.norm(d)
+        vn = float((uc[1] - uc[0]) @ nrm)                  # < 0: approaching (the search finds only those)
+        kg = np.where(self.m_rows[k] >= 0, world.table(Mass).data["kg"][np.maximum(self.m_rows[k], 0)], 1.0)
+        with np.errstate(divide="ignore"):
+            inv = 1.0 / kg
+        rest = world.table(SphereCollider).data["restitution"][self.c_rows[k]]
+        e = float(min(rest[0], rest[1]))
+        impulse = -(1.0 + e) * vn / (inv[0] + inv[1]) if vn < 0 and inv.sum() > 0 else 0.0
+        uc[0] -= impulse * inv[0] * nrm
+        uc[1] += impulse * inv[1] * nrm
+        self._epoch_version += 1
+        self.ep_r[k], self.ep_v[k], self.ep_t[k] = rc, uc, tc
+        self.ep_chi[k] = 0.0
+        self.ep_contact[k] = tc + kepler.time_to_radius(rc, uc, mu, R, np.inf)
+        # the event in the world frame, named as the collision system names it (lower entity first)
+        well = self._well_position(wi, tc, X0, V0, t0)
+        radius = world.table(SphereCollider).data["radius"][self.c_rows[k]]
+        ea, eb = int(self.ents[i]), int(self.ents[j])
+        first = 0 if ea < eb else 1
+        n_ab = nrm if first == 0 else -nrm
+        point = well + rc[first] + float(radius[first]) * n_ab
+        events.append(CollisionEvent(min(ea, eb), max(ea, eb), float(tc), float(tc - t0),
+                                     tuple(float(c) for c in point), tuple(float(c) for c in n_ab),
+                                     float(impulse), method="kepler", step=world.step_count))
+        pe, we = kepler.propagate(rc, uc, mu, t1 - tc)
+        return pe, we
+
+    def _well_position(self, wi, t, X0, V0, t0):
+        """Well ``wi``'s centre at time ``t`` in the step (world frame): a root well moves straight, a
+        moon on its conic about its parent."""
+        wells = self._wells
+        p = wells.parent[wi]
+        if p < 0:
+            return X0[wi] + V0[wi] * (t - t0)
+        kk = int(np.flatnonzero(self.well_index == wi)[0])
+        r, _ = kepler.propagate(self.ep_r[kk], self.ep_v[kk], wells.mu[p], t - self.ep_t[kk])
+        return self._well_position(int(p), t, X0, V0, t0) + r
+
+    def _warn_once(self, key: str, text: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            warnings.warn(text, RuntimeWarning, stacklevel=4)
 
     def _epoch(self, wi, sel, mu) -> kepler.Epoch:
         """The epochs of bodies ``sel`` about well ``wi`` as a kepler.Epoch, kept while none changes

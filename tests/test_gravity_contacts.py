@@ -1,0 +1,281 @@
+"""Sphere-sphere contacts of bodies on rails: exact on their conics, at any step, energy and momentum kept."""
+import math
+
+import numpy as np
+import pytest
+
+from driftframe import CollisionSystem, Mass, MovementSystem, SphereCollider, Transform, Velocity, World
+from driftframe.components.collision import CollisionEvent
+from driftframe.components.gravity import GravityWell, SurfaceContact
+from driftframe.framework import kepler
+from driftframe.systems.gravity import GravitySystem
+
+MU = 3.986004418e14
+R_EARTH = 6.371e6
+R_ORBIT = 7e6
+V_CIRC = math.sqrt(MU / R_ORBIT)
+
+
+def make(dt, collision_system=True):
+    w = World(dt=dt)
+    w.add_system(GravitySystem())
+    w.add_system(MovementSystem())
+    if collision_system:
+        w.add_system(CollisionSystem())
+    w.create_entity(Transform(), GravityWell(mu=MU, radius=R_EARTH))
+    w.seen = []                                    # every event of every step (world.events: the last call's)
+    w.subscribe(CollisionEvent, w.seen.append)
+    w.subscribe(SurfaceContact, w.seen.append)
+    return w
+
+
+def meeting(T, v_a, v_b, where=(R_ORBIT, 0.0, 0.0)):
+    """States at t = 0 of two bodies that are both at ``where`` at time T (velocities v_a, v_b there)."""
+    p = np.array(where, float)
+    ra, va = kepler.propagate(p, np.array(v_a, float), MU, -T)
+    rb, vb = kepler.propagate(p, np.array(v_b, float), MU, -T)
+    return (ra, va), (rb, vb)
+
+
+def first_touch(sa, sb, reach, t_end, samples=400_000):
+    """Independent check: the gap sampled densely on both exact conics, the first sign change bisected."""
+    ts = np.linspace(0.0, t_end, samples + 1)
+    pa, _ = kepler.propagate(np.repeat(sa[0][None], ts.size, 0), np.repeat(sa[1][None], ts.size, 0), MU, ts)
+    pb, _ = kepler.propagate(np.repeat(sb[0][None], ts.size, 0), np.repeat(sb[1][None], ts.size, 0), MU, ts)
+    gap = np.linalg.norm(pa - pb, axis=1) - reach
+    k = int(np.flatnonzero(gap <= 0)[0])
+    lo, hi = ts[k - 1], ts[k]
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        a, _ = kepler.propagate(sa[0], sa[1], MU, mid)
+        b, _ = kepler.propagate(sb[0], sb[1], MU, mid)
+        if np.linalg.norm(a - b) - reach > 0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-13 * hi:
+            break
+    return 0.5 * (lo + hi)
+
+
+def collisions(world):
+    return [e for e in world.seen if isinstance(e, CollisionEvent)]
+
+
+def run_pair(dt, T=500.3, steps=None, kg=(3.0, None), radius=(40.0, 60.0), restitution=(1.0, 1.0)):
+    """Two bodies on crossing circular orbits (one equatorial, one polar) that meet near t = T."""
+    sa, sb = meeting(T, (0, V_CIRC, 0), (0, 0, V_CIRC))
+    w = make(dt)
+    ents = []
+    for s, m, rad, e in zip((sa, sb), kg, radius, restitution):
+        comps = [Transform(s[0]), Velocity(s[1]), SphereCollider(radius=rad, restitution=e)]
+        if m is not None:
+            comps.append(Mass(m))
+        ents.append(w.create_entity(*comps))
+    seen = []
+    w.subscribe(CollisionEvent, seen.append)
+    n = steps if steps is not None else int(math.ceil(2 * T / dt))
+    w.step(n)
+    return w, ents, (sa, sb), seen
+
+
+def states(world, ents):
+    return (world.columns(Transform, ents).position.copy(), world.columns(Velocity, ents).linear.copy())
+
+
+def test_crossing_orbits_touch_at_the_time_an_independent_search_finds():
+    w, (a, b), (sa, sb), seen = run_pair(dt=1.0)
+    try:
+        assert len(seen) == 1
+        ev = seen[0]
+        assert (ev.a, ev.b) == (a, b) and ev.method == "kepler"
+        reach = 100.0
+        t_ref = first_touch(sa, sb, reach, 510.0)
+        assert abs(ev.time - t_ref) <= 1e-9 * t_ref
+        assert 0.0 <= ev.step_time <= 1.0 and ev.step == int(ev.time // 1.0)
+        # at the contact the centres are r_a + r_b apart, on the conics they were on
+        pa, va = kepler.propagate(sa[0], sa[1], MU, ev.time)
+        pb, vb = kepler.propagate(sb[0], sb[1], MU, ev.time)
+        assert abs(np.linalg.norm(pb - pa) - reach) <= 1e-9 * reach
+        n = (pb - pa) / np.linalg.norm(pb - pa)
+        np.testing.assert_allclose(ev.normal, n, atol=1e-9)
+        np.testing.assert_allclose(ev.point, pa + 40.0 * n, rtol=0, atol=1e-6)
+        # the impulse reported is what an elastic contact of 3 kg and 1 kg along n gives
+        vn = float((vb - va) @ n)
+        assert vn < 0
+        assert ev.impulse == pytest.approx(-2.0 * vn / (1 / 3.0 + 1.0), rel=1e-12)
+    finally:
+        w.close()
+
+
+def test_the_contact_keeps_energy_and_momentum_and_the_rails_stay_exact():
+    w, ents, (sa, sb), seen = run_pair(dt=1.0, T=500.3, steps=700)
+    try:
+        ev = seen[0]
+        m = np.array([3.0, 1.0])
+        x, v = states(w, ents)
+        t_now = w.step_count * w.dt
+        # after the contact both are on new conics through their states at the contact: back there
+        back_r, back_v = kepler.propagate(x, v, MU, ev.time - t_now)
+        pre_a = kepler.propagate(sa[0], sa[1], MU, ev.time)
+        pre_b = kepler.propagate(sb[0], sb[1], MU, ev.time)
+        np.testing.assert_allclose(back_r, [pre_a[0], pre_b[0]], rtol=0, atol=1e-6)   # positions unchanged
+        p_before = m[0] * pre_a[1] + m[1] * pre_b[1]
+        p_after = m[0] * back_v[0] + m[1] * back_v[1]
+        assert np.linalg.norm(p_after - p_before) <= 1e-12 * np.linalg.norm(m[0] * pre_a[1])
+        # the impulse along the normal is all that changed: each velocity by -+ J n / m
+        n = np.array(ev.normal)
+        np.testing.assert_allclose(back_v[1] - pre_b[1], ev.impulse * n / m[1], rtol=0, atol=1e-9)
+
+        def energy(r, u):
+            return float(sum(mk * (0.5 * uk @ uk - MU / np.linalg.norm(rk)) for mk, rk, uk in zip(m, r, u)))
+        e0 = energy([sa[0], sb[0]], [sa[1], sb[1]])
+        assert abs(energy(x, v) / e0 - 1.0) <= 1e-9
+        assert abs(energy(back_r, back_v) / e0 - 1.0) <= 1e-12
+        # the kinetic energy changed hands: it was a real exchange, not a miss
+        ke_a_before = 0.5 * m[0] * pre_a[1] @ pre_a[1]
+        assert abs(0.5 * m[0] * back_v[0] @ back_v[0] - ke_a_before) > 1e-3 * ke_a_before
+    finally:
+        w.close()
+
+
+@pytest.mark.parametrize("dt", [0.37, 1000.0])
+def test_the_same_contact_at_every_step_length_no_tunnelling(dt):
+    """At 1,000 s a step covers ~7,500 km of each orbit (the spheres are 100 m): the contact is found
+    all the same, at the same time, and the bodies end on the same conics."""
+    T_end = 3000.0
+    ref, ents_r, _, seen_r = run_pair(dt=1.0, steps=3000)
+    w, ents, _, seen = run_pair(dt=dt, steps=int(round(T_end / dt)) if dt > 1 else None)
+    try:
+        if dt < 1:
+            w.step(int(math.ceil((T_end - w.step_count * dt) / dt)))
+        assert len(seen) == len(seen_r) == 1
+        assert (seen[0].a, seen[0].b) == (seen_r[0].a, seen_r[0].b)
+        assert abs(seen[0].time - seen_r[0].time) <= 1e-9 * seen_r[0].time
+        assert seen[0].impulse == pytest.approx(seen_r[0].impulse, rel=1e-9)
+        # compare at the same time: bring both to T_end on their conics
+        for world, e in ((ref, ents_r), (w, ents)):
+            x, v = states(world, e)
+            world._at_end = kepler.propagate(x, v, MU, T_end - world.step_count * world.dt)
+        np.testing.assert_allclose(w._at_end[0], ref._at_end[0], rtol=0, atol=1e-4)
+        np.testing.assert_allclose(w._at_end[1], ref._at_end[1], rtol=0, atol=1e-7)
+    finally:
+        w.close()
+        ref.close()
+
+
+def test_a_fast_head_on_pair_that_end_of_step_checks_miss_is_found():
+    """Prograde meets retrograde at 15 km/s; 1 m spheres, 10 s steps: 150 km between step ends."""
+    sa, sb = meeting(1234.5, (0, V_CIRC, 0), (0, -V_CIRC, 1.0))
+    w = make(10.0)
+    try:
+        a = w.create_entity(Transform(sa[0]), Velocity(sa[1]), SphereCollider(radius=1.0))
+        b = w.create_entity(Transform(sb[0]), Velocity(sb[1]), SphereCollider(radius=1.0))
+        closest = math.inf
+        for _ in range(200):
+            w.step()
+            x, _ = states(w, [a, b])
+            closest = min(closest, float(np.linalg.norm(x[1] - x[0])))
+        assert closest > 1e4                       # never near at a step's end: a sampled check misses it
+        hits = collisions(w)
+        assert len(hits) == 1 and {hits[0].a, hits[0].b} == {a, b}
+        t_ref = first_touch(sa, sb, 2.0, 1240.0, samples=4_000_000)
+        assert abs(hits[0].time - t_ref) <= 1e-9 * t_ref
+        # head on, equal masses, elastic: they swap their velocities along the normal (each turns back)
+        _, v = states(w, [a, b])
+        r_a, v_a = kepler.propagate(*states(w, [a]), MU, 0.0)
+        assert float(v[0] @ sa[1]) < 0 or float(v[0] @ kepler.propagate(sa[0], sa[1], MU, w.time)[1]) < 0
+    finally:
+        w.close()
+
+
+def scatter(n, seed, radius=2.0):
+    """n bodies on mixed orbits spread round the planet (10,000 km and more apart at every step)."""
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    rr = R_ORBIT * (1.0 + 0.3 * rng.uniform(size=n))
+    pos = np.stack([rr * np.cos(ang), rr * np.sin(ang), np.zeros(n)], axis=1)
+    vel = np.stack([-np.sin(ang), np.cos(ang), np.zeros(n)], axis=1) * np.sqrt(MU / rr)[:, None]
+    return pos, vel
+
+
+@pytest.mark.parametrize("with_surface", [False, True])
+def test_colliders_that_never_touch_leave_every_state_bit_identical(with_surface):
+    """The same scene with and without SphereColliders (on a ring: all in one plane, same direction,
+    never close): no contact, and bit for bit the same states, step after step."""
+    pos, vel = scatter(80, seed=3)
+    if with_surface:
+        vel[0] = [-3000.0, 0.0, 0.0]               # body 0 falls onto the planet and bounces
+    runs = []
+    for colliders in (False, True):
+        w = make(20.0)
+        ents = []
+        for k in range(len(pos)):
+            comps = [Transform(pos[k]), Velocity(vel[k])]
+            if colliders:
+                comps.append(SphereCollider(radius=2.0))
+            ents.append(w.create_entity(*comps))
+        trace = []
+        for _ in range(60):
+            w.step()
+            trace.append(states(w, ents))
+        runs.append((trace, list(w.seen), w))
+    try:
+        (t0, ev0, _), (t1, ev1, _) = runs
+        assert not [e for e in ev1 if isinstance(e, CollisionEvent)]
+        assert [e for e in ev0 if isinstance(e, SurfaceContact)] == [e for e in ev1 if isinstance(e, SurfaceContact)]
+        assert bool([e for e in ev1 if isinstance(e, SurfaceContact)]) == with_surface
+        for (xa, va), (xb, vb) in zip(t0, t1):
+            assert np.array_equal(xa, xb) and np.array_equal(va, vb)
+    finally:
+        for _, _, w in runs:
+            w.close()
+
+
+def swarm(dt, steps, spacing=800.0, seed=11):
+    """27 big spheres (250 to 350 m) on a lattice 800 m apart in low orbit, stirred by up to 2 m/s:
+    they meet again and again as the cloud shears along its orbit."""
+    rng = np.random.default_rng(seed)
+    w = make(dt)
+    ents = []
+    for cell in np.stack(np.meshgrid(*[np.arange(3) - 1] * 3, indexing="ij"), -1).reshape(-1, 3):
+        p = np.array([R_ORBIT, 0.0, 0.0]) + spacing * cell
+        u = np.array([0.0, V_CIRC, 0.0]) + rng.uniform(-2.0, 2.0, 3)
+        ents.append(w.create_entity(Transform(p), Velocity(u), SphereCollider(radius=rng.uniform(250.0, 350.0)),
+                                    Mass(float(rng.uniform(0.5, 4.0)))))
+    kg = np.array([w.columns(Mass, [e]).kg[0] for e in ents])
+    r0, v0 = states(w, ents)
+    w.step(steps)
+    return w, ents, kg, (r0, v0)
+
+
+def test_a_swarm_has_the_same_contacts_at_a_long_and_a_short_step_and_keeps_its_energy():
+    """Many contacts, some sending a body out of the box it was given for the step (re-examined), some
+    chained within one step: the long-step run finds the same contacts in the same order."""
+    T = 3000.0
+    short, ents, kg, (r0, v0) = swarm(dt=1.0, steps=3000)
+    long, _, _, _ = swarm(dt=100.0, steps=30)
+    try:
+        cs, cl = collisions(short), collisions(long)
+        assert len(cs) >= 20
+        assert any(e.step == f.step for e, f in zip(cl, cl[1:]))              # several in one long step
+        # the same contacts, in the same order, at the same times (each exact: only rounding differs,
+        # which the contacts after it amplify a little)
+        assert [(e.a, e.b) for e in cs] == [(e.a, e.b) for e in cl]
+        for e, f in zip(cs, cl):
+            assert abs(e.time - f.time) <= 1e-9 * e.time
+
+        def energy(world):
+            x, v = states(world, ents)
+            return float(np.sum(kg * (0.5 * np.einsum("ij,ij->i", v, v) - MU / np.linalg.norm(x, axis=1))))
+        e0 = float(np.sum(kg * (0.5 * np.einsum("ij,ij->i", v0, v0) - MU / np.linalg.norm(r0, axis=1))))
+        for world, events in ((short, cs), (long, cl)):
+            assert abs(energy(world) / e0 - 1.0) <= 1e-9 * max(len(events), 1)
+            # nobody overlaps anybody at the end of the run (nothing tunnelled into another)
+            x, _ = states(world, ents)
+            rad = world.columns(SphereCollider, ents).radius
+            d = np.linalg.norm(x[:, None] - x[None], axis=2) + np.eye(len(ents)) * 1e9
+            assert (d >= (rad[:, None] + rad[None]) * (1 - 1e-9)).all()
+    finally:
+        short.close()
+        long.close()
