@@ -567,7 +567,8 @@ def time_to_radius(r, v, mu, radius, horizon):
 TOUCH_ITERATIONS = 200
 
 
-def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, *, iterations: int = TOUCH_ITERATIONS):
+def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, rho=None, *,
+                  iterations: int = TOUCH_ITERATIONS):
     """First time in ``[t_from, t_to]`` (absolute s) at which pairs of bodies on conics about the same
     mass come within ``reach`` (m, the sum of their radii) of each other *while approaching*; ``inf``
     where they do not. Vectorised over pairs.
@@ -575,14 +576,26 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, *, ite
     Body ``a`` of each pair follows the conic through its epoch ``ra, va`` (m, m/s, relative to the
     mass) at time ``ta`` (s), body ``b`` likewise; arrays ``(n, 3)`` and ``(n,)``. ``accel`` (m/s^2,
     ``(n,)``) bounds ``|a_a| + |a_b|`` over the interval (``mu / rho^2`` of each body, ``rho`` a lower
-    bound on its distance from the mass there).
+    bound on its distance from the mass there); ``rho`` (m, ``(n,)``, optional): such a lower bound
+    for both bodies of the pair, which gives the tighter tidal bound below.
 
     Conservative advancement on the gap ``g = |d| - reach``, ``d = r_b - r_a``: since
     ``d^2|d|/dt^2 = (|d'|^2 - (d^.d')^2)/|d| + d^.d'' >= -|d''| >= -accel``, the gap can fall no
     faster than ``g(t + tau) >= g + g' tau - accel tau^2 / 2``, so the smaller positive root ``tau``
     of the right side is a step that cannot pass a contact (``g' = d^.d'``, the closing rate taken
     signed: a separating pair steps far, and a pair that has just bounced is not stuck at ``g = 0``).
-    Near a contact the step is Newton's on ``g`` and converges quadratically. A pair is in contact
+    Near a contact the step is Newton's on ``g`` and converges quadratically.
+
+    Two bodies close together feel nearly the same pull: ``|d''| = |a(r_b) - a(r_a)| <= 2 mu |d| /
+    rho_s^3`` (the tidal tensor's norm is ``2 mu / r^3``; ``rho_s >= rho - |d|/2`` is the segment's
+    distance from the mass), and over a step ``tau`` the distance stays below ``D = |d| + |d'| tau +
+    accel tau^2/2``. The bound ``A(tau) = min(accel, 2 mu D / (rho - D/2)^3)`` grows with ``tau``, so
+    the root ``tau*`` of ``g + g' t - A(T) t^2 / 2`` for a trial ``T`` is safe whenever ``tau* <= T``,
+    and ``min(tau*, T)`` is safe always: the step is the largest of these over trials ``T`` (the
+    time left, and quarters of it). For a cloud of bodies sharing an orbit the relative acceleration
+    is then micro-g instead of ``2 mu / rho^2``, and the steps are hundreds of seconds, not ten.
+
+    A pair is in contact
     where ``g <= 1e-10 reach`` plus the rounding of the positions (``4 eps (|r_a| + |r_b|)``) and
     ``g' < 0``; its time is then polished by one Newton step ``g / -g'``. Pairs that overlap and
     approach at ``t_from`` touch at ``t_from``. No sampling, so no step length can tunnel.
@@ -601,6 +614,10 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, *, ite
     stuck = np.zeros(n, bool)
     if not n:
         return out, stuck
+    tidal = rho is not None
+    if tidal:
+        rho = b_(rho)
+        trials = 0.25 ** np.arange(10)                           # fractions of the time left
     ea, eb = Epoch(ra, va, mu), Epoch(rb, vb, mu)
     idx = np.arange(n)
     chi_a = chi_b = None
@@ -618,10 +635,21 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, *, ite
             graze = ~hit & (g <= 1e-6 * reach) & (gd < 0)
             hit |= graze
         c = -gd
-        sq = np.sqrt(np.maximum(c * c + 2.0 * accel * np.maximum(g, 0.0), 0.0))
+        gp = np.maximum(g, 0.0)
+        sq = np.sqrt(np.maximum(c * c + 2.0 * accel * gp, 0.0))
         with np.errstate(invalid="ignore", divide="ignore"):
             # the smaller positive root of g - c tau - accel tau^2/2, written without cancelling
-            tau = np.where(c > 0, 2.0 * np.maximum(g, 0.0) / (c + sq), (sq - c) / accel)
+            tau = np.where(c > 0, 2.0 * gp / (c + sq), (sq - c) / accel)
+            if tidal:
+                T = np.maximum(t_to - t, 0.0)[:, None] * trials[None, :]
+                s_rel = _norm(ub - ua)[:, None]
+                D = dist[:, None] + s_rel * T + 0.5 * accel[:, None] * T * T
+                seg = rho[:, None] - 0.5 * D
+                A_T = np.where(seg > 0, np.minimum(accel[:, None], 2.0 * mu * D / seg ** 3), accel[:, None])
+                cc = c[:, None]
+                sq_T = np.sqrt(np.maximum(cc * cc + 2.0 * A_T * gp[:, None], 0.0))
+                root = np.where(cc > 0, 2.0 * gp[:, None] / (cc + sq_T), (sq_T - cc) / A_T)
+                tau = np.maximum(tau, np.nanmax(np.minimum(root, T), axis=1))
         if hit.any():
             with np.errstate(invalid="ignore", divide="ignore"):
                 polish = np.where(g > 0, g / c, 0.0)
@@ -637,6 +665,8 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, *, ite
         if not keep.all():
             idx, t_new, chi_a, chi_b = idx[keep], t_new[keep], chi_a[keep], chi_b[keep]
             ta, tb, reach, t_to, accel = ta[keep], tb[keep], reach[keep], t_to[keep], accel[keep]
+            if tidal:
+                rho = rho[keep]
             ea, eb = Epoch(ea.r0[keep], ea.v0[keep], mu), Epoch(eb.r0[keep], eb.v0[keep], mu)
         t = t_new
     return out, stuck

@@ -457,7 +457,8 @@ class GravitySystem(esper.Processor):
     def _reach(self, k, p, w, p_end, w_end, span, mu, R, t1):
         """Boxes ``lo, hi`` (m, about the well) that hold the centres of bodies ``k`` from the state
         ``p, w`` over the ``span`` s up to ``t1`` (ending at ``p_end, w_end`` when no surface is in
-        the way), and ``A``, a bound on their acceleration there (m/s^2).
+        the way), ``A``, a bound on their acceleration there (m/s^2), and ``rho``, a lower bound on
+        their distance from the well's centre there (m).
 
         ``A = mu / rho^2`` with ``rho`` a lower bound on the distance to the well's centre over the
         span: the smaller end distance while the distance is monotonic (no apsis passed), else the
@@ -489,8 +490,9 @@ class GravitySystem(esper.Processor):
             grow = np.where(ball, vmax * span + 1e-12 * rn, grow)
             lo = np.where(ball[:, None], p, lo)
             hi = np.where(ball[:, None], p, hi)
-            A = np.where(ball, mu / np.maximum(q, R) ** 2, A)
-        return lo - grow[:, None], hi + grow[:, None], A
+            rho = np.where(ball, np.maximum(q, R), rho)
+            A = mu / (rho * rho)
+        return lo - grow[:, None], hi + grow[:, None], A, rho
 
     def _sphere_contacts(self, sel, cs, wi, x, v, a, X0, V0, t0, t1, r1, u1, events):
         """Contacts of the colliders ``cs`` (bodies on rails about well ``wi``) with each other within
@@ -505,7 +507,7 @@ class GravitySystem(esper.Processor):
         # the conic's state at the step's start, about the well (thrust: after the first half kick)
         p0 = x[cs] - X0[wi]
         w0 = v[cs] - V0[wi] + 0.5 * span * a[cs]
-        lo, hi, A = self._reach(cs, p0, w0, r1[pc], u1[pc], span, mu, R, t1)
+        lo, hi, A, rho = self._reach(cs, p0, w0, r1[pc], u1[pc], span, mu, R, t1)
         lo -= rad[:, None]
         hi += rad[:, None]
         pa, pb = bp.box_pairs(lo, hi)
@@ -529,7 +531,8 @@ class GravitySystem(esper.Processor):
                 t, stuck = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka],
                                                 self.ep_r[kb], self.ep_v[kb], self.ep_t[kb], mu,
                                                 rad[pa[need]] + rad[pb[need]], start, upto,
-                                                A[pa[need]] + A[pb[need]])
+                                                A[pa[need]] + A[pb[need]],
+                                                np.minimum(rho[pa[need]], rho[pb[need]]))
                 t = np.where(start <= upto, t, np.inf)
                 tc[need] = t
                 ts[need] = np.where(np.isfinite(t), start, upto)
@@ -560,10 +563,12 @@ class GravitySystem(esper.Processor):
             count[ib] += 1
             # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
             two = np.array([ia, ib])
-            lo2, hi2, A2 = self._reach(cs[two], self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R, t1)
+            lo2, hi2, A2, rho2 = self._reach(cs[two], self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp,
+                                             mu, R, t1)
             lo[two] = lo2 - rad[two, None]
             hi[two] = hi2 + rad[two, None]
             A[two] = A2
+            rho[two] = rho2
             mine = np.isin(pa, two) | np.isin(pb, two)
             tc[mine] = np.nan
             ts[mine] = tp
