@@ -868,3 +868,67 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
             out_v[i, k] = fd * r0[i, k] + gd * v0[i, k]
         out_chi[i] = chi + turns * chi_turn[i]
     return 0
+
+
+@njit(cache=True)
+def _arc_boxes_compiled(p, w, pe, we, span, mu, surface, ball, grow_by, lo, hi, accel, rho_out):
+    for i in range(p.shape[0]):
+        rn = np.sqrt(p[i, 0] ** 2 + p[i, 1] ** 2 + p[i, 2] ** 2)
+        rn_e = np.sqrt(pe[i, 0] ** 2 + pe[i, 1] ** 2 + pe[i, 2] ** 2)
+        w2 = w[i, 0] ** 2 + w[i, 1] ** 2 + w[i, 2] ** 2
+        energy = 0.5 * w2 - mu / rn
+        hx = p[i, 1] * w[i, 2] - p[i, 2] * w[i, 1]
+        hy = p[i, 2] * w[i, 0] - p[i, 0] * w[i, 2]
+        hz = p[i, 0] * w[i, 1] - p[i, 1] * w[i, 0]
+        h2 = hx * hx + hy * hy + hz * hz
+        e = np.sqrt(max(1.0 + 2.0 * energy * h2 / (mu * mu), 0.0))
+        q = h2 / mu / (1.0 + e)
+        alpha = -2.0 * energy / mu
+        half_period = np.pi / np.sqrt(mu * alpha ** 3) if alpha > 0 else np.inf
+        rdot = p[i, 0] * w[i, 0] + p[i, 1] * w[i, 1] + p[i, 2] * w[i, 2]
+        rdot_e = pe[i, 0] * we[i, 0] + pe[i, 1] * we[i, 1] + pe[i, 2] * we[i, 2]
+        if ball[i]:
+            rho = max(q, surface)
+            grow = np.sqrt(2.0 * max(energy + mu / rho, 0.0)) * span + 1e-12 * rn
+            for k in range(3):
+                lo[i, k] = p[i, k] - grow - grow_by[i]
+                hi[i, k] = p[i, k] + grow + grow_by[i]
+        else:
+            if (rdot <= 0.0 and rdot_e >= 0.0) or span >= half_period:
+                rho = max(q, surface)
+            else:
+                rho = max(min(rn, rn_e), surface)
+            grow = 0.125 * (mu / (rho * rho)) * span * span + 1e-12 * (rn + rn_e)
+            for k in range(3):
+                lo[i, k] = min(p[i, k], pe[i, k]) - grow - grow_by[i]
+                hi[i, k] = max(p[i, k], pe[i, k]) + grow + grow_by[i]
+        accel[i] = mu / (rho * rho)
+        rho_out[i] = rho
+
+
+def arc_boxes(p, w, p_end, w_end, span, mu, surface, ball, grow_by=None):
+    """Boxes that hold each body's centre over ``span`` s on its conic about ``mu``, from the state
+    ``p, w`` (m, m/s, relative to the mass, ``(n, 3)``) to ``p_end, w_end`` at the span's end, grown
+    by ``grow_by`` (m, ``(n,)``: a radius); and for each a bound ``accel`` on its acceleration
+    (m/s^2) and ``rho`` on its distance from the mass (m) over the span. Returns ``lo, hi, accel,
+    rho``.
+
+    ``rho`` is the smaller end distance while the distance is monotonic (no apsis passed: the radial
+    velocity has one sign at both ends and the span is under half a period), else the periapsis
+    ``q``; never less than ``surface`` (m, the mass's surface radius, which no body on its conic
+    crosses: so a radial orbit, ``q -> 0``, stays bounded). ``accel = mu / rho^2``. The path
+    leaves its chord by at most ``accel span^2 / 8`` (the chord error of a curve with ``|p''| <= A``),
+    so the box of the two ends grown by that holds it. Where ``ball`` is True the body touches the
+    surface within the span (its path is two conics): its box is the cube about ``p`` it can reach
+    at its top speed (at ``max(q, surface)``; an elastic bounce off the surface keeps the speed and,
+    being radial, ``q``). One compiled pass."""
+    p, w, p_end, w_end = (np.ascontiguousarray(a, dtype=np.float64) for a in (p, w, p_end, w_end))
+    n = p.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    accel = np.empty(n)
+    rho = np.empty(n)
+    grow_by = np.zeros(n) if grow_by is None else np.ascontiguousarray(grow_by, dtype=np.float64)
+    _arc_boxes_compiled(p, w, p_end, w_end, float(span), float(mu), float(surface),
+                        np.ascontiguousarray(ball, dtype=np.bool_), grow_by, lo, hi, accel, rho)
+    return lo, hi, accel, rho

@@ -78,6 +78,8 @@ MAX_CONTACTS = 4
 #: Most sphere-sphere contacts one body on rails may have in one step; past it, its further contacts
 #: in that step are not looked for (a warning says so once): only a resting or jammed cluster gets there.
 MAX_SPHERE_CONTACTS = 16
+#: Up to this many colliders about one well the broad phase sweeps, above it uses the grid.
+SWEEP_MAX = 2000
 
 
 _NO_BODIES = np.empty(0, np.intp)
@@ -454,45 +456,30 @@ class GravitySystem(esper.Processor):
         self.ep_contact[hit] = tc + nxt
 
     # -- sphere-sphere contacts along the conics ------------------------------------------------
-    def _reach(self, k, p, w, p_end, w_end, span, mu, R, t1):
-        """Boxes ``lo, hi`` (m, about the well) that hold the centres of bodies ``k`` from the state
-        ``p, w`` over the ``span`` s up to ``t1`` (ending at ``p_end, w_end`` when no surface is in
-        the way), ``A``, a bound on their acceleration there (m/s^2), and ``rho``, a lower bound on
-        their distance from the well's centre there (m).
-
-        ``A = mu / rho^2`` with ``rho`` a lower bound on the distance to the well's centre over the
-        span: the smaller end distance while the distance is monotonic (no apsis passed), else the
-        periapsis ``q``; never less than the surface radius ``R`` (a body on rails never goes below
-        it), so a radial orbit (``q -> 0``) stays bounded. The path leaves its chord by at most
-        ``A span^2 / 8`` (the chord error of a curve with ``|p''| <= A``), so the box of the two ends
-        grown by that holds it. A body that touches the surface within the span (its path is two
-        conics) gets the box of the sphere it can reach at its top speed instead (speed at
-        ``max(q, R)``; a bounce keeps the speed and, being radial, ``q``)."""
-        rn = kepler._norm(p)
-        rn_e = kepler._norm(p_end)
-        w2 = kepler._dot(w, w)
-        energy = 0.5 * w2 - mu / rn
-        h2 = kepler._dot(np.cross(p, w), np.cross(p, w))
+    def _near(self, pa, pb, cs, p0, p1, rad, A, rho, span, mu, t1):
+        """The candidate pairs ``(pa, pb)`` (into ``cs``) less those proven apart for the whole step
+        without solving Kepler's equation: the separation ``d(t)`` leaves the chord between its two
+        ends by at most ``A_d span^2 / 8``, with ``A_d`` the bound on ``|d''|`` (the sum of the two
+        pulls, or the tidal ``2 mu D / (rho - D/2)^3`` for a pair never more than ``D`` apart; see
+        kepler.time_to_touch), so a chord that stays farther than that plus ``r_a + r_b`` from zero
+        is a pair that cannot touch. Bodies that touch a surface in the step are kept (two conics)."""
+        dA = p0[pb] - p0[pa]
+        dB = p1[pb] - p1[pa]
+        e = dB - dA
+        ee = kepler._dot(e, e)
         with np.errstate(invalid="ignore", divide="ignore"):
-            e = np.sqrt(np.maximum(1.0 + 2.0 * energy * h2 / (mu * mu), 0.0))
-            q = h2 / mu / (1.0 + e)
-            alpha = -2.0 * energy / mu
-            half_period = np.where(alpha > 0, np.pi / np.sqrt(mu * np.abs(alpha) ** 3), np.inf)
-        apsis = ((kepler._dot(p, w) <= 0) & (kepler._dot(p_end, w_end) >= 0)) | (span >= half_period)
-        rho = np.maximum(np.where(apsis, q, np.minimum(rn, rn_e)), R)
-        A = mu / (rho * rho)
-        ball = self.ep_contact[k] <= t1
-        grow = 0.125 * A * span * span + 1e-12 * (rn + rn_e)      # (+ the rounding of the states)
-        lo = np.minimum(p, p_end)
-        hi = np.maximum(p, p_end)
-        if ball.any():
-            vmax = np.sqrt(2.0 * np.maximum(energy + mu / np.maximum(q, R), 0.0))
-            grow = np.where(ball, vmax * span + 1e-12 * rn, grow)
-            lo = np.where(ball[:, None], p, lo)
-            hi = np.where(ball[:, None], p, hi)
-            rho = np.where(ball, np.maximum(q, R), rho)
-            A = mu / (rho * rho)
-        return lo - grow[:, None], hi + grow[:, None], A, rho
+            f = np.clip(np.where(ee > 0, -kepler._dot(dA, e) / ee, 0.0), 0.0, 1.0)
+        closest = kepler._norm(dA + f[:, None] * e)
+        acc = A[pa] + A[pb]
+        D = np.maximum(kepler._norm(dA), kepler._norm(dB)) + 0.125 * acc * span * span
+        seg = np.minimum(rho[pa], rho[pb]) - 0.5 * D
+        with np.errstate(invalid="ignore", divide="ignore"):
+            acc = np.where(seg > 0, np.minimum(acc, 2.0 * mu * D / seg ** 3), acc)
+        # (+ the rounding of the states: 1e-12 of their distance from the well, and a micrometre)
+        slack = 0.125 * acc * span * span + 1e-12 * (kepler._norm(p0[pa]) + kepler._norm(p0[pb])) + 1e-6
+        ball = self.ep_contact[cs] <= t1
+        keep = (closest - slack <= rad[pa] + rad[pb]) | ball[pa] | ball[pb]
+        return pa[keep], pb[keep]
 
     def _sphere_contacts(self, sel, cs, wi, x, v, a, X0, V0, t0, t1, r1, u1, events):
         """Contacts of the colliders ``cs`` (bodies on rails about well ``wi``) with each other within
@@ -507,10 +494,13 @@ class GravitySystem(esper.Processor):
         # the conic's state at the step's start, about the well (thrust: after the first half kick)
         p0 = x[cs] - X0[wi]
         w0 = v[cs] - V0[wi] + 0.5 * span * a[cs]
-        lo, hi, A, rho = self._reach(cs, p0, w0, r1[pc], u1[pc], span, mu, R, t1)
-        lo -= rad[:, None]
-        hi += rad[:, None]
-        pa, pb = bp.box_pairs(lo, hi)
+        # each collider's swept box over the step (kepler.arc_boxes: the chord grown by how far a conic
+        # can leave it, or the sphere it can reach where it touches the surface), grown by its radius
+        lo, hi, A, rho = kepler.arc_boxes(p0, w0, r1[pc], u1[pc], span, mu, R, self.ep_contact[cs] <= t1, rad)
+        # (the sweep beats the grid on a few thousand thin boxes, the grid wins on many)
+        pa, pb = bp.box_pairs(lo, hi, "sweep" if len(cs) <= SWEEP_MAX else "grid")
+        if len(pa):
+            pa, pb = self._near(pa, pb, cs, p0, r1[pc], rad, A, rho, span, mu, t1)
         touched = []
         if not len(pa):                                   # the usual step: nobody near anybody
             hit0 = self.ep_t[sel].copy()
@@ -563,12 +553,9 @@ class GravitySystem(esper.Processor):
             count[ib] += 1
             # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
             two = np.array([ia, ib])
-            lo2, hi2, A2, rho2 = self._reach(cs[two], self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp,
-                                             mu, R, t1)
-            lo[two] = lo2 - rad[two, None]
-            hi[two] = hi2 + rad[two, None]
-            A[two] = A2
-            rho[two] = rho2
+            lo[two], hi[two], A[two], rho[two] = kepler.arc_boxes(
+                self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R, self.ep_contact[cs[two]] <= t1,
+                rad[two])
             mine = np.isin(pa, two) | np.isin(pb, two)
             tc[mine] = np.nan
             ts[mine] = tp
