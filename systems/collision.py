@@ -38,6 +38,11 @@ Two immovable bodies pass through each other. Restitution of a pair: the
 smaller of the two :class:`~components.collision.SphereCollider` values.
 Spin is not touched (frictionless spheres exert no torque).
 
+Bodies the gravity system integrates (marked
+:class:`~driftframe.components.gravity.Orbiting`) are left out: their paths
+are conics, and the gravity system finds their contacts with each other on
+those conics (same :class:`CollisionEvent`, ``method="kepler"``).
+
 The articles' discrete method lives in :mod:`driftframe.systems.collision_baseline`
 (``method="articles"``).
 """
@@ -97,8 +102,9 @@ class _Layout:
 class _WithoutOrbiting:
     """The collider query less the bodies the gravity system integrates (marked Orbiting): their path
     over the step is a conic the gravity system has already followed, not this system's straight
-    chord, so they are left out here (their contacts with a well's surface are found on the conic
-    by the gravity system; sphere-sphere contacts of orbiting bodies are not modelled yet)."""
+    chord, so they are left out here. The gravity system finds their contacts on the conics: with a
+    well's surface, and with each other about the same well (see systems/gravity.py); contacts
+    between an orbiting body and a collider that is not orbiting are not modelled."""
 
     def __init__(self, q, orbiting):
         keep = ~in_sorted(q.entities, orbiting.entities)

@@ -3,7 +3,8 @@
 Runs in the movement stage *before* the movement system and moves every body
 it integrates itself (marking it :class:`~components.gravity.Orbiting`, which
 it claims in ``world.resources[movement.SKIP]`` so the movement system skips
-it, and which the collision system leaves out), so no body is moved twice. A scene without a
+it, and which the collision system leaves out: their sphere contacts are
+found here, on their conics), so no body is moved twice. A scene without a
 :class:`~components.gravity.GravityWell` costs one empty esper query per step.
 
 **Which well (patched conics).** A body moves about the deepest well whose
@@ -46,6 +47,48 @@ energy relative to the well, hence the orbit energy, kept to rounding), and
 advanced for the rest of the step. n-body bodies sweep the straight drift of
 their step against each sphere. Each contact is a
 :class:`~components.gravity.SurfaceContact` in ``world.events``.
+
+**Sphere contacts on rails.** Bodies on rails about the same well that have a
+:class:`~components.collision.SphereCollider` collide with each other, exactly
+on their conics (the collision system leaves every ``Orbiting`` body out: it
+moves its colliders along straight chords). Only where a well has two or more
+such bodies is anything done; a scene without colliders pays one comparison.
+Each step, after the end-of-step states are known:
+
+1. *Swept boxes* (:func:`framework.kepler.arc_boxes`): the box of each body's
+   start and end, grown by its radius and by ``A h^2 / 8``, how far a path with
+   acceleration at most ``A = mu / rho^2`` can leave its chord in ``h`` (``rho``:
+   the nearer end's distance, or the periapsis where an apsis is passed, never
+   under the surface radius, so a radial orbit stays bounded); a body that
+   touches the surface in the step gets the cube it can reach at its top speed.
+   Candidate pairs from :func:`framework.broadphase.box_pairs`, less those whose
+   separation's chord stays farther apart than the same bound allows.
+2. *Times of contact* (:func:`framework.kepler.time_to_touch`), vectorised over
+   the pairs: conservative advancement on the gap ``|r_b - r_a| - (R_a + R_b)``
+   with the states from each body's epoch, each step the largest that cannot
+   pass a contact (from the closing rate and a bound on the relative
+   acceleration: the two pulls, or the tidal ``2 mu |d| / rho^3`` for bodies close
+   together), Newton's step near contact; the contact time is exact to ~1e-12
+   relative, at any step length or warp. Only approaching pairs touch.
+3. *Contacts in time order*, together with the surface contacts of the well's
+   bodies: the impulse along the line of centres (masses from ``Mass``, 1 kg
+   without; restitution the smaller of the two colliders', as in the collision
+   system), new epochs for both at the contact (so the rails stay exact: energy
+   kept to rounding, momentum of the pair to rounding), their next surface
+   contacts, new swept boxes from the contact on, their pairs looked at again
+   and new ones found, and a :class:`~components.collision.CollisionEvent`
+   (``method="kepler"``, fields as the collision system's) in ``world.events``.
+   The bodies touched get their end-of-step state from their new epochs.
+
+A body meets at most :data:`MAX_SPHERE_CONTACTS` contacts in a step (further
+ones in that step are not looked for, with a warning); a pair that grazes too
+slowly to converge (``g' -> 0`` as ``g -> 0``) is taken to touch where it is
+within 1e-6 of ``R_a + R_b``, else left for the step with a warning. **Not
+modelled:** contacts between bodies about *different* wells (across a sphere of
+influence), of n-body bodies, and between a body on rails and a collider that is
+not (an immovable ``Mass(inf)`` one or a well with a collider): none are looked
+for. The warp governor's look-ahead (:meth:`GravitySystem.next_contact`)
+predicts surface contacts only.
 
 **Checks** (the first step, and whenever wells or bodies are added): a well
 inside another's surface, a moon whose parent is missing or not a well, and
@@ -164,8 +207,10 @@ def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
 
 
 class GravitySystem(esper.Processor):
-    """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody; writes Transform, Velocity,
-    Orbiting.  Gravity: on rails (exact Kepler from an epoch) or kick-drift-kick (n-body)."""
+    """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody, SphereCollider; writes Transform,
+    Velocity, Orbiting; appends SurfaceContact and CollisionEvent to world.events.  Gravity: on rails
+    (exact Kepler from an epoch, with the sphere contacts of the bodies on rails) or kick-drift-kick
+    (n-body)."""
 
     stage = "movement"
     name = "gravity"

@@ -273,3 +273,88 @@ def test_next_chi_compiled_and_numpy_paths_agree_and_origin_is_subtracted():
         assert ok.sum() > n // 4
         np.testing.assert_allclose(big[ok], small[ok], rtol=1e-13)
     assert nans > 0
+
+
+def _random_conics(n, seed):
+    """Mixed conics about mu = 1: near-circular, eccentric (e to 0.99), hyperbolic, nearly radial."""
+    rng = np.random.default_rng(seed)
+    r = rng.normal(size=(n, 3))
+    r *= (rng.uniform(1.0, 3.0, n) / np.linalg.norm(r, axis=1))[:, None]
+    v = rng.normal(size=(n, 3))
+    v *= (rng.uniform(0.05, 1.6, n) / np.linalg.norm(v, axis=1) / np.sqrt(np.linalg.norm(r, axis=1)))[:, None]
+    v[: n // 8] = -0.5 * r[: n // 8] / np.linalg.norm(r[: n // 8], axis=1)[:, None] ** 1.5   # (nearly) radial
+    v[: n // 8] += 1e-6 * rng.normal(size=(n // 8, 3))
+    return r, v
+
+
+@pytest.mark.parametrize("span", [0.01, 0.5, 3.0, 20.0])
+def test_arc_boxes_hold_the_whole_arc_and_bound_its_distance_and_pull(span):
+    """Sampled densely along the exact conic, every point lies in its box, no nearer the mass than
+    rho, and pulled no harder than accel; where the surface is reached within the span the box is
+    the reachable cube, which holds the bounced path too."""
+    r, v = _random_conics(400, seed=5)
+    surface = 0.05
+    ts = np.linspace(0.0, span, 257)
+    n = len(r)
+    hit = kepler.time_to_radius(r, v, 1.0, surface, span) <= span
+    pe, we = kepler.propagate(r, v, 1.0, span)
+    lo, hi, accel, rho = kepler.arc_boxes(r, v, pe, we, span, 1.0, surface, hit, np.full(n, 1e-3))
+    for t in ts:
+        p, _ = kepler.propagate(r, v, 1.0, t)
+        ok = ~hit
+        assert ((p[ok] >= lo[ok]) & (p[ok] <= hi[ok])).all()
+        d = np.linalg.norm(p[ok], axis=1)
+        assert (d >= rho[ok] * (1 - 1e-12)).all()
+        assert (1.0 / d ** 2 <= accel[ok] * (1 + 1e-12)).all()
+    # the reachable cube of a body that reaches the surface holds its path at full speed both ways
+    k = np.flatnonzero(hit)
+    if k.size:
+        vmax = np.sqrt(2 * (0.5 * np.einsum("ij,ij->i", v[k], v[k]) - 1 / np.linalg.norm(r[k], axis=1)
+                            + 1 / rho[k]))
+        assert (hi[k] - r[k] >= vmax[:, None] * span).all() and (r[k] - lo[k] >= vmax[:, None] * span).all()
+    # and the boxes are tight enough to be of use: short arcs are barely wider than their chords
+    if span <= 0.01:
+        chord = np.abs(pe - r).max(axis=1)
+        assert np.median((hi - lo - 2e-3).max(axis=1)[~hit] / chord[~hit]) < 1.01
+
+
+def test_time_to_touch_finds_the_first_touch_with_and_without_the_tidal_bound():
+    """Pairs on random nearby conics: the first time they come within reach while closing, against a
+    dense sampling of the gap bisected; the tidal bound changes how fast it gets there, not where."""
+    rng = np.random.default_rng(9)
+    n = 40
+    ra = np.tile([1.0, 0.0, 0.0], (n, 1)) + rng.uniform(-0.01, 0.01, (n, 3))
+    va = np.tile([0.0, 1.0, 0.0], (n, 1)) + rng.uniform(-0.01, 0.01, (n, 3))
+    rb = np.tile([1.0, 0.0, 0.0], (n, 1)) + rng.uniform(-0.01, 0.01, (n, 3))
+    vb = np.tile([0.0, 1.0, 0.0], (n, 1)) + rng.uniform(-0.01, 0.01, (n, 3))
+    reach = np.full(n, 4e-3)
+    horizon = 3.0
+    pe_a, we_a = kepler.propagate(ra, va, 1.0, horizon)
+    pe_b, we_b = kepler.propagate(rb, vb, 1.0, horizon)
+    _, _, acc_a, rho_a = kepler.arc_boxes(ra, va, pe_a, we_a, horizon, 1.0, 0.5, np.zeros(n, bool))
+    _, _, acc_b, rho_b = kepler.arc_boxes(rb, vb, pe_b, we_b, horizon, 1.0, 0.5, np.zeros(n, bool))
+    plain, s1 = kepler.time_to_touch(ra, va, 0.0, rb, vb, 0.0, 1.0, reach, 0.0, horizon, acc_a + acc_b)
+    tidal, s2 = kepler.time_to_touch(ra, va, 0.0, rb, vb, 0.0, 1.0, reach, 0.0, horizon, acc_a + acc_b,
+                                     np.minimum(rho_a, rho_b))
+    assert not s1.any() and not s2.any()
+    ts = np.linspace(0.0, horizon, 30_001)
+    found = 0
+    for k in range(n):
+        pa, _ = kepler.propagate(np.repeat(ra[k:k + 1], ts.size, 0), np.repeat(va[k:k + 1], ts.size, 0), 1.0, ts)
+        pb, _ = kepler.propagate(np.repeat(rb[k:k + 1], ts.size, 0), np.repeat(vb[k:k + 1], ts.size, 0), 1.0, ts)
+        gap = np.linalg.norm(pb - pa, axis=1) - reach[k]
+        inside = np.flatnonzero(gap <= 0)
+        if not inside.size:
+            assert plain[k] == np.inf and tidal[k] == np.inf
+            continue
+        found += 1
+        j = inside[0]
+        lo, hi = ts[max(j - 1, 0)], ts[j]
+        for _ in range(100):
+            mid = 0.5 * (lo + hi)
+            a_, _ = kepler.propagate(ra[k], va[k], 1.0, mid)
+            b_, _ = kepler.propagate(rb[k], vb[k], 1.0, mid)
+            lo, hi = (mid, hi) if np.linalg.norm(b_ - a_) > reach[k] else (lo, mid)
+        assert plain[k] == pytest.approx(hi, abs=1e-9)
+        assert tidal[k] == pytest.approx(hi, abs=1e-9)
+    assert found >= 3
