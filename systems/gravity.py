@@ -121,8 +121,10 @@ MAX_CONTACTS = 4
 #: Most sphere-sphere contacts one body on rails may have in one step; past it, its further contacts
 #: in that step are not looked for (a warning says so once): only a resting or jammed cluster gets there.
 MAX_SPHERE_CONTACTS = 16
-#: Up to this many colliders about one well the broad phase sweeps, above it uses the grid.
-SWEEP_MAX = 2000
+#: The broad phase sweeps while the boxes would overlap on the sweep axis at most this many times per
+#: box (thin boxes: short steps), else it takes the grid (measured: sweep 1.5 ms vs grid 2.8 ms for
+#: 10,000 boxes of a 1 s step in low orbit, 51 vs 10 ms for those of a 100 s step).
+SWEEP_OVERLAPS = 64
 
 
 _NO_BODIES = np.empty(0, np.intp)
@@ -204,6 +206,17 @@ def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
         pull = w.mu[None, :] / d2
     deepest = np.where(inside, w.depth[None, :], -1.0).max(axis=1, keepdims=True)
     return np.argmax(np.where(inside & (w.depth[None, :] == deepest), pull, -np.inf), axis=1)
+
+
+def _broad_method(lo, hi) -> str:
+    """"sweep" or "grid" for boxes ``lo, hi`` (n, 3): the sweep's work is the overlaps along its axis,
+    about ``n^2 width / extent`` for boxes spread evenly."""
+    n = len(lo)
+    ax = int(np.argmax(np.ptp(lo[:: max(n // 64, 1)], axis=0)))      # (the axis from a sample of boxes)
+    l, h = lo[:, ax], hi[:, ax]
+    extent = float(h.max() - l.min())
+    width = float(h.sum() - l.sum()) / n
+    return "sweep" if n * width <= SWEEP_OVERLAPS * extent else "grid"
 
 
 class GravitySystem(esper.Processor):
@@ -533,19 +546,25 @@ class GravitySystem(esper.Processor):
         wells = self._wells
         mu, R = wells.mu[wi], wells.radius[wi]
         col = self.world.table(SphereCollider).data
-        rad = col["radius"][self.c_rows[cs]].astype(np.float64)
+        c_rows = self.c_rows[cs]
+        rad = col["radius"][c_rows].astype(np.float64)
         span = t1 - t0
-        pc = np.searchsorted(sel, cs)
+        # (every body a collider, the usual case for a swarm: slices, not gathers)
+        whole = cs.size == self._n
+        pc = slice(None) if cs.size == sel.size else np.searchsorted(sel, cs)
+        xc, vc = (x, v) if whole else (x[cs], v[cs])
         # the conic's state at the step's start, about the well (thrust: after the first half kick)
-        p0 = x[cs] - X0[wi]
-        w0 = v[cs] - V0[wi] + 0.5 * span * a[cs]
+        p0 = xc - X0[wi]
+        w0 = vc - V0[wi]
+        if a.any():
+            w0 += 0.5 * span * a[cs]
+        p1 = r1[pc]
         # each collider's swept box over the step (kepler.arc_boxes: the chord grown by how far a conic
         # can leave it, or the sphere it can reach where it touches the surface), grown by its radius
-        lo, hi, A, rho = kepler.arc_boxes(p0, w0, r1[pc], u1[pc], span, mu, R, self.ep_contact[cs] <= t1, rad)
-        # (the sweep beats the grid on a few thousand thin boxes, the grid wins on many)
-        pa, pb = bp.box_pairs(lo, hi, "sweep" if len(cs) <= SWEEP_MAX else "grid")
+        lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, u1[pc], span, mu, R, self.ep_contact[cs] <= t1, rad)
+        pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
         if len(pa):
-            pa, pb = self._near(pa, pb, cs, p0, r1[pc], rad, A, rho, span, mu, t1)
+            pa, pb = self._near(pa, pb, cs, p0, p1, rad, A, rho, span, mu, t1)
         touched = []
         if not len(pa):                                   # the usual step: nobody near anybody
             hit0 = self.ep_t[sel].copy()
