@@ -80,7 +80,13 @@ Each step, after the end-of-step states are known:
    (``method="kepler"``, fields as the collision system's) in ``world.events``.
    The bodies touched get their end-of-step state from their new epochs.
 
-A body meets at most :data:`MAX_SPHERE_CONTACTS` contacts in a step (further
+A *resting* contact (``e = 0``, or any contact after which the pair separates
+slower than the tidal pull between them could undo within the step) is not
+looked at again in that step: the next step resolves it afresh, so a pair
+pressed together by the tidal field costs one small impulse per step (no
+position correction: it may sink into itself by what that pull does over a
+step, ``~3 mu d dt^2 / (2 r^3)``, while it presses). A body meets at most
+:data:`MAX_SPHERE_CONTACTS` contacts in a step (further
 ones in that step are not looked for, with a warning); a pair that grazes too
 slowly to converge (``g' -> 0`` as ``g -> 0``) is taken to touch where it is
 within 1e-6 of ``R_a + R_b``, else left for the step with a warning. **Not
@@ -611,7 +617,7 @@ class GravitySystem(esper.Processor):
                 continue
             ia, ib = int(pa[k]), int(pb[k])
             i, j = int(cs[ia]), int(cs[ib])
-            pe, we = self._collide(i, j, wi, tp, X0, V0, t0, t1, events)
+            pe, we, sep = self._collide(i, j, wi, tp, X0, V0, t0, t1, events)
             touched.append(np.array([i, j]))
             count[ia] += 1
             count[ib] += 1
@@ -623,6 +629,14 @@ class GravitySystem(esper.Processor):
             mine = np.isin(pa, two) | np.isin(pb, two)
             tc[mine] = np.nan
             ts[mine] = tp
+            # a resting contact (e = 0, or a slow one): separating slower than the tidal pull between them
+            # could undo within the step. It is not looked at again this step (the next step resolves it
+            # afresh, one impulse per step) instead of a cascade of ever smaller impulses
+            reach = rad[ia] + rad[ib]
+            seg = min(rho[ia], rho[ib]) - reach
+            if seg > 0 and sep < 2.0 * mu * 2.0 * reach / seg ** 3 * (t1 - tp):
+                tc[k] = np.inf
+                ts[k] = t1
             add_a, add_b = [], []
             for c in (ia, ib):
                 over = np.all((lo[c] <= hi) & (hi[c] >= lo), axis=1)
@@ -654,7 +668,8 @@ class GravitySystem(esper.Processor):
     def _collide(self, i, j, wi, tc, X0, V0, t0, t1, events):
         """Bodies ``i`` and ``j`` touch at ``tc``: the impulse along the line of centres (masses from
         Mass, 1 kg without; restitution the smaller of the two), new epochs for both at ``tc``, their
-        next surface contacts, the CollisionEvent. Returns their states about the well at ``t1``."""
+        next surface contacts, the CollisionEvent. Returns their states about the well at ``t1`` and
+        their separating speed along the normal after the impulse."""
         world = self.world
         wells = self._wells
         mu, R = wells.mu[wi], wells.radius[wi]
@@ -686,7 +701,7 @@ class GravitySystem(esper.Processor):
                                      tuple(float(c) for c in point), tuple(float(c) for c in n_ab),
                                      float(impulse), method="kepler", step=world.step_count))
         pe, we = kepler.propagate(rc, uc, mu, t1 - tc)
-        return pe, we
+        return pe, we, float((uc[1] - uc[0]) @ nrm)
 
     def _well_position(self, wi, t, X0, V0, t0):
         """Well ``wi``'s centre at time ``t`` in the step (world frame): a root well moves straight, a

@@ -335,3 +335,26 @@ def test_bodies_about_a_moon_collide_on_their_conics_about_it_reported_in_the_wo
                                    rtol=0, atol=1e-3)
     finally:
         w.close()
+
+
+def test_a_perfectly_inelastic_pair_rests_in_contact_with_one_impulse_a_step_at_most():
+    """e = 0: they leave the contact with no normal speed; the tidal pull presses them together again,
+    and that resting contact costs one small impulse per step, not a cascade (nor a warning)."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        w, ents, (sa, sb), seen = run_pair(dt=1.0, steps=800, restitution=(0.0, 0.3))
+    try:
+        first = seen[0]
+        assert first.step == 500
+        assert len(seen) <= 1 + (800 - 501)
+        assert len({e.step for e in seen}) == len(seen)                 # one per step
+        assert all(e.impulse < 1e-6 * first.impulse for e in seen[1:])  # pressing, not bouncing
+        # they are still in touch at the end: not apart, and sunk into each other by no more than the
+        # tidal squeeze can do within each step (3 mu d / r^3 over dt^2 / 2), step after step
+        x, v = states(w, ents)
+        gap = np.linalg.norm(x[1] - x[0]) - 100.0
+        squeeze = 3.0 * MU * 100.0 / R_ORBIT ** 3 * 0.5 * (800 - 500)
+        assert -squeeze < gap < 1.0
+    finally:
+        w.close()
