@@ -93,8 +93,8 @@ within 1e-6 of ``R_a + R_b``, else left for the step with a warning. **Not
 modelled:** contacts between bodies about *different* wells (across a sphere of
 influence), of n-body bodies, and between a body on rails and a collider that is
 not (an immovable ``Mass(inf)`` one or a well with a collider): none are looked
-for. The warp governor's look-ahead (:meth:`GravitySystem.next_contact`)
-predicts surface contacts only.
+for. The warp governor's look-ahead predicts both kinds
+(:meth:`GravitySystem.next_contact`, :meth:`GravitySystem.next_sphere_contact`).
 
 **Checks** (the first step, and whenever wells or bodies are added): a well
 inside another's surface, a moon whose parent is missing or not a well, and
@@ -243,6 +243,7 @@ class GravitySystem(esper.Processor):
         self._wells = None
         self._n = 0
         self._epoch_version = 0
+        self._lookahead = None                            # (epoch version, contact or None, looked up to)
         self._epochs: dict = {}
         self._n_col = 0
         self._warned: set = set()
@@ -375,6 +376,53 @@ class GravitySystem(esper.Processor):
         if not np.isfinite(t[k]):
             return None
         return float(t[k]), int(self.ents[k]), self._wells.ents[int(self.ep_well[k])]
+
+    def next_sphere_contact(self, horizon: float):
+        """``(time, entity, entity)`` of the earliest predicted contact between two colliders on rails
+        about the same well within ``horizon`` s of the end of this step (absolute seconds, exact on
+        their conics: :func:`framework.kepler.time_to_touch` from the epochs), or None. For the warp
+        governor. Each look covers twice the horizon and is kept while no epoch changes (a thrust, a
+        contact, an edit), so a steady warp looks again only every ``horizon`` s. A pair is followed
+        up to the first surface contact of either (itself an event the governor slows down for)."""
+        if self._n_col < 2 or not horizon > 0 or self._wells is None:
+            return None
+        world = self.world
+        now = (world.step_count + 1) * world.dt           # the state is at the end of this step
+        kept = self._lookahead
+        if kept is not None and kept[0] == self._epoch_version:
+            found, upto = kept[1], kept[2]
+            if found is not None and found[0] >= now:
+                return found if found[0] <= now + horizon else None
+            if found is None and upto >= now + horizon:
+                return None
+        end = now + 2.0 * horizon
+        best = None
+        col = world.table(SphereCollider).data
+        for wi in range(len(self._wells)):
+            cs = np.flatnonzero((self.c_rows >= 0) & (self.ep_well == wi))
+            if cs.size < 2:
+                continue
+            mu, R = self._wells.mu[wi], self._wells.radius[wi]
+            rad = col["radius"][self.c_rows[cs]].astype(np.float64)
+            p0, w0 = kepler.propagate(self.ep_r[cs], self.ep_v[cs], mu, now - self.ep_t[cs])
+            p1, w1 = kepler.propagate(self.ep_r[cs], self.ep_v[cs], mu, end - self.ep_t[cs])
+            lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, w1, end - now, mu, R, self.ep_contact[cs] <= end, rad)
+            pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
+            if not len(pa):
+                continue
+            pa, pb = pa.astype(np.intp), pb.astype(np.intp)
+            ka, kb = cs[pa], cs[pb]
+            upto = np.minimum(end, np.minimum(self.ep_contact[ka], self.ep_contact[kb]))
+            t, _ = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka], self.ep_r[kb], self.ep_v[kb],
+                                        self.ep_t[kb], mu, rad[pa] + rad[pb], np.full(len(pa), now), upto,
+                                        A[pa] + A[pb], np.minimum(rho[pa], rho[pb]))
+            t = np.where(now <= upto, t, np.inf)
+            k = int(np.argmin(t))
+            if np.isfinite(t[k]) and (best is None or t[k] < best[0]):
+                a, b = sorted((int(self.ents[ka[k]]), int(self.ents[kb[k]])))
+                best = (float(t[k]), a, b)
+        self._lookahead = (self._epoch_version, best, end)
+        return best if best is not None and best[0] <= now + horizon else None
 
     # -- the step -------------------------------------------------------------------------------
     def process(self, dt: float) -> None:

@@ -1,5 +1,8 @@
-"""The warp governor: time warp drops before a predicted surface contact or a scheduled burn."""
+"""The warp governor: time warp drops before a predicted contact (with a surface or between two bodies
+on rails) or a scheduled burn."""
 from __future__ import annotations
+
+import math
 
 import esper
 
@@ -12,8 +15,10 @@ class WarpGovernorSystem(esper.Processor):
     """Reads Orbiting, Autopilot; writes the world's TimeWarp limit.  Warp drops before events.
 
     Each step it looks for the next event the player should see at a
-    watchable speed: the earliest surface contact predicted by the gravity
-    system (exact, on the bodies' conics) and the start of every scheduled
+    watchable speed: the earliest surface contact and the earliest contact
+    between two colliders on rails predicted by the gravity system (exact,
+    on the bodies' conics; the second looked for as far as the warp asked
+    for could reach in ``lead_frames`` frames) and the start of every scheduled
     autopilot burn, engaged or still to come in a
     :class:`~components.autopilot.FlightPlan` (1x while a burn is under way). The warp then allowed is the largest level whose frame
     of ``W`` steps leaves the event at least ``lead_frames`` frames away
@@ -33,8 +38,10 @@ class WarpGovernorSystem(esper.Processor):
             raise ValueError(f"lead_frames must be an int >= 1, got {lead_frames!r}")
         self.lead_frames = lead_frames
 
-    def next_event(self):
-        """``(seconds from now, what)`` of the next event to slow down for, or None."""
+    def next_event(self, horizon: float = math.inf):
+        """``(seconds from now, what)`` of the next event to slow down for, or None. Contacts between
+        bodies are looked for ``horizon`` s ahead (the surface contacts and burns are known at any
+        distance)."""
         from driftframe.systems.gravity import GravitySystem
 
         world = self.world
@@ -45,6 +52,9 @@ class WarpGovernorSystem(esper.Processor):
         if contact is not None:
             t, ent, well = contact
             best = (t - now, f"entity {ent} reaches the surface of {well}")
+        pair = g.next_sphere_contact(horizon) if g is not None and math.isfinite(horizon) else None
+        if pair is not None and (best is None or pair[0] - now < best[0]):
+            best = (pair[0] - now, f"entities {pair[1]} and {pair[2]} touch")
         burns = [(ent, ap) for ent, ap in esper.get_component(Autopilot) if ap.mode == "burn" and not ap.done]
         for ent, plan in esper.get_component(FlightPlan):          # and the burns a plan has still to come
             burns += [(ent, leg) for _, leg in plan.legs[plan.next:] if leg.mode == "burn"]
@@ -62,7 +72,8 @@ class WarpGovernorSystem(esper.Processor):
             if warp is not None:
                 warp.limit, warp.reason = None, ""
             return
-        event = self.next_event()
+        # contacts between bodies matter only as far as the requested warp reaches in lead_frames frames
+        event = self.next_event(warp.requested * dt * self.lead_frames)
         if event is None or event[0] < 0:
             warp.limit, warp.reason = None, ""
             return

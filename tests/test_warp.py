@@ -113,3 +113,47 @@ def test_warp_drops_before_the_burn_and_the_contact_and_says_why():
         assert len(hits) == 1
     finally:
         w.close()
+
+
+def test_warp_drops_before_two_bodies_on_rails_touch_and_the_contact_is_the_same():
+    """The governor also sees contacts between colliders on rails (predicted on their conics)."""
+    from driftframe import SphereCollider
+    from driftframe.components.collision import CollisionEvent
+
+    T = 900.0
+    where = np.array([7e6, 0.0, 0.0])
+    vc = math.sqrt(MU / 7e6)
+
+    def run(request):
+        w = World(dt=1.0)
+        for s in (GravitySystem(), MovementSystem(), WarpGovernorSystem(lead_frames=3)):
+            w.add_system(s)
+        w.create_entity(Transform(), GravityWell(mu=MU, radius=R))
+        ents = []
+        for v in ((0, vc, 0), (0, 0, vc)):                     # equatorial and polar: they meet at T
+            r0, v0 = kepler.propagate(where, np.array(v, float), MU, -T)
+            ents.append(w.create_entity(Transform(r0), Velocity(v0), SphereCollider(radius=50.0)))
+        hits = []
+        w.subscribe(CollisionEvent, hits.append)
+        warp = time_warp.of(w)
+        warp.request(request)
+        seen = []
+        try:
+            while w.time < 6000.0:
+                w.step()
+                seen.append((w.time, warp.factor, warp.reason))
+            return seen, hits, w.columns(Velocity, ents).linear.copy()
+        finally:
+            w.close()
+
+    seen, hits, v_end = run(10_000)
+    # they meet at T, bounce, and (their orbits still cross) meet again and again: each one seen coming
+    assert len(hits) >= 2
+    assert abs(hits[0].time - T) < 1.0
+    for t, f, why in seen:                                     # no frame at the warp in force runs into one
+        nxt = min((h.time for h in hits if h.time > t), default=math.inf)
+        assert f * 1.0 * 3 <= max(nxt - t, 3.0) + 1e-9, (t, f)
+    assert sum("touch" in why for _, _, why in seen) >= 2
+    assert max(f for _, f, _ in seen) >= 100                   # between contacts: as fast as the next allows
+    _, hits1, v1 = run(1)
+    assert [h.time for h in hits1] == [h.time for h in hits] and np.array_equal(v1, v_end)
