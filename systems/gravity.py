@@ -89,9 +89,13 @@ step, ``~3 mu d dt^2 / (2 r^3)``, while it presses). A body meets at most
 :data:`MAX_SPHERE_CONTACTS` contacts in a step (further
 ones in that step are not looked for, with a warning); a pair that grazes too
 slowly to converge (``g' -> 0`` as ``g -> 0``) is taken to touch where it is
-within 1e-6 of ``R_a + R_b``, else left for the step with a warning. **Not
-modelled:** contacts between bodies about *different* wells (across a sphere of
-influence), of n-body bodies, and between a body on rails and a collider that is
+within 1e-6 of ``R_a + R_b``, else left for the step with a warning.
+n-body colliders meet each other on the leapfrog's straight drift, exactly, by
+the collision system's kernel (:func:`framework.contact.solve_all_pairs`,
+``method="leapfrog"`` in the event); a body's contacts after a surface bounce
+in the same step are left to the next step. **Not modelled:** contacts between
+bodies about *different* wells (across a sphere of influence), between a body
+on rails and an n-body one, and between a body on rails and a collider that is
 not (an immovable ``Mass(inf)`` one or a well with a collider): none are looked
 for. The warp governor's look-ahead predicts both kinds
 (:meth:`GravitySystem.next_contact`, :meth:`GravitySystem.next_sphere_contact`).
@@ -117,6 +121,7 @@ from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
 from driftframe.framework import broadphase as bp
+from driftframe.framework import contact
 from driftframe.framework import kepler
 from driftframe.framework.store import as_index, to_indices
 from driftframe.systems import movement
@@ -277,7 +282,7 @@ class GravitySystem(esper.Processor):
                 self.moon_parent[k] = wells.parent[i]
                 self.well_index[k] = i
         # the bodies on rails that collide as spheres (SphereCollider rows, -1: none). A moon is a well
-        # (bodies hit its surface); n-body bodies drift straight, and their sphere contacts are not modelled
+        # (bodies hit its surface); n-body bodies drift straight, and collide with each other on the drift
         self.c_rows = np.full(n, -1, np.intp)
         cq = world.query(SphereCollider)
         cq.refresh()
@@ -286,8 +291,10 @@ class GravitySystem(esper.Processor):
             at = np.minimum(np.searchsorted(ce, self.ents), len(ce) - 1)
             has = ce[at] == self.ents
             self.c_rows[has] = to_indices(cq.rows(SphereCollider))[at[has]]
+        self.nb_c_rows = np.where(self.nbody & (self.well_index < 0), self.c_rows, -1)
         self.c_rows[(self.well_index >= 0) | self.nbody] = -1
         self._n_col = int(np.count_nonzero(self.c_rows >= 0))
+        self._nb_t_last = None                            # the n-body colliders' last contacts (TC model)
         # epochs: (state about the well, time, well); -1 = take a new one
         self.ep_r = np.zeros((n, 3))
         self.ep_v = np.zeros((n, 3))
@@ -798,6 +805,9 @@ class GravitySystem(esper.Processor):
         gm = self.gm[sel]
         p = x[sel]
         u = v[sel] + 0.5 * dt * (self._accel(p, X0, gm) + a[sel])
+        # the drift is straight: colliders meet on it exactly (the collision system's kernel: times of
+        # impact, islands, restitution), and each body is on the line p + u t from its last contact on
+        p, u, after = self._drift_contacts(sel, p, u, dt, t0, events)
         q = p + u * dt
         # the drift is straight: sweep it (relative to each well, which moves straight over the step too)
         for wi in range(len(X0)):
@@ -809,7 +819,8 @@ class GravitySystem(esper.Processor):
             disc = bb * bb - aa * cc
             with np.errstate(invalid="ignore", divide="ignore"):
                 s = cc / (-bb + np.sqrt(np.maximum(disc, 0.0)))     # smaller root, written without cancelling
-            for k in np.flatnonzero((bb < 0) & (disc >= 0) & (cc > 0) & (s <= dt)):
+            # (a body that met another in the drift is on its line only from that contact on: s >= after)
+            for k in np.flatnonzero((bb < 0) & (disc >= 0) & (cc > 0) & (s <= dt) & (s >= after)):
                 dc = d0[k] + w_rel[k] * s[k]
                 n_hat = dc / np.linalg.norm(dc)
                 un = float(w_rel[k] @ n_hat)
@@ -821,3 +832,51 @@ class GravitySystem(esper.Processor):
         u = u + 0.5 * dt * (self._accel(q, X1, gm) + a[sel])
         x1[sel] = q
         v1[sel] = u
+
+    def _drift_contacts(self, sel, p, u, dt, t0, events):
+        """Sphere contacts among the n-body colliders ``sel`` on their straight drift ``p + u t``
+        (:func:`framework.contact.solve_all_pairs`, every pair: n-body is O(n^2) already). Returns
+        the paths after their contacts (``p`` moved so that ``p + u t`` holds from each body's last
+        contact on) and that contact's time in the step (-inf: none). A body's contacts after a
+        surface bounce in the same step are left to the next step."""
+        rows = self.nb_c_rows[sel]
+        col = rows >= 0
+        after = np.full(len(sel), -np.inf)
+        m = int(np.count_nonzero(col))
+        if m < 2:
+            return p, u, after
+        world = self.world
+        k = np.flatnonzero(col)
+        data = world.table(SphereCollider).data
+        r = np.ascontiguousarray(data["radius"][rows[k]], np.float64)
+        e = np.ascontiguousarray(data["restitution"][rows[k]], np.float64)
+        mr = self.m_rows[sel[k]]
+        kg = np.where(mr >= 0, world.table(Mass).data["kg"][np.maximum(mr, 0)], 1.0)
+        with np.errstate(divide="ignore"):
+            inv = 1.0 / kg
+        if self._nb_t_last is None or len(self._nb_t_last[1]) != m:
+            self._nb_t_last = (contact.all_pairs(m), np.full(m, -np.inf))
+        (pi, pj), t_abs = self._nb_t_last
+        t_last = t_abs - t0
+        x = np.ascontiguousarray(p[k])
+        w = np.ascontiguousarray(u[k])
+        changed, ev, ev_n, ev_x, stats, flags = contact.solve_all_pairs(
+            x, w, r, inv, e, np.ones(m, np.bool_), t_last, pi, pj, dt, contact.TC * dt, contact.CAP)
+        self._nb_t_last = ((pi, pj), t_last + t0)
+        if not len(ev):
+            return p, u, after
+        p, u = p.copy(), u.copy()
+        p[k], u[k] = x, w
+        hit = changed & (t_last >= 0.0)
+        after[k[hit]] = t_last[hit]
+        ents = self.ents[sel[k]]
+        step = world.step_count
+        for (i, j, t, lam), nrm, pts in zip(ev.tolist(), ev_n.tolist(), ev_x.tolist()):
+            a, b = int(ents[int(i)]), int(ents[int(j)])
+            if a < b:
+                events.append(CollisionEvent(a, b, t0 + t, t, tuple(pts[:3]), tuple(nrm), lam, method="leapfrog",
+                                             step=step))
+            else:                                         # the lower entity id first, as everywhere
+                events.append(CollisionEvent(b, a, t0 + t, t, tuple(pts[3:]), (-nrm[0], -nrm[1], -nrm[2]), lam,
+                                             method="leapfrog", step=step))
+        return p, u, after

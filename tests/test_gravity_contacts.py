@@ -358,3 +358,66 @@ def test_a_perfectly_inelastic_pair_rests_in_contact_with_one_impulse_a_step_at_
         assert -squeeze < gap < 1.0
     finally:
         w.close()
+
+
+# -- n-body colliders: exact contacts on the leapfrog's straight drift -------------------------------
+def nbody_pair(dt, gap=1_000.0, speed=50.0, kg=(2.0, 5.0), restitution=1.0):
+    """Two NBody colliders closing head on far from a light well (the drift is all that moves them)."""
+    from driftframe.components.gravity import NBody
+    w = World(dt=dt)
+    w.add_system(GravitySystem())
+    w.add_system(MovementSystem())
+    w.add_system(CollisionSystem())
+    w.create_entity(Transform((0.0, 0.0, -1e9)), GravityWell(mu=1.0, radius=1.0))
+    w.seen = []
+    w.subscribe(CollisionEvent, w.seen.append)
+    a = w.create_entity(Transform((0.0, 0.0, 0.0)), Velocity((speed, 0.0, 0.0)), Mass(kg[0]), NBody(),
+                        SphereCollider(radius=2.0, restitution=restitution))
+    b = w.create_entity(Transform((gap, 0.0, 0.0)), Velocity((-speed, 0.0, 0.0)), Mass(kg[1]), NBody(),
+                        SphereCollider(radius=3.0, restitution=restitution))
+    return w, a, b
+
+
+@pytest.mark.parametrize("dt", [0.25, 4.0, 60.0])
+def test_n_body_colliders_meet_on_their_drift_at_the_exact_time_at_any_step(dt):
+    w, a, b = nbody_pair(dt)
+    try:
+        steps = int(math.ceil(30.0 / dt))
+        w.step(steps)
+        hits = collisions(w)
+        assert len(hits) == 1, hits                             # found even when one step jumps past
+        h = hits[0]
+        assert (h.a, h.b) == (a, b) and h.method == "leapfrog"
+        # closing at 100 m/s from 1,000 m between centres, 5 m of radii: 9.95 s (the well's pull is ~1e-18)
+        assert h.time == pytest.approx(995.0 / 100.0, rel=1e-9)
+        v = w.columns(Velocity, [a, b]).linear
+        # elastic, 2 kg and 5 kg at +-50 m/s: momentum -150 kg m/s kept, kinetic energy kept
+        p = 2.0 * v[0, 0] + 5.0 * v[1, 0]
+        assert p == pytest.approx(2.0 * 50 - 5.0 * 50, rel=1e-12)
+        ke = 0.5 * (2.0 * v[0] @ v[0] + 5.0 * v[1] @ v[1])
+        assert ke == pytest.approx(0.5 * 7.0 * 2500.0, rel=1e-12)
+        x = w.columns(Transform, [a, b]).position
+        assert x[1, 0] - x[0, 0] >= 5.0 - 1e-9                 # apart after it: no tunnelling
+    finally:
+        w.close()
+
+
+def test_n_body_colliders_that_never_meet_are_left_as_the_leapfrog_moves_them():
+    """The contact pass changes nothing when nobody touches: the same states as without colliders."""
+    from driftframe.components.gravity import NBody
+    out = []
+    for colliders in (True, False):
+        w = World(dt=10.0)
+        w.add_system(GravitySystem())
+        w.add_system(MovementSystem())
+        w.create_entity(Transform(), GravityWell(mu=MU, radius=R_EARTH))
+        ents = []
+        for k in range(4):
+            comps = [Transform((R_ORBIT + 1e5 * k, 0.0, 0.0)), Velocity((0.0, V_CIRC, 10.0 * k)), Mass(1e3), NBody()]
+            if colliders:
+                comps.append(SphereCollider(radius=5.0))
+            ents.append(w.create_entity(*comps))
+        w.step(50)
+        out.append(states(w, ents))
+        w.close()
+    assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
