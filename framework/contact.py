@@ -435,8 +435,23 @@ def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
 
 
 @njit(cache=True, error_model="numpy")
-def solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
+def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
                listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
+    """:func:`_solve_step` with ``t_last`` in absolute seconds and ``now`` the step's start: made
+    relative on the way in and absolute again on the way out, in place (the same operations as
+    ``t_last - now`` and ``+ now`` in numpy, without two numpy calls a step)."""
+    for k in range(t_last.shape[0]):
+        t_last[k] -= now
+    out = _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
+                      listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget)
+    for k in range(t_last.shape[0]):
+        t_last[k] += now
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
+                listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
     """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
 
     ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
@@ -952,13 +967,13 @@ def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, o
 
 
 @njit(cache=True, error_model="numpy")
-def solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap):
+def solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
     """:func:`solve_step` with every pair a candidate (few bodies): fewer arguments to pass per step."""
     nob = np.zeros(0, np.bool_)
     n3 = np.empty((0, 3))
     t3 = np.empty((3, 0))
     f = np.empty(0)
-    return solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
+    return solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
                       False, nob, n3, n3.copy(), t3, f, f.copy(), np.empty(0, np.int64), f.copy(), 0.0, 0)
 
 

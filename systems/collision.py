@@ -65,6 +65,8 @@ from driftframe.systems import movement
 METHODS = ("continuous", "articles")
 
 _NO_N3 = np.empty((0, 3))
+_ZERO_STATS = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "overlaps": 0, "sequential": 0,
+               "left_out": 0}
 
 
 class _Layout:
@@ -230,8 +232,7 @@ class CollisionSystem(esper.Processor):
         self._bad: set[int] = set()
         self._t_last_layout = None
         self._none_changed = None
-        self.stats = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "overlaps": 0,
-                      "sequential": 0, "left_out": 0}
+        self.stats = dict(_ZERO_STATS)
 
     # the world this system is in: it integrates the colliders, so movement must leave them alone
     @property
@@ -275,8 +276,7 @@ class CollisionSystem(esper.Processor):
 
     def process(self, dt: float) -> None:
         lay = self._refresh()
-        for k in self.stats:
-            self.stats[k] = 0
+        self.stats.update(_ZERO_STATS)
         if lay.n == 0:
             return
         st = State(self.world, lay, dt)
@@ -343,14 +343,14 @@ class CollisionSystem(esper.Processor):
         if self._t_last_layout is not lay:
             self._t_last = np.full(n, -math.inf)
             self._t_last_layout = lay
-        t_last = self._t_last - now
+        t_last = self._t_last                              # absolute: the kernel makes it relative to now
 
         if self.broadphase == "all" or (self.broadphase == "auto" and n <= bp.ALL_PAIRS_MAX):
             if self._pairs_n != n:                           # every pair (kept for this n only)
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
             pi, pj = self._pairs
-            out = contact.solve_all_pairs(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, self.max_contacts)
+            out = contact.solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, self.max_contacts)
         else:
             nl = self._list
             rebuild = self._list_dirty or self._list_layout is not lay or len(nl.radius) != n
@@ -369,16 +369,18 @@ class CollisionSystem(esper.Processor):
                 self._bhi = np.empty((n, 3))
                 self.stats["builds"] = 1
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
-            out = contact.solve_step(x, u, r, inv, e, live, t_last, self._pi, self._pj, dt, t_c, self.max_contacts,
+            out = contact.solve_step(x, u, r, inv, e, live, t_last, now, self._pi, self._pj, dt, t_c,
+                                     self.max_contacts,
                                      True, nl.swept, self._blo, self._bhi, centre, skin, reach,
                                      order, lo_x, float(width), int(nl.budget))
         changed, ev, ev_n, ev_x, stats, flags = out
-        self._t_last = t_last + now
         s = stats.tolist()
         st_ = self.stats
         st_["pairs"], st_["contacts"], st_["waves"] = int(s[0]), int(s[1]), int(s[2])
-        st_["swept"] += int(s[3])
-        st_["overlaps"], st_["sequential"] = int(s[4]), int(s[8])
+        if s[3]:
+            st_["swept"] += int(s[3])
+        if s[4] or s[8]:
+            st_["overlaps"], st_["sequential"] = int(s[4]), int(s[8])
         if flags:
             if flags & 32:
                 self._list_dirty = True

@@ -857,11 +857,11 @@ class GravitySystem(esper.Processor):
         if self._nb_t_last is None or len(self._nb_t_last[1]) != m:
             self._nb_t_last = (contact.all_pairs(m), np.full(m, -np.inf))
         (pi, pj), t_abs = self._nb_t_last
-        t_last = t_abs - t0
+        t_last = t_abs - t0                               # relative to the step (the kernel's now = 0)
         x = np.ascontiguousarray(p[k])
         w = np.ascontiguousarray(u[k])
         changed, ev, ev_n, ev_x, stats, flags = contact.solve_all_pairs(
-            x, w, r, inv, e, np.ones(m, np.bool_), t_last, pi, pj, dt, contact.TC * dt, contact.CAP)
+            x, w, r, inv, e, np.ones(m, np.bool_), t_last, 0.0, pi, pj, dt, contact.TC * dt, contact.CAP)
         self._nb_t_last = ((pi, pj), t_last + t0)
         if not len(ev):
             return p, u, after
