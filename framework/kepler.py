@@ -328,12 +328,13 @@ class Epoch:
     """States ``(r0, v0)`` about ``mu`` with what :func:`propagate` derives from them computed once:
     for bodies propagated from one epoch step after step (on rails), only ``dt`` changes."""
 
-    __slots__ = ("r0", "v0", "mu", "sqmu", "r0n", "alpha", "sigma0", "period", "chi_turn", "span_rate")
+    __slots__ = ("r0", "v0", "mu", "sqmu", "r0n", "alpha", "sigma0", "period", "chi_turn", "span_rate", "_compiled")
 
     def __init__(self, r0, v0, mu):
         r0 = np.atleast_2d(np.asarray(r0, dtype=np.float64))
         v0 = np.atleast_2d(np.asarray(v0, dtype=np.float64))
         self.r0, self.v0 = r0, v0
+        self._compiled = None
         self.mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), (r0.shape[0],))
         self.sqmu = np.sqrt(self.mu)
         self.r0n = _norm(r0)
@@ -355,15 +356,17 @@ class Epoch:
         n = self.r0.shape[0]
         if chi is not None and n >= COMPILED_MIN:
             dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,)))
+            # (a guess that is not finite fails the loop's bracket test and is replaced there)
             guess = np.ascontiguousarray(np.broadcast_to(np.asarray(chi, dtype=np.float64), (n,)))
-            guess = np.where(np.isfinite(guess), guess, np.nan)
             out_r = np.empty((n, 3))
             out_v = np.empty((n, 3))
             out_chi = np.empty(n)
-            _at_compiled(np.ascontiguousarray(self.r0), np.ascontiguousarray(self.v0), np.ascontiguousarray(self.mu),
-                         np.ascontiguousarray(self.sqmu), self.r0n, self.alpha, self.sigma0, self.period,
-                         self.chi_turn, np.ascontiguousarray(self.span_rate[0]),
-                         np.ascontiguousarray(self.span_rate[1]), dt, guess, out_r, out_v, out_chi)
+            c = self._compiled
+            if c is None:                                  # contiguous copies, made once per epoch
+                c = self._compiled = tuple(np.ascontiguousarray(a) for a in (
+                    self.r0, self.v0, self.mu, self.sqmu, self.r0n, self.alpha, self.sigma0, self.period,
+                    self.chi_turn, self.span_rate[0], self.span_rate[1]))
+            _at_compiled(*c, dt, guess, out_r, out_v, out_chi)
             return out_r, out_v, out_chi
         dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
         guess = None if chi is None else np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)

@@ -508,7 +508,8 @@ class GravitySystem(esper.Processor):
         mu, R = wells.mu[wi], wells.radius[wi]
         dt = t1 - t0
         # a new epoch where the engine fires, the well changed, or someone else moved the body
-        new = thrust[sel] | edited[sel] | (self.ep_well[sel] != wi)
+        g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
+        new = thrust[g] | edited[g] | (self.ep_well[g] != wi)
         if new.any():
             self._epoch_version += 1
             k = sel[new]
@@ -526,7 +527,6 @@ class GravitySystem(esper.Processor):
         # from the last step's chi moved on by its Taylor series (kepler.next_chi; the state at the
         # step's start is the last step's result). The guess changes how fast the solver converges,
         # and where only within its few ulp.
-        g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
         guess = kepler.next_chi(self.ep_chi[g], x[g], v[g], mu, t1 - t0, origin=(X0[wi], V0[wi]))
         r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
         if cs.size >= 2:
@@ -777,9 +777,11 @@ class GravitySystem(esper.Processor):
     def _epoch(self, wi, sel, mu) -> kepler.Epoch:
         """The epochs of bodies ``sel`` about well ``wi`` as a kepler.Epoch, kept while none changes
         (what depends only on the epoch state is then derived once, not every step)."""
-        key = (wi, self._epoch_version)
+        key = (wi, self._epoch_version, sel.size)
         cached = self._epochs.get(wi)
-        if cached is not None and cached[0] == key and np.array_equal(cached[1], sel):
+        # (the same epochs and as many bodies: the same bodies unless the split between wells changed,
+        # which is compared; every body about the one well, the usual case, needs no comparison)
+        if cached is not None and cached[0] == key and (sel.size == self._n or np.array_equal(cached[1], sel)):
             return cached[2]
         ep = kepler.Epoch(self.ep_r[sel], self.ep_v[sel], mu)
         self._epochs[wi] = (key, sel.copy(), ep)
