@@ -18,7 +18,11 @@ to an executor that exists already.
 
 * Local (default): :class:`concurrent.futures.ProcessPoolExecutor` with the
   ``spawn`` start method (a fork after a GL context exists hangs; see
-  ``framework/gl.py``). ``jobs=1`` runs serially in this process.
+  ``framework/gl.py``). ``jobs=N`` is N processes running specs: N - 1
+  spawned workers take them from the front of the queue, and this process
+  (already set up) takes them from the back while it waits, so one worker's
+  start-up (about 0.6 s: an interpreter, the imports, the compiled kernels)
+  is saved. ``jobs=1`` runs serially in this process.
 * A cluster: ``scheduler="tcp://host:8786"`` submits the same function to a
   ``dask.distributed`` scheduler (the optional ``cluster`` extra). Workers
   need driftframe installed and, for outputs, the same file system.
@@ -46,6 +50,7 @@ lock. Start Dask workers with ``--nthreads 1`` and as many processes as cores.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib
 import inspect
@@ -526,7 +531,8 @@ RECORDING_CORES = 1.25
 
 
 def plan_jobs(specs, jobs: int | None = None, *, ncores: int | None = None) -> tuple[int, int | None]:
-    """``(jobs, lp_threads)``: worker processes, and ``LP_NUM_THREADS`` for each (None: leave it).
+    """``(jobs, lp_threads)``: processes that run specs (this one and ``jobs - 1`` workers), and
+    ``LP_NUM_THREADS`` for each (None: leave it).
 
     The rule: ``jobs = round(cores / cores_per_run)``, at least 1 and at most
     the number of runs. A headless run keeps one thread busy: 1 core. An
@@ -567,6 +573,20 @@ def _worker_init(stop_event, lp_threads) -> None:
     if lp_threads is not None:
         os.environ["LP_NUM_THREADS"] = str(lp_threads)
     _WORKER_STOP = stop_event
+
+
+@contextlib.contextmanager
+def _rasteriser_threads(lp_threads):
+    """``LP_NUM_THREADS`` as planned while this process runs a spec of a pool's batch (Mesa reads it
+    when a run makes its GL context), then as it was; a value the user set is left alone."""
+    if lp_threads is None or "LP_NUM_THREADS" in os.environ:
+        yield
+        return
+    os.environ["LP_NUM_THREADS"] = str(lp_threads)
+    try:
+        yield
+    finally:
+        os.environ.pop("LP_NUM_THREADS", None)
 
 
 def _pool_attempt(spec: Spec):
@@ -640,7 +660,7 @@ def run_all(specs, *, jobs: int | None = None, scheduler=None, progress: bool = 
     """Run every spec; an :class:`Outcome` with a Result or Failure per spec, in spec order.
 
     All specs are checked first (:func:`check_all`): a bad one raises
-    :class:`SpecError` before anything runs. ``jobs``: worker processes
+    :class:`SpecError` before anything runs. ``jobs``: processes running specs
     (default :func:`plan_jobs`; 1 runs serially here). ``scheduler``: a Dask
     scheduler address or a ``distributed.Client``: run there instead.
     ``progress``: a tqdm bar on stderr. ``on_done(index, result)``: called
@@ -707,24 +727,47 @@ def _serial(specs, done) -> bool:
 
 
 def _on_pool(specs, jobs, lp, done) -> bool:
+    """``jobs`` processes run the specs: ``jobs - 1`` spawned workers take them from the front of the
+    queue, and this process, already set up (imports, compiled kernels loaded), from the back, one at
+    a time while it waits for the workers. A worker's start (an interpreter, the imports, loading the
+    kernels: about 0.6 s here) is then paid once less, which on short runs is most of what a pool
+    costs. This process takes a spec only while its future can still be cancelled (not yet handed to
+    a worker), so each spec runs exactly once."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     ctx = multiprocessing.get_context("spawn")      # never fork: a fork after a GL context exists hangs
     stop = ctx.Event()
     with _StopFlag(on_stop=stop.set) as flag, \
-            ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init,
+            ProcessPoolExecutor(max_workers=jobs - 1, mp_context=ctx, initializer=_worker_init,
                                 initargs=(stop, lp)) as pool:
         # workers start inside submit(), with SIGINT blocked (fork and exec keep the signal mask): a Ctrl-C
         # while they import cannot kill one, and in this process it waits until the mask is lifted
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
-            futures = {pool.submit(_pool_attempt, spec): i for i, spec in enumerate(specs)}
+            order = [pool.submit(_pool_attempt, spec) for spec in specs]
         finally:
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        futures = {f: i for i, f in enumerate(order)}
         pending = set(futures)
+        back = len(order) - 1                       # the next spec this process may take
         while pending:
-            finished, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+            mine = None
+            while back >= 0 and not flag.event.is_set():
+                f = order[back]
+                back -= 1
+                if f.cancel():                      # still queued: this process runs it
+                    pending.discard(f)
+                    mine = futures[f]
+                    break
+                back = -1                           # the workers have reached the back: leave the rest
+            if mine is not None:
+                with _rasteriser_threads(lp):      # as planned for every process, this one's runs too
+                    res = attempt(specs[mine], flag.event.is_set)
+                done(mine, res)
+                finished, pending = wait(pending, timeout=0, return_when=FIRST_COMPLETED)
+            else:
+                finished, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
             for f in finished:
                 i = futures[f]
                 if f.cancelled():

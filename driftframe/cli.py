@@ -197,7 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
                                        "Ctrl-C stops cleanly: no half-written output is left.")
     batch.add_argument("spec", metavar="SPEC.toml", help="the batch file")
     batch.add_argument("-j", "--jobs", type=_jobs, default=None, metavar="N",
-                       help="worker processes (default: from the cores; 1 runs serially in this process)")
+                       help="processes running specs: this one and N-1 workers (default: from the cores; 1 runs "
+                            "serially in this process)")
     batch.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run on this dask.distributed scheduler (tcp://host:8786) instead of local processes")
     batch.add_argument("-o", "--output", default=None, metavar="DIR",
