@@ -61,6 +61,7 @@ class Drift:
                                    ((Transform, Velocity), ()), ((Transform, Velocity, Acceleration), ()),
                                    ((SphereCollider,), ())):
                     self.w.query(*types, optional=opt).refresh()
+                self.w.prepare()            # the systems' packed rows and buffers, as a game builds them at load
         self.warnings = list(rec)
         self.most = 0
         self.m = scene[3]
@@ -480,8 +481,10 @@ Cold start (numba compiles the contact kernels on the first run on a machine and
 (the whole process {cold['total']:.1f} s); with the cache filled {warm['first'] * 1e3:.0f} ms
 (a 2-body scene after it: {warm['first_small'] * 1e3:.1f} ms).
 
-The wedged row times the first step after the world's one-time table sync and query build for 30,000 new
-entities (esper's cost, which any system pays once at load), and includes the neighbour list's first build.
+First steps (the wedged row, the crystals, the overlapping fields) are timed after the world's one-time
+work for freshly made entities: the table sync and query build (esper's cost, which any system pays once
+at load) and `World.prepare()` (each system's packed rows and buffers, which a game builds when a level has
+loaded). They include the neighbour list's first build, which needs the step's own state.
 """
     chart(res, rows, verdicts)
     common.write_section("collision_stress", "Collisions at any density: stress scenes vs pybullet", body,

@@ -648,6 +648,21 @@ class World:
                     h.update(_describe(esper.component_for_entity(e, cls)).encode())
         return h.hexdigest()
 
+    def prepare(self) -> None:
+        """Do now the one-time work the first step would do: reconcile the tables with esper and let
+        every system that has a ``prepare()`` build what it caches for the current entities (packed
+        rows, buffers). Call it when a level has loaded, so the first frame is not the slow one; it
+        changes no state (the hash is the same with and without it), and the systems rebuild
+        whatever a later change of entities makes stale, as they always do."""
+        self.activate()
+        self.sync()
+        for phase in ("step", "frame"):
+            for e in self._order[phase]:
+                prepare = getattr(e.system, "prepare", None)
+                if callable(prepare):
+                    prepare()
+                    self.sync()
+
     def close(self) -> None:
         """Release what every system and resource holds (GL objects included), free the tables,
         and delete the esper world context. Components keep their values."""

@@ -266,6 +266,13 @@ class CollisionSystem(esper.Processor):
             lay = self._layout = _Layout(_WithoutOrbiting(q, orbiting) if len(orbiting) else q)
         return lay
 
+    def prepare(self) -> None:
+        """The packed layout of the current colliders and the buffers a step fills (see
+        :meth:`World.prepare`)."""
+        lay = self._refresh()
+        if lay.n and lay.buffers is None:
+            State(self.world, lay, self.world.dt)
+
     def _now(self) -> float:
         return self.world.time if self.world is not None else 0.0
 

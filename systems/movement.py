@@ -65,10 +65,22 @@ class MovementSystem(esper.Processor):
         self._kept[q.types] = ((q.version, skip), rows)
         return rows
 
+    def prepare(self) -> None:
+        """The packed rows of the current bodies (see :meth:`World.prepare`)."""
+        skip = self._skip()
+        for types in ((Transform, Velocity), (Transform, Velocity, Acceleration)):
+            q = self.world.query(*types)
+            q.refresh()
+            if len(q):
+                self._rows(q, types, skip)
+
+    def _skip(self) -> frozenset:
+        skip = self.world.resources.get(SKIP)
+        return frozenset(cls for cls, by in skip.items() if by) if skip else frozenset()
+
     def process(self, dt: float) -> None:
         world = self.world
-        skip = world.resources.get(SKIP)
-        skip = frozenset(cls for cls, by in skip.items() if by) if skip else frozenset()
+        skip = self._skip()
         free = world.query(Transform, Velocity)
         free.refresh()
         if len(free):

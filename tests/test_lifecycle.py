@@ -71,3 +71,28 @@ def test_the_state_hash_is_the_same_with_or_without_rendering(ctx):
         finally:
             world.close()
     assert hashes[0] == hashes[1]
+
+
+def test_prepare_builds_the_systems_caches_and_changes_nothing():
+    """World.prepare() does the first step's one-time work at load: same states, hash and events after."""
+    from driftframe import CollisionSystem, Mass, MovementSystem, SphereCollider, Transform, Velocity, World
+
+    def world(prepared):
+        w = World()
+        w.add_system(MovementSystem())
+        cs = w.add_system(CollisionSystem())
+        rng = np.random.default_rng(4)
+        n = 60
+        w.create_entities(Transform.bulk(n, position=rng.uniform(0, 30, (n, 3))),
+                          Velocity.bulk(n, linear=rng.normal(0, 2, (n, 3))), Mass.bulk(n, kg=np.ones(n)),
+                          SphereCollider.bulk(n, radius=np.full(n, 0.5)))
+        w.create_entity(Transform((100.0, 0, 0)), Velocity((1.0, 0, 0)))      # a free body: movement's own
+        if prepared:
+            before = w.state_hash()
+            w.prepare()
+            assert w.state_hash() == before
+            assert cs._layout is not None and cs._layout.buffers is not None     # built at load, not in step 1
+        w.step(40)
+        return w.state_hash(), len(w.events)
+
+    assert world(True) == world(False)
