@@ -571,7 +571,7 @@ TOUCH_ITERATIONS = 200
 
 
 def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, rho=None, *,
-                  iterations: int = TOUCH_ITERATIONS):
+                  iterations: int = TOUCH_ITERATIONS, line_b: bool = False):
     """First time in ``[t_from, t_to]`` (absolute s) at which pairs of bodies on conics about the same
     mass come within ``reach`` (m, the sum of their radii) of each other *while approaching*; ``inf``
     where they do not. Vectorised over pairs.
@@ -607,7 +607,13 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, rho=No
     pair that grazes, ``g' -> 0`` as ``g -> 0``, converges that slowly): those within ``1e-6 reach``
     and approaching are taken to touch where they are (a graze: its impulse is ~0); the others get
     ``inf`` and ``stuck`` True, for the caller to report.
+
+    ``line_b=True``: body ``b`` is not on a conic but moves straight, ``rb + vb (t - tb)`` (an
+    obstacle gravity does not move, in the frame of a mass that itself moves straight); ``accel`` is
+    then body ``a``'s bound alone, and ``rho`` must be None (no tidal bound: ``b`` feels no pull).
     """
+    if line_b and rho is not None:
+        raise ValueError("time_to_touch: rho (the tidal bound) needs both bodies on conics; got line_b=True")
     ra, va, rb, vb = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (ra, va, rb, vb))
     n = ra.shape[0]
     b_ = lambda a: np.array(np.broadcast_to(np.asarray(a, dtype=np.float64), (n,)))  # noqa: E731
@@ -621,7 +627,8 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, rho=No
     if tidal:
         rho = b_(rho)
         trials = 0.25 ** np.arange(10)                           # fractions of the time left
-    ea, eb = Epoch(ra, va, mu), Epoch(rb, vb, mu)
+    ea = Epoch(ra, va, mu)
+    eb = _Line(rb, vb) if line_b else Epoch(rb, vb, mu)
     idx = np.arange(n)
     chi_a = chi_b = None
     for it in range(iterations):
@@ -670,9 +677,21 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, rho=No
             ta, tb, reach, t_to, accel = ta[keep], tb[keep], reach[keep], t_to[keep], accel[keep]
             if tidal:
                 rho = rho[keep]
-            ea, eb = Epoch(ea.r0[keep], ea.v0[keep], mu), Epoch(eb.r0[keep], eb.v0[keep], mu)
+            ea = Epoch(ea.r0[keep], ea.v0[keep], mu)
+            eb = _Line(eb.r0[keep], eb.v0[keep]) if line_b else Epoch(eb.r0[keep], eb.v0[keep], mu)
         t = t_new
     return out, stuck
+
+
+class _Line:
+    """A straight path ``r0 + v0 t`` with Epoch.at's signature (time since the epoch, a chi guess)."""
+
+    def __init__(self, r0, v0):
+        self.r0, self.v0 = r0, v0
+
+    def at(self, dt, chi=None):
+        dt = np.asarray(dt, dtype=np.float64)
+        return self.r0 + self.v0 * dt[:, None], self.v0, np.zeros(len(dt))
 
 
 def _mean_anomaly_e(el: Elements, idx):

@@ -105,8 +105,9 @@ class _WithoutOrbiting:
     """The collider query less the bodies the gravity system integrates (marked Orbiting): their path
     over the step is a conic the gravity system has already followed, not this system's straight
     chord, so they are left out here. The gravity system finds their contacts on the conics: with a
-    well's surface, and with each other about the same well (see systems/gravity.py); contacts
-    between an orbiting body and a collider that is not orbiting are not modelled."""
+    well's surface, with each other about the same well, and (about a root well) with the colliders
+    gravity does not move (see systems/gravity.py); the other contacts between an orbiting body and
+    a collider that is not orbiting are not modelled."""
 
     def __init__(self, q, orbiting):
         keep = ~in_sorted(q.entities, orbiting.entities)

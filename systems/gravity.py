@@ -93,12 +93,29 @@ within 1e-6 of ``R_a + R_b``, else left for the step with a warning.
 n-body colliders meet each other on the leapfrog's straight drift, exactly, by
 the collision system's kernel (:func:`framework.contact.solve_all_pairs`,
 ``method="leapfrog"`` in the event); a body's contacts after a surface bounce
-in the same step are left to the next step. **Not modelled:** contacts between
-bodies about *different* wells (across a sphere of influence), between a body
-on rails and an n-body one, and between a body on rails and a collider that is
-not (an immovable ``Mass(inf)`` one or a well with a collider): none are looked
-for. The warp governor's look-ahead predicts both kinds
-(:meth:`GravitySystem.next_contact`, :meth:`GravitySystem.next_sphere_contact`).
+in the same step are left to the next step.
+
+**Obstacles.** A collider gravity does not move (``Mass(inf)``, or no
+``Velocity``; not a well) moves straight at its velocity, or stays put (the
+movement system moves it, after this system). Colliders on rails about a
+*root* well meet it in the same loop, in time order with the rest: it is one
+more box (its straight sweep relative to the well, which moves straight too, so
+the path stays a line there), its times of contact from the same conservative
+advancement with the obstacle's acceleration 0 and no tidal bound
+(``time_to_touch(..., line_b=True)``), and at contact the impulse with the
+obstacle's inverse mass 0: its velocity is left alone, the body takes a new
+epoch, and the ``CollisionEvent`` is as above. The obstacle's state is read at
+the step's start, before the movement system moves it, so nothing is moved
+twice. An ``Acceleration`` on an obstacle is not followed (taken straight at
+its step-start velocity).
+
+**Not modelled:** contacts between bodies about *different* wells (across a
+sphere of influence), between a body on rails and an n-body one, between an
+obstacle and a body on rails about a *moon* (not a straight line in its
+frame), and with a well's own collider (bodies meet its surface radius): none
+are looked for. The warp governor's look-ahead predicts both kinds on rails
+(:meth:`GravitySystem.next_contact`, :meth:`GravitySystem.next_sphere_contact`),
+not obstacle contacts.
 
 **Checks** (the first step, and whenever wells or bodies are added): a well
 inside another's surface, a moon whose parent is missing or not a well, and
@@ -251,6 +268,8 @@ class GravitySystem(esper.Processor):
         self._lookahead = None                            # (epoch version, contact or None, looked up to)
         self._epochs: dict = {}
         self._n_col = 0
+        self._n_ob = 0                                    # colliders gravity does not move (obstacles)
+        self._ob_version = None
         self._warned: set = set()
 
     # -- the scene ------------------------------------------------------------------------------
@@ -321,6 +340,20 @@ class GravitySystem(esper.Processor):
                 k = int(np.flatnonzero(inside)[0])
                 raise ValueError(f"entity {int(self.ents[k])} starts {float(d[k])!r} m from the centre of "
                                  f"well {wells.ents[i]}, inside its surface (radius {wells.radius[i]!r} m)")
+
+    def _build_obstacles(self, oq) -> None:
+        """The colliders gravity does not move (not bodies of this system, not wells: ``Mass(inf)``,
+        or no Velocity): obstacles that move straight at their Velocity (the movement system moves
+        them), met by the colliders on rails about a root well, exactly (inverse mass 0)."""
+        self._ob_version = True
+        ents = oq.entities
+        mine = np.isin(ents, self.ents) | np.isin(ents, np.array(self._wells.ents, np.int64))
+        keep = ~mine
+        self.ob_ents = ents[keep]
+        self.ob_t_rows = to_indices(oq.rows(Transform))[keep]
+        self.ob_v_rows = oq.rows(Velocity)[keep]
+        self.ob_c_rows = to_indices(oq.rows(SphereCollider))[keep]
+        self._n_ob = len(self.ob_ents)
 
     def _release(self) -> None:
         world = self.world
@@ -452,6 +485,10 @@ class GravitySystem(esper.Processor):
             self._epoch_version += 1
             wq.refresh()                                  # Orbiting may have been added: new lists
             bq.refresh()
+            self._ob_version = None
+        oq = world.query(Transform, SphereCollider, optional=(Velocity,))
+        if oq.refresh() or self._ob_version is None:
+            self._build_obstacles(oq)
         n = self._n
         if not n:
             return
@@ -483,6 +520,11 @@ class GravitySystem(esper.Processor):
             edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
         else:
             edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
+        if self._n_ob and self._n_col:
+            # the obstacles at the step's start (the movement system moves them after this system)
+            self._ob_x = pos_t[self.ob_t_rows]
+            has = self.ob_v_rows >= 0
+            self._ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
         rails = ~self.nbody
         for wi in range(W):                               # parents first: a moon is placed before its bodies
             sel = np.flatnonzero(rails & (dom == wi))
@@ -520,8 +562,12 @@ class GravitySystem(esper.Processor):
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
         # the colliders among them: sphere-sphere contacts are looked for only where two or more collide
-        cs = sel[self.c_rows[sel] >= 0] if self._n_col >= 2 else _NO_BODIES
-        if cs.size < 2:
+        # (and where one collides and there are obstacles: about a root well, which moves straight, so
+        # an obstacle's path relative to it is a straight line too)
+        n_ob = self._n_ob if wells.parent[wi] < 0 else 0
+        cs = sel[self.c_rows[sel] >= 0] if self._n_col >= 2 or (self._n_col and n_ob) else _NO_BODIES
+        look = cs.size >= 2 or (cs.size and n_ob)
+        if not look:
             self._surfaces(sel, wi, t1, events)
         # from the epoch for the whole time since (no error carried from step to step), warm-started
         # from the last step's chi moved on by its Taylor series (kepler.next_chi; the state at the
@@ -529,10 +575,10 @@ class GravitySystem(esper.Processor):
         # and where only within its few ulp.
         guess = kepler.next_chi(self.ep_chi[g], x[g], v[g], mu, t1 - t0, origin=(X0[wi], V0[wi]))
         r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
-        if cs.size >= 2:
+        if look:
             # contacts along the conics, in time order with the surface contacts; the bodies they
             # touched (new epochs) get their end-of-step state again
-            touched = self._sphere_contacts(sel, cs, wi, x, v, a, X0, V0, t0, t1, r, u, events)
+            touched = self._sphere_contacts(sel, cs, wi, x, v, a, X0, V0, t0, t1, r, u, events, n_ob)
             if touched.size:
                 p = np.searchsorted(sel, touched)
                 r[p], u[p], chi[p] = kepler.Epoch(self.ep_r[touched], self.ep_v[touched], mu).at(
@@ -575,7 +621,7 @@ class GravitySystem(esper.Processor):
         self.ep_contact[hit] = tc + nxt
 
     # -- sphere-sphere contacts along the conics ------------------------------------------------
-    def _near(self, pa, pb, cs, p0, p1, rad, A, rho, span, mu, t1):
+    def _near(self, pa, pb, ball, p0, p1, rad, A, rho, span, mu):
         """The candidate pairs ``(pa, pb)`` (into ``cs``) less those proven apart for the whole step
         without solving Kepler's equation: the separation ``d(t)`` leaves the chord between its two
         ends by at most ``A_d span^2 / 8``, with ``A_d`` the bound on ``|d''|`` (the sum of the two
@@ -596,11 +642,10 @@ class GravitySystem(esper.Processor):
             acc = np.where(seg > 0, np.minimum(acc, 2.0 * mu * D / seg ** 3), acc)
         # (+ the rounding of the states: 1e-12 of their distance from the well, and a micrometre)
         slack = 0.125 * acc * span * span + 1e-12 * (kepler._norm(p0[pa]) + kepler._norm(p0[pb])) + 1e-6
-        ball = self.ep_contact[cs] <= t1
         keep = (closest - slack <= rad[pa] + rad[pb]) | ball[pa] | ball[pb]
         return pa[keep], pb[keep]
 
-    def _sphere_contacts(self, sel, cs, wi, x, v, a, X0, V0, t0, t1, r1, u1, events):
+    def _sphere_contacts(self, sel, cs, wi, x, v, a, X0, V0, t0, t1, r1, u1, events, n_ob=0):
         """Contacts of the colliders ``cs`` (bodies on rails about well ``wi``) with each other within
         the step, exact on their conics, in time order together with the surface contacts of ``sel``;
         returns the bodies given new epochs (whose end-of-step state ``r1, u1`` is stale)."""
@@ -623,9 +668,30 @@ class GravitySystem(esper.Processor):
         # each collider's swept box over the step (kepler.arc_boxes: the chord grown by how far a conic
         # can leave it, or the sphere it can reach where it touches the surface), grown by its radius
         lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, u1[pc], span, mu, R, self.ep_contact[cs] <= t1, rad)
+        ball = self.ep_contact[cs] <= t1
+        nc = len(cs)
+        if n_ob:
+            # the obstacles after the colliders (indices nc..): straight paths relative to the (root) well,
+            # acceleration 0, rho 0 (no tidal bound: they feel no pull), boxes of their two ends
+            q0 = self._ob_x - X0[wi]
+            qv = self._ob_v - V0[wi]
+            q1 = q0 + qv * span
+            orad = col["radius"][self.ob_c_rows].astype(np.float64)
+            lo = np.concatenate([lo, np.minimum(q0, q1) - orad[:, None]])
+            hi = np.concatenate([hi, np.maximum(q0, q1) + orad[:, None]])
+            A = np.concatenate([A, np.zeros(n_ob)])
+            rho = np.concatenate([rho, np.zeros(n_ob)])
+            p0 = np.concatenate([p0, q0])
+            p1 = np.concatenate([p1, q1])
+            rad = np.concatenate([rad, orad])
+            ball = np.concatenate([ball, np.zeros(n_ob, bool)])
         pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
+        if n_ob and len(pa):
+            # (box_pairs gives i < j: an obstacle is always pb; obstacle-obstacle pairs are not ours)
+            two_rails = pa < nc
+            pa, pb = pa[two_rails], pb[two_rails]
         if len(pa):
-            pa, pb = self._near(pa, pb, cs, p0, p1, rad, A, rho, span, mu, t1)
+            pa, pb = self._near(pa, pb, ball, p0, p1, rad, A, rho, span, mu)
         touched = []
         if not len(pa):                                   # the usual step: nobody near anybody
             hit0 = self.ep_t[sel].copy()
@@ -635,9 +701,26 @@ class GravitySystem(esper.Processor):
         pb = pb.astype(np.intp)
         ts = np.full(len(pa), t0)                         # each pair is known to be apart up to ts ...
         tc = np.full(len(pa), np.nan)                     # ... and touches at tc (inf: not before ts; NaN: look)
-        count = np.zeros(len(cs), np.intp)
+        count = np.zeros(nc + n_ob, np.intp)                # (an obstacle's count stays 0: no cap on it)
         for _ in range(64 + 4 * len(cs)):
             need = np.flatnonzero(np.isnan(tc))
+            obs = need[pb[need] >= nc] if n_ob else _NO_BODIES
+            if obs.size:
+                need = need[pb[need] < nc]
+                ka = cs[pa[obs]]
+                upto = np.minimum(t1, self.ep_contact[ka])
+                start = np.maximum(ts[obs], self.ep_t[ka])
+                o = pb[obs] - nc
+                t, stuck = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka], q0[o], qv[o], t0,
+                                                mu, rad[pa[obs]] + rad[pb[obs]], start, upto, A[pa[obs]],
+                                                line_b=True)
+                t = np.where(start <= upto, t, np.inf)
+                tc[obs] = t
+                ts[obs] = np.where(np.isfinite(t), start, upto)
+                if stuck.any():
+                    self._warn_once("graze", f"gravity: body {int(self.ents[ka[stuck][0]])} and obstacle "
+                                             f"{int(self.ob_ents[o[stuck][0]])} graze too slowly to converge; "
+                                             "their contact (if any) in this step is not resolved")
             if need.size:
                 ka, kb = cs[pa[need]], cs[pb[need]]
                 # a pair is followed up to the first surface contact of either (its path changes there)
@@ -666,34 +749,55 @@ class GravitySystem(esper.Processor):
                 self._bounce(hit, wi, events)
                 touched.append(hit)
                 moved = np.isin(cs, hit)
+                if n_ob:
+                    moved = np.concatenate([moved, np.zeros(n_ob, bool)])
                 # their pairs were followed up to the bounce: on from there, on the new conic
                 again = (moved[pa] | moved[pb]) & (ts < t1)
                 tc[again] = np.nan
                 continue
             ia, ib = int(pa[k]), int(pb[k])
-            i, j = int(cs[ia]), int(cs[ib])
-            pe, we, sep = self._collide(i, j, wi, tp, X0, V0, t0, t1, events)
-            touched.append(np.array([i, j]))
-            count[ia] += 1
-            count[ib] += 1
-            # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
-            two = np.array([ia, ib])
-            lo[two], hi[two], A[two], rho[two] = kepler.arc_boxes(
-                self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R, self.ep_contact[cs[two]] <= t1,
-                rad[two])
-            mine = np.isin(pa, two) | np.isin(pb, two)
-            tc[mine] = np.nan
-            ts[mine] = tp
-            # a resting contact (e = 0, or a slow one): separating slower than the tidal pull between them
-            # could undo within the step. It is not looked at again this step (the next step resolves it
-            # afresh, one impulse per step) instead of a cascade of ever smaller impulses
-            reach = rad[ia] + rad[ib]
-            seg = min(rho[ia], rho[ib]) - reach
-            if seg > 0 and sep < 2.0 * mu * 2.0 * reach / seg ** 3 * (t1 - tp):
-                tc[k] = np.inf
-                ts[k] = t1
+            if ib >= nc:                                  # a collider on rails meets an obstacle
+                i = int(cs[ia])
+                pe, we, sep = self._collide_fixed(i, ib - nc, wi, tp, q0, qv, X0, V0, t0, t1, events)
+                touched.append(np.array([i]))
+                count[ia] += 1
+                two = np.array([ia])
+                lo[two], hi[two], A[two], rho[two] = kepler.arc_boxes(
+                    self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R,
+                    self.ep_contact[cs[two]] <= t1, rad[two])
+                mine = np.isin(pa, two)
+                tc[mine] = np.nan
+                ts[mine] = tp
+                # resting on the obstacle: separating slower than the body's pull could undo in the step
+                if sep < A[ia] * (t1 - tp):
+                    tc[k] = np.inf
+                    ts[k] = t1
+                ends = (ia,)
+            else:
+                i, j = int(cs[ia]), int(cs[ib])
+                pe, we, sep = self._collide(i, j, wi, tp, X0, V0, t0, t1, events)
+                touched.append(np.array([i, j]))
+                count[ia] += 1
+                count[ib] += 1
+                ends = (ia, ib)
+                # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
+                two = np.array([ia, ib])
+                lo[two], hi[two], A[two], rho[two] = kepler.arc_boxes(
+                    self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R,
+                    self.ep_contact[cs[two]] <= t1, rad[two])
+                mine = np.isin(pa, two) | np.isin(pb, two)
+                tc[mine] = np.nan
+                ts[mine] = tp
+                # a resting contact (e = 0, or a slow one): separating slower than the tidal pull between
+                # them could undo within the step. It is not looked at again this step (the next step
+                # resolves it afresh, one impulse per step) instead of a cascade of ever smaller impulses
+                reach = rad[ia] + rad[ib]
+                seg = min(rho[ia], rho[ib]) - reach
+                if seg > 0 and sep < 2.0 * mu * 2.0 * reach / seg ** 3 * (t1 - tp):
+                    tc[k] = np.inf
+                    ts[k] = t1
             add_a, add_b = [], []
-            for c in (ia, ib):
+            for c in ends:
                 over = np.all((lo[c] <= hi) & (hi[c] >= lo), axis=1)
                 over[c] = False
                 have = np.concatenate([pb[pa == c], pa[pb == c]])
@@ -757,6 +861,42 @@ class GravitySystem(esper.Processor):
                                      float(impulse), method="kepler", step=world.step_count))
         pe, we = kepler.propagate(rc, uc, mu, t1 - tc)
         return pe, we, float((uc[1] - uc[0]) @ nrm)
+
+    def _collide_fixed(self, i, o, wi, tc, q0, qv, X0, V0, t0, t1, events):
+        """Body ``i`` (on rails about root well ``wi``) touches obstacle ``o`` (straight path ``q0 + qv
+        (t - t0)`` relative to the well) at ``tc``: the impulse along the line of centres with the
+        obstacle's inverse mass 0 (its velocity unchanged), a new epoch for ``i``, the CollisionEvent.
+        Returns ``i``'s state about the well at ``t1`` (``(1, 3)``) and the separating speed."""
+        world = self.world
+        wells = self._wells
+        mu, R = wells.mu[wi], wells.radius[wi]
+        rc, uc = kepler.propagate(self.ep_r[i:i + 1], self.ep_v[i:i + 1], mu, tc - self.ep_t[i:i + 1])
+        qc = q0[o] + qv[o] * (tc - t0)
+        d = qc - rc[0]
+        nrm = d / np.linalg.norm(d)
+        vn = float((qv[o] - uc[0]) @ nrm)                  # < 0: approaching
+        kg = float(world.table(Mass).data["kg"][self.m_rows[i]]) if self.m_rows[i] >= 0 else 1.0
+        col = world.table(SphereCollider).data
+        e = float(min(col["restitution"][self.c_rows[i]], col["restitution"][self.ob_c_rows[o]]))
+        impulse = -(1.0 + e) * vn * kg if vn < 0 else 0.0
+        uc[0] -= impulse / kg * nrm
+        self._epoch_version += 1
+        self.ep_r[i], self.ep_v[i], self.ep_t[i] = rc[0], uc[0], tc
+        self.ep_chi[i] = 0.0
+        self.ep_contact[i] = tc + kepler.time_to_radius(rc, uc, mu, R, np.inf)[0]
+        well = self._well_position(wi, tc, X0, V0, t0)
+        ra = float(col["radius"][self.c_rows[i]])
+        rb = float(col["radius"][self.ob_c_rows[o]])
+        ea, eb = int(self.ents[i]), int(self.ob_ents[o])
+        if ea < eb:
+            n_ab, point = nrm, well + rc[0] + ra * nrm
+        else:
+            n_ab, point = -nrm, well + qc - rb * nrm
+        events.append(CollisionEvent(min(ea, eb), max(ea, eb), float(tc), float(tc - t0),
+                                     tuple(float(c) for c in point), tuple(float(c) for c in n_ab),
+                                     float(impulse), method="kepler", step=world.step_count))
+        pe, we = kepler.propagate(rc, uc, mu, t1 - tc)
+        return pe, we, float((qv[o] - uc[0]) @ nrm)
 
     def _well_position(self, wi, t, X0, V0, t0):
         """Well ``wi``'s centre at time ``t`` in the step (world frame): a root well moves straight, a

@@ -421,3 +421,132 @@ def test_n_body_colliders_that_never_meet_are_left_as_the_leapfrog_moves_them():
         out.append(states(w, ents))
         w.close()
     assert np.array_equal(out[0][0], out[1][0]) and np.array_equal(out[0][1], out[1][1])
+
+
+# -- a body on rails meets a collider gravity does not move (an obstacle) ---------------------------------
+
+def first_touch_line(sa, q0, qv, reach, t_end, samples=400_000):
+    """Independent check for a conic against a straight line q0 + qv t: dense samples, then bisection."""
+    ts = np.linspace(0.0, t_end, samples + 1)
+    pa, _ = kepler.propagate(np.repeat(sa[0][None], ts.size, 0), np.repeat(sa[1][None], ts.size, 0), MU, ts)
+    gap = np.linalg.norm(pa - (q0 + qv * ts[:, None]), axis=1) - reach
+    k = int(np.flatnonzero(gap <= 0)[0])
+    lo, hi = ts[k - 1], ts[k]
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        a, _ = kepler.propagate(sa[0], sa[1], MU, mid)
+        if np.linalg.norm(a - (q0 + qv * mid)) - reach > 0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 1e-13 * hi:
+            break
+    return 0.5 * (lo + hi)
+
+
+def run_obstacle(dt, T=500.3, steps=None, outward=50.0, moving=None, kg=2.0, obstacle=True):
+    """A 2 kg collider (radius 40) on a circular orbit and an obstacle (radius 60) placed ``outward`` m
+    beyond where the body is at time T: at rest with no Velocity, or (``moving``: a velocity) Mass(inf)
+    moving straight, placed so that it is there at T."""
+    sa = (np.array([R_ORBIT, 0.0, 0.0]), np.array([0.0, V_CIRC, 0.0]))
+    pT, _ = kepler.propagate(sa[0], sa[1], MU, T)
+    qT = pT * (1.0 + outward / np.linalg.norm(pT))
+    w = make(dt)
+    a = w.create_entity(Transform(sa[0]), Velocity(sa[1]), SphereCollider(radius=40.0), Mass(kg))
+    qv = np.zeros(3) if moving is None else np.array(moving, float)
+    q0 = qT - qv * T
+    b = None
+    if obstacle:
+        comps = [Transform(q0), SphereCollider(radius=60.0)]
+        if moving is not None:
+            comps += [Velocity(qv), Mass(math.inf)]
+        b = w.create_entity(*comps)
+    seen = []
+    w.subscribe(CollisionEvent, seen.append)
+    w.step(steps if steps is not None else int(math.ceil(2 * T / dt)))
+    return w, (a, b), sa, (q0, qv), seen
+
+
+def energy(r, v):
+    return 0.5 * float(v @ v) - MU / float(np.linalg.norm(r))
+
+
+@pytest.mark.parametrize("dt", [1.0, 37.0])
+def test_a_body_on_rails_meets_a_fixed_obstacle_at_the_time_an_independent_search_finds(dt):
+    w, (a, b), sa, (q0, qv), seen = run_obstacle(dt)
+    try:
+        assert len(seen) == 1
+        ev = seen[0]
+        assert (ev.a, ev.b) == (a, b) and ev.method == "kepler"
+        t_ref = first_touch_line(sa, q0, qv, 100.0, 510.0)
+        assert abs(ev.time - t_ref) <= 1e-9 * t_ref                 # the same at a 1 s and a 37 s step
+        assert ev.step == int(ev.time // dt)
+        pa, va = kepler.propagate(sa[0], sa[1], MU, ev.time)
+        n = (q0 - pa) / np.linalg.norm(q0 - pa)
+        np.testing.assert_allclose(ev.normal, n, atol=1e-9)
+        np.testing.assert_allclose(ev.point, pa + 40.0 * n, rtol=0, atol=1e-6)
+        # elastic against an immovable body: the body's normal velocity reversed, J = 2 m |v_n|
+        assert ev.impulse == pytest.approx(-2.0 * 2.0 * float(-va @ n), rel=1e-12)
+        # the obstacle was not moved (nothing moves it; no Velocity)
+        np.testing.assert_array_equal(w.columns(Transform, [b]).position[0], q0)
+    finally:
+        w.close()
+
+
+def test_the_obstacle_contact_keeps_the_orbit_energy_and_changes_momentum_by_the_impulse():
+    w, (a, b), sa, (q0, qv), seen = run_obstacle(dt=1.0, steps=520)     # (it meets the surface at 592 s)
+    try:
+        assert len(seen) == 1 and len(w.seen) == 1
+        ev = seen[0]
+        x = w.columns(Transform, [a]).position[0].copy()
+        v = w.columns(Velocity, [a]).linear[0].copy()
+        t_now = w.step_count * w.dt
+        back_r, back_v = kepler.propagate(x, v, MU, ev.time - t_now)      # the new conic, back to the contact
+        pre_r, pre_v = kepler.propagate(sa[0], sa[1], MU, ev.time)
+        np.testing.assert_allclose(back_r, pre_r, rtol=0, atol=1e-6)
+        e0 = energy(*sa)
+        assert abs(energy(x, v) - e0) <= 1e-9 * abs(e0)           # a resting obstacle: speed kept
+        n = np.array(ev.normal)
+        # momentum: the body's changed by -J n (it is ev.a, the obstacle pushes it back along -n)
+        np.testing.assert_allclose(2.0 * (back_v - pre_v), -ev.impulse * n, rtol=0, atol=1e-9)
+        assert float(back_v @ n) == pytest.approx(-float(pre_v @ n), rel=1e-9)
+    finally:
+        w.close()
+
+
+@pytest.mark.parametrize("dt", [1.0, 29.0])
+def test_a_body_on_rails_meets_a_moving_immovable_obstacle_on_its_straight_path(dt):
+    qv = (-300.0, 150.0, 20.0)
+    w, (a, b), sa, (q0, qv), seen = run_obstacle(dt, moving=qv, steps=int(math.ceil(520.0 / dt)))
+    try:
+        assert len(seen) == 1 and len(w.seen) == 1                    # (no surface contact yet)
+        ev = seen[0]
+        t_ref = first_touch_line(sa, q0, qv, 100.0, 510.0)
+        assert abs(ev.time - t_ref) <= 1e-9 * t_ref
+        # the obstacle keeps its velocity and straight path (moved once per step, by the movement system)
+        t_now = w.step_count * w.dt
+        np.testing.assert_array_equal(w.columns(Velocity, [b]).linear[0], qv)
+        np.testing.assert_allclose(w.columns(Transform, [b]).position[0], q0 + qv * t_now, rtol=1e-13)
+        # elastic in the obstacle's frame: the relative speed is kept, its normal part reversed
+        x = w.columns(Transform, [a]).position[0]
+        v = w.columns(Velocity, [a]).linear[0]
+        _, back_v = kepler.propagate(x, v, MU, ev.time - t_now)
+        _, pre_v = kepler.propagate(sa[0], sa[1], MU, ev.time)
+        n = np.array(ev.normal)
+        assert np.linalg.norm(back_v - qv) == pytest.approx(np.linalg.norm(pre_v - qv), rel=1e-9)
+        assert float((back_v - qv) @ n) == pytest.approx(-float((pre_v - qv) @ n), rel=1e-9)
+    finally:
+        w.close()
+
+
+def test_an_obstacle_that_is_not_touched_changes_nothing():
+    # misses by a metre (outward 101 m > 100 m reach): no event, states bit-identical to no obstacle
+    w, (a, _), _, _, seen = run_obstacle(dt=7.0, outward=101.0)
+    w0, (a0, _), _, _, seen0 = run_obstacle(dt=7.0, obstacle=False)
+    try:
+        assert seen == [] and seen0 == []
+        np.testing.assert_array_equal(w.columns(Transform, [a]).position, w0.columns(Transform, [a0]).position)
+        np.testing.assert_array_equal(w.columns(Velocity, [a]).linear, w0.columns(Velocity, [a0]).linear)
+    finally:
+        w.close()
+        w0.close()
