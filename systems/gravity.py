@@ -113,9 +113,9 @@ its step-start velocity).
 sphere of influence), between a body on rails and an n-body one, between an
 obstacle and a body on rails about a *moon* (not a straight line in its
 frame), and with a well's own collider (bodies meet its surface radius): none
-are looked for. The warp governor's look-ahead predicts both kinds on rails
-(:meth:`GravitySystem.next_contact`, :meth:`GravitySystem.next_sphere_contact`),
-not obstacle contacts.
+are looked for. The warp governor's look-ahead predicts the surface, rails and
+obstacle contacts (:meth:`GravitySystem.next_contact`,
+:meth:`GravitySystem.next_sphere_contact`).
 
 **Checks** (the first step, and whenever wells or bodies are added): a well
 inside another's surface, a moon whose parent is missing or not a well, and
@@ -419,11 +419,71 @@ class GravitySystem(esper.Processor):
 
     def next_sphere_contact(self, horizon: float):
         """``(time, entity, entity)`` of the earliest predicted contact between two colliders on rails
-        about the same well within ``horizon`` s of the end of this step (absolute seconds, exact on
-        their conics: :func:`framework.kepler.time_to_touch` from the epochs), or None. For the warp
-        governor. Each look covers twice the horizon and is kept while no epoch changes (a thrust, a
-        contact, an edit), so a steady warp looks again only every ``horizon`` s. A pair is followed
-        up to the first surface contact of either (itself an event the governor slows down for)."""
+        about the same well, or a collider on rails about a root well and an obstacle (a collider
+        gravity does not move), within ``horizon`` s of the end of this step (absolute seconds, exact on
+        their conics: :func:`framework.kepler.time_to_touch` from the epochs), or None; lower entity
+        first. For the warp governor. Each look at the pairs on rails covers twice the horizon and is
+        kept while no epoch changes (a thrust, a contact, an edit), so a steady warp looks again only
+        every ``horizon`` s; the obstacles (whose velocity anyone may change) are looked at on every
+        call, from their state now. A pair is followed up to the first surface contact of the body on
+        rails (itself an event the governor slows down for)."""
+        rails = self._next_rails_contact(horizon)
+        ob = self._next_obstacle_contact(horizon)
+        if ob is None or (rails is not None and rails[0] <= ob[0]):
+            return rails
+        return ob
+
+    def _next_obstacle_contact(self, horizon: float):
+        """next_sphere_contact's look at the obstacles: from their Transform and Velocity now (the
+        end of the step: the movement system has moved them), straight, against the conics."""
+        if not self._n_ob or not self._n_col or not horizon > 0 or self._wells is None:
+            return None
+        world = self.world
+        now = (world.step_count + 1) * world.dt
+        end = now + horizon
+        wells = self._wells
+        pos_t = world.table(Transform).data["position"]
+        vel_t = world.table(Velocity).data["linear"]
+        X = pos_t[wells.t_rows]
+        V = np.where((wells.v_rows >= 0)[:, None], vel_t[np.maximum(wells.v_rows, 0)], 0.0)
+        ox = pos_t[self.ob_t_rows]
+        ov = np.where((self.ob_v_rows >= 0)[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
+        col = world.table(SphereCollider).data
+        orad = col["radius"][self.ob_c_rows].astype(np.float64)
+        best = None
+        for wi in np.flatnonzero(wells.parent < 0):
+            cs = np.flatnonzero((self.c_rows >= 0) & (self.ep_well == wi))
+            if not cs.size:
+                continue
+            nc = cs.size
+            mu, R = wells.mu[wi], wells.radius[wi]
+            rad = col["radius"][self.c_rows[cs]].astype(np.float64)
+            p0, w0 = kepler.propagate(self.ep_r[cs], self.ep_v[cs], mu, now - self.ep_t[cs])
+            p1, w1 = kepler.propagate(self.ep_r[cs], self.ep_v[cs], mu, end - self.ep_t[cs])
+            lo, hi, A, _ = kepler.arc_boxes(p0, w0, p1, w1, end - now, mu, R, self.ep_contact[cs] <= end, rad)
+            q0 = ox - X[wi]
+            qv = ov - V[wi]
+            q1 = q0 + qv * (end - now)
+            lo = np.concatenate([lo, np.minimum(q0, q1) - orad[:, None]])
+            hi = np.concatenate([hi, np.maximum(q0, q1) + orad[:, None]])
+            pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
+            mixed = (pa < nc) & (pb >= nc)                 # (i < j: the obstacle is pb)
+            if not mixed.any():
+                continue
+            pa, o = pa[mixed].astype(np.intp), (pb[mixed] - nc).astype(np.intp)
+            ka = cs[pa]
+            upto = np.minimum(end, self.ep_contact[ka])
+            t, _ = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka], q0[o], qv[o], now, mu,
+                                        rad[pa] + orad[o], np.full(len(pa), now), upto, A[pa], line_b=True)
+            t = np.where(now <= upto, t, np.inf)
+            k = int(np.argmin(t))
+            if np.isfinite(t[k]) and (best is None or t[k] < best[0]):
+                a, b = sorted((int(self.ents[ka[k]]), int(self.ob_ents[o[k]])))
+                best = (float(t[k]), a, b)
+        return best
+
+    def _next_rails_contact(self, horizon: float):
+        """next_sphere_contact's look at the pairs on rails (see there)."""
         if self._n_col < 2 or not horizon > 0 or self._wells is None:
             return None
         world = self.world

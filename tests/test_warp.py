@@ -157,3 +157,43 @@ def test_warp_drops_before_two_bodies_on_rails_touch_and_the_contact_is_the_same
     assert max(f for _, f, _ in seen) >= 100                   # between contacts: as fast as the next allows
     _, hits1, v1 = run(1)
     assert [h.time for h in hits1] == [h.time for h in hits] and np.array_equal(v1, v_end)
+
+
+def test_warp_drops_before_a_body_on_rails_meets_an_obstacle_and_the_contact_is_the_same():
+    """The governor also sees a collider on rails coming to a collider gravity does not move."""
+    from driftframe import SphereCollider
+    from driftframe.components.collision import CollisionEvent
+
+    T = 900.0
+    vc = math.sqrt(MU / 7e6)
+    r0, v0 = np.array([7e6, 0.0, 0.0]), np.array([0.0, vc, 0.0])
+    pT, _ = kepler.propagate(r0, v0, MU, T)
+
+    def run(request):
+        w = World(dt=1.0)
+        for s in (GravitySystem(), MovementSystem(), WarpGovernorSystem(lead_frames=3)):
+            w.add_system(s)
+        w.create_entity(Transform(), GravityWell(mu=MU, radius=R))
+        body = w.create_entity(Transform(r0), Velocity(v0), SphereCollider(radius=50.0))
+        w.create_entity(Transform(pT * (1.0 + 30.0 / np.linalg.norm(pT))), SphereCollider(radius=50.0))
+        hits = []
+        w.subscribe(CollisionEvent, hits.append)
+        warp = time_warp.of(w)
+        warp.request(request)
+        seen = []
+        try:
+            while w.time < 1500.0:
+                w.step()
+                seen.append((w.time, warp.factor, warp.reason))
+            return seen, hits, w.columns(Velocity, [body]).linear.copy()
+        finally:
+            w.close()
+
+    seen, hits, v_end = run(10_000)
+    assert len(hits) >= 1 and abs(hits[0].time - T) < 1.0
+    for t, f, why in seen:                                     # no frame at the warp in force runs into it
+        nxt = min((h.time for h in hits if h.time > t), default=math.inf)
+        assert f * 1.0 * 3 <= max(nxt - t, 3.0) + 1e-9, (t, f)
+    assert any("touch" in why for _, _, why in seen)
+    _, hits1, v1 = run(1)
+    assert [h.time for h in hits1] == [h.time for h in hits] and np.array_equal(v1, v_end)
