@@ -550,3 +550,23 @@ def test_an_obstacle_that_is_not_touched_changes_nothing():
     finally:
         w.close()
         w0.close()
+
+
+@pytest.mark.parametrize("dt", [1.0, 5.0])
+def test_a_body_at_rest_on_an_obstacle_does_not_sink_into_it(dt):
+    # dropped from rest 1 m above a fixed obstacle, restitution 0: the well's full pull presses it on,
+    # which the obstacle does not feel; one resting contact a step keeps it out (no sinking, no cascade)
+    w = make(dt)
+    a = w.create_entity(Transform((R_ORBIT, 0, 0)), Velocity((0, 0, 0)), SphereCollider(radius=40, restitution=0.0))
+    b = w.create_entity(Transform((R_ORBIT - 81.0, 0, 0)), SphereCollider(radius=40, restitution=0.0))
+    try:
+        lowest = np.inf
+        for _ in range(int(200 / dt)):
+            w.step()
+            lowest = min(lowest, float(w.columns(Transform, [a]).position[0, 0]) - (R_ORBIT - 81.0))
+        assert lowest >= 80.0 - 1e-6                       # never closer than r_a + r_b
+        hits = collisions(w)
+        assert len(hits) >= int(200 / dt) - 1 and all((h.a, h.b) == (a, b) for h in hits)
+        assert float(w.columns(Transform, [a]).position[0, 0]) - (R_ORBIT - 81.0) <= 80.0 + 9.81 * dt * dt / 8
+    finally:
+        w.close()
