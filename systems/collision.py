@@ -69,6 +69,22 @@ _ZERO_STATS = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "
                "left_out": 0}
 
 
+def kernel_events(ents, ev, ev_n, ev_x, t0: float, step: int, method: str = "continuous") -> list:
+    """CollisionEvents from the contact kernel's arrays (:func:`framework.contact.solve_step`:
+    ``(i, j, time, impulse)``, the normal i to j, the points on i and on j), the lower entity id
+    first (its point, the normal towards the other). ``ents``: entity id of each kernel body;
+    ``t0``: the step's start (s)."""
+    out = []
+    for (i, j, t, lam), nrm, pts in zip(ev.tolist(), ev_n.tolist(), ev_x.tolist()):
+        a, b = int(ents[int(i)]), int(ents[int(j)])
+        if a < b:
+            out.append(CollisionEvent(a, b, t0 + t, t, tuple(pts[:3]), tuple(nrm), lam, method=method, step=step))
+        else:
+            out.append(CollisionEvent(b, a, t0 + t, t, tuple(pts[3:]), (-nrm[0], -nrm[1], -nrm[2]), lam,
+                                      method=method, step=step))
+    return out
+
+
 class _Layout:
     """Packed per-collider rows into the world's tables (from its cached query), rebuilt when it changes.
 
@@ -436,14 +452,5 @@ class CollisionSystem(esper.Processor):
 
     def _emit(self, lay, ev, ev_n, ev_x):
         """One CollisionEvent per contact (a Python loop over contacts that happened)."""
-        ents = lay.entities
-        t0 = self._now()
-        emit = self.world.emit
-        step = self.world.step_count
-        for (i, j, t, lam), nrm, pts in zip(ev.tolist(), ev_n.tolist(), ev_x.tolist()):
-            a, b = int(ents[int(i)]), int(ents[int(j)])
-            if a < b:
-                emit(CollisionEvent(a, b, t0 + t, t, tuple(pts[:3]), tuple(nrm), lam, step=step))
-            else:                                             # name the lower entity id first
-                emit(CollisionEvent(b, a, t0 + t, t, tuple(pts[3:]), (-nrm[0], -nrm[1], -nrm[2]), lam,
-                                    step=step))
+        for event in kernel_events(lay.entities, ev, ev_n, ev_x, self._now(), self.world.step_count):
+            self.world.emit(event)

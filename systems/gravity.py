@@ -146,6 +146,7 @@ from driftframe.framework import contact
 from driftframe.framework import kepler
 from driftframe.framework.store import as_index, to_indices
 from driftframe.systems import movement
+from driftframe.systems.collision import kernel_events
 from driftframe.systems.movement import MovementSystem
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
@@ -238,6 +239,14 @@ def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
         pull = w.mu[None, :] / d2
     deepest = np.where(inside, w.depth[None, :], -1.0).max(axis=1, keepdims=True)
     return np.argmax(np.where(inside & (w.depth[None, :] == deepest), pull, -np.inf), axis=1)
+
+
+def _settle(tc, ts, idx, t, start, upto) -> None:
+    """Pairs ``idx`` were searched from ``start`` to ``upto``: their contact time ``t`` (inf: none, or
+    a search that could not start), and how far each is now known to be apart (``ts``)."""
+    t = np.where(start <= upto, t, np.inf)
+    tc[idx] = t
+    ts[idx] = np.where(np.isfinite(t), start, upto)
 
 
 def _broad_method(lo, hi) -> str:
@@ -778,9 +787,7 @@ class GravitySystem(esper.Processor):
                 t, stuck = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka], q0[o], qv[o], t0,
                                                 mu, rad[pa[obs]] + rad[pb[obs]], start, upto, A[pa[obs]],
                                                 line_b=True)
-                t = np.where(start <= upto, t, np.inf)
-                tc[obs] = t
-                ts[obs] = np.where(np.isfinite(t), start, upto)
+                _settle(tc, ts, obs, t, start, upto)
                 if stuck.any():
                     self._warn_once("graze", f"gravity: body {int(self.ents[ka[stuck][0]])} and obstacle "
                                              f"{int(self.ob_ents[o[stuck][0]])} graze too slowly to converge; "
@@ -795,9 +802,7 @@ class GravitySystem(esper.Processor):
                                                 rad[pa[need]] + rad[pb[need]], start, upto,
                                                 A[pa[need]] + A[pb[need]],
                                                 np.minimum(rho[pa[need]], rho[pb[need]]))
-                t = np.where(start <= upto, t, np.inf)
-                tc[need] = t
-                ts[need] = np.where(np.isfinite(t), start, upto)
+                _settle(tc, ts, need, t, start, upto)
                 if stuck.any():
                     self._warn_once("graze", f"gravity: bodies {int(self.ents[ka[stuck][0]])} and "
                                              f"{int(self.ents[kb[stuck][0]])} graze too slowly to converge; "
@@ -1082,14 +1087,5 @@ class GravitySystem(esper.Processor):
         p[k], u[k] = x, w
         hit = changed & (t_last >= 0.0)
         after[k[hit]] = t_last[hit]
-        ents = self.ents[sel[k]]
-        step = world.step_count
-        for (i, j, t, lam), nrm, pts in zip(ev.tolist(), ev_n.tolist(), ev_x.tolist()):
-            a, b = int(ents[int(i)]), int(ents[int(j)])
-            if a < b:
-                events.append(CollisionEvent(a, b, t0 + t, t, tuple(pts[:3]), tuple(nrm), lam, method="leapfrog",
-                                             step=step))
-            else:                                         # the lower entity id first, as everywhere
-                events.append(CollisionEvent(b, a, t0 + t, t, tuple(pts[3:]), (-nrm[0], -nrm[1], -nrm[2]), lam,
-                                             method="leapfrog", step=step))
+        events += kernel_events(self.ents[sel[k]], ev, ev_n, ev_x, t0, world.step_count, method="leapfrog")
         return p, u, after
