@@ -29,13 +29,12 @@ so the absolute rates are low; the ratios are the result.
 from __future__ import annotations
 
 import os
-import shutil
 import statistics
-import subprocess
 import sys
 import time
 
 from benchmarks.common import figure, parser, save_chart, table, write_section
+from driftframe.xvfb import stop_xvfb
 
 NAME = "play_rate"
 SIZE = (1280, 720)
@@ -64,21 +63,13 @@ class BusyStep:
 
 
 def start_display():
-    if not shutil.which("Xvfb"):
-        sys.exit("play_rate needs Xvfb (apt-get install xvfb, or ./run tests installs it)")
-    for n in range(400, 500):
-        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
-            break
-    server = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", f"{SIZE[0]}x{SIZE[1]}x24", "-nolisten", "tcp",
-                               "-noreset"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 10
-    while not os.path.exists(f"/tmp/.X11-unix/X{n}"):
-        if time.time() > deadline or server.poll() is not None:
-            server.kill()
-            sys.exit(f"Xvfb did not start on :{n}")
-        time.sleep(0.05)
-    os.environ["DISPLAY"] = f":{n}"
+    from driftframe.xvfb import XvfbError, start_xvfb
+
+    try:
+        server, display = start_xvfb(SIZE)
+    except XvfbError as e:
+        sys.exit(f"play_rate: {e}")
+    os.environ["DISPLAY"] = display
     return server
 
 
@@ -107,8 +98,7 @@ def main():
                     runs[(label, lp)].append(r)
                     print(f"  {label:<18} {lp:<6} {r['line']}", file=sys.stderr)
     finally:
-        server.terminate()
-        server.wait(10)
+        stop_xvfb(server)
 
     def med(label, lp, key):
         return statistics.median(r[key] for r in runs[(label, lp)])

@@ -22,20 +22,9 @@ def display():
     if not (shutil.which("Xvfb") and shutil.which("xdotool")):
         pytest.fail("window tests need Xvfb and xdotool: `./run tests` installs them "
                     "(apt-get install xvfb xdotool)")
-    for n in range(170, 260):
-        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
-            break
-    server = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1280x720x24", "-nolisten", "tcp", "-noreset"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 10
-    while not os.path.exists(f"/tmp/.X11-unix/X{n}"):
-        if time.time() > deadline or server.poll() is not None:
-            server.kill()
-            pytest.fail(f"Xvfb did not start on :{n}")
-        time.sleep(0.05)
-    yield f":{n}"
-    server.terminate()
-    server.wait(10)
+    from driftframe.xvfb import virtual_display
+    with virtual_display((1280, 720)) as name:      # a private server: no other job's windows or keys
+        yield name
 
 
 def _xdo(display, *args):
@@ -55,11 +44,30 @@ def _wait_for_window(display, proc, title="driftframe"):
     raise AssertionError("no driftframe window appeared")
 
 
+_STARTED: list[subprocess.Popen] = []
+
+
+@pytest.fixture(autouse=True)
+def _no_window_left_open():
+    """A test that fails half-way must not leave its window on the display for the next one."""
+    yield
+    while _STARTED:
+        proc = _STARTED.pop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+
+
 def _play(display, tmp_path, *extra):
     env = {**os.environ, "DISPLAY": display}
-    return subprocess.Popen([sys.executable, "-m", "driftframe", "play", "asteroids", "--size", "480x270",
+    return _started(subprocess.Popen([sys.executable, "-m", "driftframe", "play", "asteroids", "--size", "480x270",
                              "--state-out", str(tmp_path / "state.json"), "--screenshots", str(tmp_path), *extra],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+
+
+def _started(proc):
+    _STARTED.append(proc)
+    return proc
 
 
 def _finish(proc):
@@ -161,8 +169,9 @@ def test_f11_fullscreen_f3_overlay_and_a_resize_that_keeps_the_aspect_ratio(disp
     time.sleep(0.5)
 
     def geometry():
-        out = _xdo(display, "getwindowgeometry", wid).stdout
-        return tuple(int(v) for v in out.split("Geometry:")[1].split()[0].split("x"))
+        res = _xdo(display, "getwindowgeometry", wid)
+        assert "Geometry:" in res.stdout, (res.stdout, res.stderr, proc.poll())
+        return tuple(int(v) for v in res.stdout.split("Geometry:")[1].split()[0].split("x"))
 
     assert geometry() == (480, 270)
     _xdo(display, "key", "--window", wid, "F11")
@@ -203,3 +212,13 @@ def test_frames_quits_by_itself_and_reports_the_frame_rate(display, tmp_path):
     s = json.loads((tmp_path / "state.json").read_text())
     assert s["frames"] == 40 and s["fps"] > 0
     assert s["overlay"][0].startswith("FPS")
+
+
+def test_two_virtual_displays_started_together_are_separate_servers(display):
+    # what let two test runs on one machine press each other's keys: both guessed the same free number
+    from driftframe.xvfb import virtual_display
+    with virtual_display((640, 360)) as a, virtual_display((320, 200)) as b:
+        assert len({display, a, b}) == 3
+        assert _xdo(a, "getdisplaygeometry").stdout.split() == ["640", "360"]
+        assert _xdo(b, "getdisplaygeometry").stdout.split() == ["320", "200"]
+    assert _xdo(display, "getdisplaygeometry").stdout.split() == ["1280", "720"]
