@@ -506,9 +506,10 @@ def elements(r, v, mu) -> Elements:
 
 
 # --------------------------------------------------------------------------- contacts
-def time_to_radius(r, v, mu, radius, horizon):
+def time_to_radius(r, v, mu, radius, horizon, *, outward: bool = False):
     """Time (s) until each body first reaches distance ``radius`` from the mass moving inwards,
-    within ``[0, horizon]``; ``inf`` where it does not.
+    within ``[0, horizon]``; ``inf`` where it does not. ``outward=True``: moving outwards, from
+    inside ``radius`` (leaving a sphere of influence), the mirror image of the same solution.
 
     Exact along the conic at any step length (no sampling, so no tunnelling):
     the crossing exists iff periapsis < ``radius`` and the body is outside it;
@@ -528,9 +529,15 @@ def time_to_radius(r, v, mu, radius, horizon):
     rn = _norm(r)
     rv = _dot(r, v)
     out = np.full(n, np.inf)
-    cand = (el.periapsis < radius) & (rn > radius)
-    # an outbound hyperbola (or parabola) past periapsis never returns
-    cand &= ~((el.e >= 1.0) & (rv >= 0))
+    if outward:
+        # out through the sphere: from inside it, on an orbit that reaches past it (any open one does)
+        with np.errstate(invalid="ignore"):
+            reach = np.where(el.e < 1.0, el.a * (1.0 + el.e), np.inf)
+        cand = (rn < radius) & (reach > radius)
+    else:
+        cand = (el.periapsis < radius) & (rn > radius)
+        # an outbound hyperbola (or parabola) past periapsis never returns
+        cand &= ~((el.e >= 1.0) & (rv >= 0))
     if not cand.any():
         return out
     idx = np.flatnonzero(cand)
@@ -542,12 +549,13 @@ def time_to_radius(r, v, mu, radius, horizon):
         # elliptic: inbound crossing at E = -E_R; time from the current M
         cosE = np.clip((1.0 - R * alpha) / e, -1.0, 1.0)
         E_R = np.arccos(cosE)
-        M_R = -(E_R - e * np.sin(E_R))
+        side = 1.0 if outward else -1.0                    # outbound at E = +E_R, inbound at -E_R
+        M_R = side * (E_R - e * np.sin(E_R))
         t_e = np.mod(M_R - _mean_anomaly_e(el, idx), TWO_PI) / nmean
-        # hyperbolic: inbound at H = -H_R
+        # hyperbolic: inbound at H = -H_R (outbound at +H_R)
         coshH = np.maximum((1.0 - R * alpha) / e, 1.0)
         H_R = np.arccosh(coshH)
-        M_Rh = -(e * np.sinh(H_R) - H_R)
+        M_Rh = side * (e * np.sinh(H_R) - H_R)
         t_h = (M_Rh - (-el.time_to_periapsis[idx] * nmean)) / nmean
         t = np.where(ell, t_e, t_h)
         # near-parabolic or degenerate: fall back to the time to periapsis as a bracket start
@@ -559,7 +567,7 @@ def time_to_radius(r, v, mu, radius, horizon):
         rtn = _norm(rt)
         rdot = _dot(rt, vt) / rtn
         with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(rdot < 0, (rtn - R) / rdot, 0.0)
+            step = np.where(rdot > 0 if outward else rdot < 0, (rtn - R) / rdot, 0.0)
         t = t - np.where(np.isfinite(step), step, 0.0)
     t = np.maximum(t, 0.0)
     out[idx] = np.where(t <= horizon[idx], t, np.inf)

@@ -11,7 +11,17 @@ found here, on their conics), so no body is moved twice. A scene without a
 sphere of influence holds it (a root well's is infinite; a moon's is Laplace's
 ``a (m/M)^(2/5)`` unless given); ties at one depth go to the strongest pull
 ``mu/d^2``. Inside a moon's sphere the body's state is taken relative to the
-moon, which follows its own conic about its parent.
+moon, which follows its own conic about its parent. A body on rails changes
+sphere *within* the step, at the exact time its conic crosses the sphere
+(into a moon's: where its conic about the parent first comes within ``soi`` of
+the moon's, by the conservative advancement of the sphere contacts below; out
+of one: the outward crossing of ``soi`` on its conic about the moon,
+:func:`framework.kepler.time_to_radius` with ``outward=True``), and goes on
+from there about the new well: so a long step cannot carry a ship through a
+moon (it meets the moon's surface at the time a short step finds), and the
+patched-conic path is the same at every step length. At most
+:data:`MAX_CROSSINGS` a step; a crossing after a surface bounce in the same
+step is made at the next step's start.
 
 **Modes, per body, vectorised over all bodies of a well:**
 
@@ -151,6 +161,8 @@ from driftframe.systems.movement import MovementSystem
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
 MAX_CONTACTS = 4
+#: Most sphere-of-influence changes one body may make in one step (in and out of a moon's sphere is two).
+MAX_CROSSINGS = 4
 #: Most sphere-sphere contacts one body on rails may have in one step; past it, its further contacts
 #: in that step are not looked for (a warning says so once): only a resting or jammed cluster gets there.
 MAX_SPHERE_CONTACTS = 16
@@ -599,10 +611,15 @@ class GravitySystem(esper.Processor):
             has = self.ob_v_rows >= 0
             self._ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
         rails = ~self.nbody
+        done = crossed = None
+        if W > 1 and (wells.parent >= 0).any():
+            # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
+            done, crossed = self._crossings(rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1)
         for wi in range(W):                               # parents first: a moon is placed before its bodies
             sel = np.flatnonzero(rails & (dom == wi))
             if sel.size:
-                self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events)
+                self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events, done,
+                            crossed)
             # wells whose parent is wi: their state at t1 is now known
             for wj in np.flatnonzero(wells.parent == wi):
                 kk = int(np.flatnonzero(self.well_index == wj)[0])
@@ -618,14 +635,15 @@ class GravitySystem(esper.Processor):
         for ev in events:
             world.emit(ev)
 
-    def _rails(self, sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events):
-        wells = self._wells
-        mu, R = wells.mu[wi], wells.radius[wi]
-        dt = t1 - t0
-        # a new epoch where the engine fires, the well changed, or someone else moved the body
+    def _take_epochs(self, sel, wi, x, v, a, thrust, edited, X0, V0, t0, dt, done=None):
+        """A new epoch at ``t0`` about well ``wi`` for those of bodies ``sel`` whose engine fires, whose
+        well changed, or that someone else moved (not those in ``done``: taken already this step)."""
         g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
         new = thrust[g] | edited[g] | (self.ep_well[g] != wi)
+        if done is not None:
+            new &= ~done[g]
         if new.any():
+            mu, R = self._wells.mu[wi], self._wells.radius[wi]
             self._epoch_version += 1
             k = sel[new]
             self.ep_r[k] = x[k] - X0[wi]
@@ -634,6 +652,116 @@ class GravitySystem(esper.Processor):
             self.ep_well[k] = wi
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
+
+    def _crossings(self, rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1):
+        """Sphere-of-influence changes within the step, at their exact times (patched conics): a body
+        on rails about well ``w`` enters a moon ``m`` of ``w`` where its conic comes within ``soi_m``
+        of the moon's (:func:`framework.kepler.time_to_touch` about ``w``, approaching), and leaves a
+        moon where its conic about it passes ``soi`` outwards (:func:`framework.kepler.time_to_radius`,
+        ``outward=True``); it takes a new epoch about its new well there, so the rest of the step,
+        a surface contact on the moon included, is on the new conic. Takes every body's epoch for the
+        step first. Returns the bodies whose epochs are taken (all of ``rails``) and those that crossed
+        (``dom`` is updated to each body's well at the step's end)."""
+        wells = self._wells
+        W, n = len(wells), self._n
+        dt = t1 - t0
+        done = np.zeros(n, bool)
+        for wi in range(W):
+            sel = np.flatnonzero(rails & (dom == wi))
+            if sel.size:
+                self._take_epochs(sel, wi, x, v, a, thrust, edited, X0, V0, t0, dt)
+                done[sel] = True
+        crossed = np.zeros(n, bool)
+        movers = rails & (self.well_index < 0)            # (a moon keeps its parent, whatever the spheres say)
+        t_from = np.full(n, t0)
+        for _ in range(MAX_CROSSINGS):
+            best_t = np.full(n, np.inf)
+            best_w = np.full(n, -1, np.intp)
+            for wi in range(W):
+                k = np.flatnonzero(movers & (self.ep_well == wi) & (t_from < t1))
+                moons = np.flatnonzero(wells.parent == wi)
+                if not k.size or (wells.parent[wi] < 0 and not moons.size):
+                    continue
+                mu, R = wells.mu[wi], wells.radius[wi]
+                upto = np.minimum(t1, self.ep_contact[k])   # (a surface contact first: its own conic after)
+                span = upto - t_from[k]
+                # the state at t_from: at the step's start the table's (no Kepler solve), after a crossing
+                # from the new epoch
+                r = x[k] - X0[wi]
+                u = v[k] - V0[wi] + 0.5 * dt * a[k]
+                later = t_from[k] > t0
+                if later.any():
+                    kl = k[later]
+                    r[later], u[later] = kepler.propagate(self.ep_r[kl], self.ep_v[kl], mu, t_from[kl] - self.ep_t[kl])
+                # how far a body can move in the span: no body on rails about wi comes nearer its centre
+                # than its surface, so no pull on it (nor on a moon of wi) exceeds mu / R^2
+                A = mu / (R * R)
+                rn = kepler._norm(r)
+                if wells.parent[wi] >= 0:                   # out through this moon's sphere
+                    out = rn + kepler._norm(u) * span + 0.5 * A * span * span >= wells.soi[wi]
+                    if out.any():
+                        ko = k[out]
+                        te = t_from[ko] + kepler.time_to_radius(r[out], u[out], mu, wells.soi[wi], span[out],
+                                                                outward=True)
+                        better = te < best_t[ko]
+                        best_t[ko[better]] = te[better]
+                        best_w[ko[better]] = wells.parent[wi]
+                for wj in moons:                            # into a moon's sphere
+                    kk = int(np.flatnonzero(self.well_index == wj)[0])
+                    rm = np.broadcast_to(X0[wj] - X0[wi], (k.size, 3)).copy()
+                    um = np.broadcast_to(V0[wj] - V0[wi], (k.size, 3)).copy()
+                    if later.any():
+                        ml = int(np.count_nonzero(later))
+                        rm[later], um[later] = kepler.propagate(np.broadcast_to(self.ep_r[kk], (ml, 3)),
+                                                                np.broadcast_to(self.ep_v[kk], (ml, 3)), mu,
+                                                                t_from[k[later]] - self.ep_t[kk])
+                    gap = kepler._norm(r - rm) - wells.soi[wj]
+                    near = gap <= kepler._norm(u - um) * span + A * span * span
+                    if not near.any():
+                        continue
+                    kn = k[near]
+                    tk, _ = kepler.time_to_touch(self.ep_r[kn], self.ep_v[kn], self.ep_t[kn],
+                                                 np.broadcast_to(self.ep_r[kk], (kn.size, 3)),
+                                                 np.broadcast_to(self.ep_v[kk], (kn.size, 3)), self.ep_t[kk],
+                                                 mu, wells.soi[wj], t_from[kn], upto[near], 2.0 * A)
+                    better = tk < best_t[kn]
+                    best_t[kn[better]] = tk[better]
+                    best_w[kn[better]] = wj
+            hit = np.flatnonzero(best_t <= t1)
+            if not hit.size:
+                break
+            self._epoch_version += 1
+            for k in hit:
+                self._cross(int(k), int(best_w[k]), float(best_t[k]))
+            crossed[hit] = True
+            t_from[hit] = best_t[hit]
+        dom[crossed] = self.ep_well[crossed]
+        return done, crossed
+
+    def _cross(self, k, new, tc):
+        """Body ``k`` changes well to ``new`` at ``tc``: its state at ``tc`` about the old well, moved
+        to the new one by the moon's state there, is its new epoch."""
+        wells = self._wells
+        old = int(self.ep_well[k])
+        r, u = kepler.propagate(self.ep_r[k], self.ep_v[k], wells.mu[old], tc - self.ep_t[k])
+        moon, sign = (new, -1.0) if wells.parent[new] == old else (old, 1.0)   # into a moon / out of it
+        mk = int(np.flatnonzero(self.well_index == moon)[0])
+        rm, um = kepler.propagate(self.ep_r[mk], self.ep_v[mk], wells.mu[wells.parent[moon]], tc - self.ep_t[mk])
+        self.ep_r[k] = r + sign * rm
+        self.ep_v[k] = u + sign * um
+        self.ep_t[k] = tc
+        self.ep_well[k] = new
+        self.ep_chi[k] = 0.0
+        self.ep_contact[k] = tc + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], wells.mu[new],
+                                                        wells.radius[new], np.inf)[0]
+
+    def _rails(self, sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events, done=None,
+               crossed=None):
+        wells = self._wells
+        mu, R = wells.mu[wi], wells.radius[wi]
+        dt = t1 - t0
+        g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
+        self._take_epochs(sel, wi, x, v, a, thrust, edited, X0, V0, t0, dt, done)
         # the colliders among them: sphere-sphere contacts are looked for only where two or more collide
         # (and where one collides and there are obstacles: about a root well, which moves straight, so
         # an obstacle's path relative to it is a straight line too)
@@ -647,6 +775,8 @@ class GravitySystem(esper.Processor):
         # step's start is the last step's result). The guess changes how fast the solver converges,
         # and where only within its few ulp.
         guess = kepler.next_chi(self.ep_chi[g], x[g], v[g], mu, t1 - t0, origin=(X0[wi], V0[wi]))
+        if crossed is not None and crossed[g].any():
+            guess[crossed[g]] = np.nan                     # (it started the step about another well: no guess)
         r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
         if look:
             # contacts along the conics, in time order with the surface contacts; the bodies they
@@ -738,10 +868,17 @@ class GravitySystem(esper.Processor):
         if a.any():
             w0 += 0.5 * span * a[cs]
         p1 = r1[pc]
+        ball = self.ep_contact[cs] <= t1
+        late = self.ep_t[cs] > t0
+        if late.any():
+            # bodies that came into this well's sphere in the step: on its conic from then on, boxed as the
+            # sphere they can reach from there (their path before was about another well)
+            p0[late] = self.ep_r[cs[late]]
+            w0[late] = self.ep_v[cs[late]]
+            ball = ball | late
         # each collider's swept box over the step (kepler.arc_boxes: the chord grown by how far a conic
         # can leave it, or the sphere it can reach where it touches the surface), grown by its radius
-        lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, u1[pc], span, mu, R, self.ep_contact[cs] <= t1, rad)
-        ball = self.ep_contact[cs] <= t1
+        lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, u1[pc], span, mu, R, ball, rad)
         nc = len(cs)
         if n_ob:
             # the obstacles after the colliders (indices nc..): straight paths relative to the (root) well,

@@ -164,6 +164,87 @@ def test_fast_flyby_past_a_small_moon_is_not_missed_at_a_long_step():
         w.close()
 
 
+MU_MOON, D_MOON, R_MOON = 4.9048695e12, 3.844e8, 1.7374e6
+
+
+def _planet_and_moon(w):
+    planet = w.create_entity(Transform(), GravityWell(mu=MU, radius=R_EARTH))
+    vm = math.sqrt(MU / D_MOON)
+    moon = w.create_entity(Transform((D_MOON, 0, 0)), Velocity((0, vm, 0)),
+                           GravityWell(mu=MU_MOON, radius=R_MOON, parent=planet))
+    return planet, moon, np.array([D_MOON, 0, 0]), np.array([0, vm, 0])
+
+
+def _entry_time(r0, v0, rm0, vm0, soi, t_hi):
+    """When the ship's conic about the planet first comes within ``soi`` of the moon's: bisection on
+    sampled distances (an independent search: no conservative advancement)."""
+    ts = np.linspace(0.0, t_hi, 4001)
+    rs, _ = kepler.propagate(np.tile(r0, (ts.size, 1)), np.tile(v0, (ts.size, 1)), MU, ts)
+    rm, _ = kepler.propagate(np.tile(rm0, (ts.size, 1)), np.tile(vm0, (ts.size, 1)), MU, ts)
+    i = int(np.argmax(np.linalg.norm(rs - rm, axis=1) < soi))
+    lo, hi = ts[i - 1], ts[i]
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        a, _ = kepler.propagate(r0, v0, MU, mid)
+        b, _ = kepler.propagate(rm0, vm0, MU, mid)
+        lo, hi = (lo, mid) if np.linalg.norm(a - b) < soi else (mid, hi)
+    return 0.5 * (lo + hi)
+
+
+@pytest.mark.parametrize("dt", [1.0, 100.0, 1000.0, 4000.0])
+def test_a_ship_that_falls_into_a_moons_sphere_hits_the_moon_at_the_same_time_at_any_step(dt):
+    """Patched conics with exact crossings: the ship changes well at the time its conic meets the
+    moon's sphere of influence, inside the step, so a step of 4,000 s (which carries it from outside
+    the sphere to past the moon) still hits the surface, at the time a 1 s step finds."""
+    w = make(dt=dt)
+    try:
+        planet, moon, rm0, vm0 = _planet_and_moon(w)
+        r0, v0 = np.array([D_MOON, -1.2e8, 0.0]), np.array([0.0, vm0[1] + 3e4, 0.0])
+        ship = w.create_entity(Transform(r0), Velocity(v0))
+        hits = []
+        w.subscribe(SurfaceContact, hits.append)
+        w.step(int(math.ceil(8000.0 / dt)))
+        assert [(h.entity, h.well) for h in hits] == [(ship, moon)]
+        soi = D_MOON * (MU_MOON / MU) ** 0.4
+        te = _entry_time(r0, v0, rm0, vm0, soi, 8000.0)
+        a, u = kepler.propagate(r0, v0, MU, te)
+        b, ub = kepler.propagate(rm0, vm0, MU, te)
+        want = te + kepler.time_to_radius(a - b, u - ub, MU_MOON, R_MOON, 1e6)[0]
+        assert hits[0].time == pytest.approx(want, rel=1e-10)
+        assert hits[0].time == pytest.approx(3941.492, abs=1e-3)
+    finally:
+        w.close()
+
+
+def test_a_ship_escaping_a_moon_leaves_its_sphere_at_the_exact_time_whatever_the_step():
+    """A hyperbolic escape from low lunar orbit: the state two days later about the planet is the same
+    at a 10 s step and a 4,800 s one (the crossing is on the conic, not at a step's end), and is the
+    planet's conic from the state at the crossing."""
+    def run(dt):
+        w = make(dt=dt)
+        try:
+            planet, moon, rm0, vm0 = _planet_and_moon(w)
+            rl = 2e6
+            v_esc = 1.3 * math.sqrt(2 * MU_MOON / rl)
+            ship = w.create_entity(Transform(rm0 + [rl, 0, 0]), Velocity(vm0 + [0, v_esc, 0]))
+            w.step(int(round(172800.0 / dt)))
+            return state(w, ship), (rm0, vm0, np.array([rl, 0, 0.0]), np.array([0, v_esc, 0.0]))
+        finally:
+            w.close()
+    (r_a, v_a), (rm0, vm0, p0, w0) = run(10.0)
+    (r_b, v_b), _ = run(4800.0)
+    soi = D_MOON * (MU_MOON / MU) ** 0.4
+    te = kepler.time_to_radius(p0, w0, MU_MOON, soi, 1e9, outward=True)[0]
+    assert 0 < te < 172800.0
+    p, u = kepler.propagate(p0, w0, MU_MOON, te)
+    m, mv = kepler.propagate(rm0, vm0, MU, te)
+    assert np.linalg.norm(p) == pytest.approx(soi, rel=1e-12)
+    want_r, want_v = kepler.propagate(p + m, u + mv, MU, 172800.0 - te)
+    np.testing.assert_allclose(r_a, want_r, rtol=1e-10)
+    np.testing.assert_allclose(r_b, want_r, rtol=1e-10)
+    np.testing.assert_allclose(v_b, want_v, rtol=1e-10)
+
+
 def test_thrust_switches_to_kick_drift_kick_and_back_to_rails():
     """The rule: a step with Acceleration is v += a dt/2, Kepler for dt, v += a dt/2 (second order),
     and the step after the burn is exactly on rails again."""

@@ -358,3 +358,21 @@ def test_time_to_touch_finds_the_first_touch_with_and_without_the_tidal_bound():
         assert plain[k] == pytest.approx(hi, abs=1e-9)
         assert tidal[k] == pytest.approx(hi, abs=1e-9)
     assert found >= 3
+
+
+@pytest.mark.parametrize("speed", [0.9, 1.3])          # of the escape speed: an ellipse past r, a hyperbola
+def test_time_to_radius_outward_is_the_first_crossing_outwards(speed):
+    mu, r0 = 4.9e12, 2e6
+    r, v = np.array([r0, 0, 0.0]), np.array([0, speed * np.sqrt(2 * mu / r0), 0.0])
+    R = 3e6 if speed < 1 else 6.6e7
+    t = kepler.time_to_radius(r, v, mu, R, 1e9, outward=True)[0]
+    ts = np.linspace(0.0, 1.5 * t, 30001)
+    rs, vs = kepler.propagate(np.tile(r, (ts.size, 1)), np.tile(v, (ts.size, 1)), mu, ts)
+    first = ts[int(np.argmax(np.linalg.norm(rs, axis=1) > R))]
+    assert first - 2 * ts[1] <= t <= first + 1e-9 * t
+    at, vt = kepler.propagate(r, v, mu, t)
+    assert np.linalg.norm(at) == pytest.approx(R, rel=1e-12) and at @ vt > 0
+    # from outside the radius, or on an orbit that never reaches it: no crossing
+    assert kepler.time_to_radius(at * 1.01, vt, mu, R, 1e9, outward=True)[0] == np.inf
+    circ = np.array([0, np.sqrt(mu / r0), 0.0])
+    assert kepler.time_to_radius(r, circ, mu, R, 1e9, outward=True)[0] == np.inf
