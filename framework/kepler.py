@@ -691,6 +691,57 @@ def time_to_touch(ra, va, ta, rb, vb, tb, mu, reach, t_from, t_to, accel, rho=No
     return out, stuck
 
 
+def time_to_touch_paths(at_a, at_b, reach, t_from, t_to, accel, *, iterations: int = TOUCH_ITERATIONS):
+    """:func:`time_to_touch` for any two paths known as functions of time: the first time in
+    ``[t_from, t_to]`` (absolute s) at which pairs come within ``reach`` (m) while approaching;
+    ``inf`` where they do not. Vectorised over pairs.
+
+    ``at_a(idx, t)`` and ``at_b(idx, t)`` return positions and velocities ``(len(idx), 3)`` (one
+    inertial frame, m and m/s) of pairs ``idx`` (indices into the ``(n,)`` arrays given) at absolute
+    times ``t``; ``accel`` (m/s^2, ``(n,)``) bounds ``|a_a| + |a_b|`` over the interval. For bodies in
+    different frames (a conic about a moon that itself follows a conic, a straight drift, a straight
+    obstacle) the bound is the sum of each body's pull and its frame's. The same conservative
+    advancement and contact test as :func:`time_to_touch` (without its tidal bound, which needs both
+    bodies about one mass), so no step length can tunnel. Returns ``(t, stuck)``."""
+    n = np.shape(reach)[0] if np.ndim(reach) else np.shape(t_from)[0]
+    b_ = lambda a: np.array(np.broadcast_to(np.asarray(a, dtype=np.float64), (n,)))  # noqa: E731
+    reach, t_to, accel, t = b_(reach), b_(t_to), b_(accel), b_(t_from)
+    out = np.full(n, np.inf)
+    stuck = np.zeros(n, bool)
+    idx = np.arange(n)
+    for it in range(iterations):
+        if not idx.size:
+            break
+        pa, ua = at_a(idx, t)
+        pb, ub = at_b(idx, t)
+        d = pb - pa
+        dist = _norm(d)
+        g = dist - reach
+        with np.errstate(invalid="ignore", divide="ignore"):
+            gd = _dot(d, ub - ua) / dist
+        tol = 1e-10 * reach + 4.0 * _EPS * (_norm(pa) + _norm(pb))
+        hit = (g <= tol) & (gd < 0)
+        if it == iterations - 1:
+            hit |= ~hit & (g <= 1e-6 * reach) & (gd < 0)
+        c = -gd
+        gp = np.maximum(g, 0.0)
+        sq = np.sqrt(np.maximum(c * c + 2.0 * accel * gp, 0.0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            # the smaller positive root of g - c tau - accel tau^2/2 (accel 0 and closing: g / c)
+            tau = np.where(c > 0, 2.0 * gp / (c + sq), (sq - c) / accel)
+            if hit.any():
+                polish = np.where(g > 0, g / c, 0.0)
+                out[idx[hit]] = np.minimum(t[hit] + polish[hit], t_to[hit])
+        t_new = t + tau
+        keep = ~hit & (t_new <= t_to)                      # (past the end, or NaN: no contact)
+        if it == iterations - 1:
+            stuck[idx[keep]] = True
+            break
+        idx, t = idx[keep], t_new[keep]
+        reach, t_to, accel = reach[keep], t_to[keep], accel[keep]
+    return out, stuck
+
+
 class _Line:
     """A straight path ``r0 + v0 t`` with Epoch.at's signature (time since the epoch, a chi guess)."""
 

@@ -152,11 +152,9 @@ from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
 from driftframe.framework import broadphase as bp
-from driftframe.framework import contact
 from driftframe.framework import kepler
 from driftframe.framework.store import as_index, to_indices
 from driftframe.systems import movement
-from driftframe.systems.collision import kernel_events
 from driftframe.systems.movement import MovementSystem
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
@@ -293,6 +291,7 @@ class GravitySystem(esper.Processor):
         self._lookahead = None                            # (epoch version, contact or None, looked up to)
         self._epochs: dict = {}
         self._n_col = 0
+        self._n_nb_col = 0
         self._n_ob = 0                                    # colliders gravity does not move (obstacles)
         self._ob_version = None
         self._warned: set = set()
@@ -335,10 +334,19 @@ class GravitySystem(esper.Processor):
             at = np.minimum(np.searchsorted(ce, self.ents), len(ce) - 1)
             has = ce[at] == self.ents
             self.c_rows[has] = to_indices(cq.rows(SphereCollider))[at[has]]
+        if len(cq):
+            # a well is met at its surface sphere; a collider of another size on it would say otherwise
+            ce, radii = cq.entities, world.table(SphereCollider).data["radius"][to_indices(cq.rows(SphereCollider))]
+            for i, e in enumerate(wells.ents):
+                at_w = int(np.searchsorted(ce, e))
+                if at_w < len(ce) and ce[at_w] == e and float(radii[at_w]) != float(wells.radius[i]):
+                    self._warn_once(f"well-collider-{e}", f"gravity: well {e} has a SphereCollider of radius "
+                                    f"{float(radii[at_w])!r} m and a surface of radius {float(wells.radius[i])!r} m; "
+                                    "bodies meet its surface (GravityWell.radius): the SphereCollider is not used")
         self.nb_c_rows = np.where(self.nbody & (self.well_index < 0), self.c_rows, -1)
         self.c_rows[(self.well_index >= 0) | self.nbody] = -1
         self._n_col = int(np.count_nonzero(self.c_rows >= 0))
-        self._nb_t_last = None                            # the n-body colliders' last contacts (TC model)
+        self._n_nb_col = int(np.count_nonzero(self.nb_c_rows >= 0))
         # epochs: (state about the well, time, well); -1 = take a new one
         self.ep_r = np.zeros((n, 3))
         self.ep_v = np.zeros((n, 3))
@@ -605,29 +613,49 @@ class GravitySystem(esper.Processor):
             edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
         else:
             edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
-        if self._n_ob and self._n_col:
-            # the obstacles at the step's start (the movement system moves them after this system)
-            self._ob_x = pos_t[self.ob_t_rows]
-            has = self.ob_v_rows >= 0
-            self._ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
+        # the obstacles at the step's start (the movement system moves them after this system)
+        self._ob_x = pos_t[self.ob_t_rows]
+        has = self.ob_v_rows >= 0
+        self._ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
+        self._step = (X0, V0, t0, t1)
         rails = ~self.nbody
+        nb = np.flatnonzero(self.nbody)
+        # sphere contacts are looked for where two or more colliders move, or one and an obstacle
+        movers = self._n_col + self._n_nb_col
+        look = movers >= 2 or (movers and self._n_ob)
         done = crossed = None
         if W > 1 and (wells.parent >= 0).any():
             # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
             done, crossed = self._crossings(rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1)
+        ends = {}
+        self._wA = np.zeros(W)                            # a bound on each well centre's acceleration
         for wi in range(W):                               # parents first: a moon is placed before its bodies
             sel = np.flatnonzero(rails & (dom == wi))
             if sel.size:
-                self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events, done,
-                            crossed)
-            # wells whose parent is wi: their state at t1 is now known
+                ends[wi] = (sel, *self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, t0, t1, events, look,
+                                              done, crossed))
+            # wells whose parent is wi: their state at t1 is now known (a moon is never touched by a
+            # sphere contact: it is a well)
             for wj in np.flatnonzero(wells.parent == wi):
                 kk = int(np.flatnonzero(self.well_index == wj)[0])
-                X1[wj] = x1[kk]
-                V1[wj] = v1[kk]
-        nb = np.flatnonzero(self.nbody)
+                sel_w, r, u = ends[wi][0], ends[wi][1], ends[wi][2]
+                p = int(np.searchsorted(sel_w, kk))
+                X1[wj] = X1[wi] + r[p]
+                V1[wj] = V1[wi] + u[p] + (0.5 * dt * a[kk] if thrust[kk] else 0.0)
+                _, _, A_m, _ = kepler.arc_boxes(x[kk:kk + 1] - X0[wi], v[kk:kk + 1] - V0[wi], r[p:p + 1], u[p:p + 1],
+                                                dt, wells.mu[wi], wells.radius[wi], np.zeros(1, bool))
+                self._wA[wj] = A_m[0] + self._wA[wi]
+        line = None
         if nb.size:
-            self._leapfrog(nb, x, v, a, X0, X1, dt, t0, x1, v1, events)
+            line = self._kick(nb, x, v, a, X0, dt)
+        touched = _NO_BODIES
+        if look:
+            # every sphere contact of the step, in time order: on rails, on the n-body drift, obstacles
+            touched, line = self._contacts(ends, nb, line, x, v, a, X0, V0, X1, t0, t1, events)
+        for wi, (sel, r, u, chi, guess) in ends.items():
+            self._rails_end(sel, wi, r, u, chi, guess, touched, a, thrust, X1, V1, t1, x1, v1)
+        if nb.size:
+            self._leapfrog_end(nb, line, a, X0, X1, dt, t0, x1, v1, events)
         pos_t[self.t_rows] = x1
         vel_t[self.v_rows] = v1
         self.last_x = x1
@@ -755,21 +783,19 @@ class GravitySystem(esper.Processor):
         self.ep_contact[k] = tc + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], wells.mu[new],
                                                         wells.radius[new], np.inf)[0]
 
-    def _rails(self, sel, wi, x, v, a, thrust, edited, X0, V0, X1, V1, t0, t1, x1, v1, events, done=None,
-               crossed=None):
+    def _rails(self, sel, wi, x, v, a, thrust, edited, X0, V0, t0, t1, events, look, done=None, crossed=None):
+        """Bodies ``sel`` on rails about well ``wi``: their epochs for the step, the surface contacts of
+        those whose contacts are not looked for in :meth:`_contacts` (there the colliders meet the
+        surface in time order with everything else), and their states about the well at ``t1``
+        (before any sphere contact): ``r, u, chi, guess``."""
         wells = self._wells
-        mu, R = wells.mu[wi], wells.radius[wi]
+        mu = wells.mu[wi]
         dt = t1 - t0
         g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
         self._take_epochs(sel, wi, x, v, a, thrust, edited, X0, V0, t0, dt, done)
-        # the colliders among them: sphere-sphere contacts are looked for only where two or more collide
-        # (and where one collides and there are obstacles: about a root well, which moves straight, so
-        # an obstacle's path relative to it is a straight line too)
-        n_ob = self._n_ob if wells.parent[wi] < 0 else 0
-        cs = sel[self.c_rows[sel] >= 0] if self._n_col >= 2 or (self._n_col and n_ob) else _NO_BODIES
-        look = cs.size >= 2 or (cs.size and n_ob)
-        if not look:
-            self._surfaces(sel, wi, t1, events)
+        plain = sel[self.c_rows[sel] < 0] if look else sel
+        if plain.size:
+            self._surfaces(plain, wi, t1, events)
         # from the epoch for the whole time since (no error carried from step to step), warm-started
         # from the last step's chi moved on by its Taylor series (kepler.next_chi; the state at the
         # step's start is the last step's result). The guess changes how fast the solver converges,
@@ -778,19 +804,24 @@ class GravitySystem(esper.Processor):
         if crossed is not None and crossed[g].any():
             guess[crossed[g]] = np.nan                     # (it started the step about another well: no guess)
         r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
-        if look:
-            # contacts along the conics, in time order with the surface contacts; the bodies they
-            # touched (new epochs) get their end-of-step state again
-            touched = self._sphere_contacts(sel, cs, wi, x, v, a, X0, V0, t0, t1, r, u, events, n_ob)
-            if touched.size:
-                p = np.searchsorted(sel, touched)
-                r[p], u[p], chi[p] = kepler.Epoch(self.ep_r[touched], self.ep_v[touched], mu).at(
-                    t1 - self.ep_t[touched], guess[p])
+        return r, u, chi, guess
+
+    def _rails_end(self, sel, wi, r, u, chi, guess, touched, a, thrust, X1, V1, t1, x1, v1):
+        """The end-of-step states of bodies ``sel`` about well ``wi``: again from their new epochs where a
+        sphere contact ``touched`` them, then thrust's second half kick."""
+        mu = self._wells.mu[wi]
+        g = slice(None) if sel.size == self._n else sel
+        if touched.size:
+            mine = touched[np.isin(touched, sel)]
+            if mine.size:
+                p = np.searchsorted(sel, mine)
+                r[p], u[p], chi[p] = kepler.Epoch(self.ep_r[mine], self.ep_v[mine], mu).at(
+                    t1 - self.ep_t[mine], guess[p])
         self.ep_chi[g] = chi
         th = thrust[g]
         if th.any():
             # the second half kick; the state after it is the next step's epoch (taken then, as thrust)
-            u[th] += 0.5 * dt * a[sel[th]]
+            u[th] += 0.5 * (t1 - self._step[2]) * a[sel[th]]
             self.ep_well[sel[th]] = -1
         x1[g] = X1[wi] + r
         v1[g] = V1[wi] + u
@@ -825,7 +856,8 @@ class GravitySystem(esper.Processor):
 
     # -- sphere-sphere contacts along the conics ------------------------------------------------
     def _near(self, pa, pb, ball, p0, p1, rad, A, rho, span, mu):
-        """The candidate pairs ``(pa, pb)`` (into ``cs``) less those proven apart for the whole step
+        """Which of the candidate pairs ``(pa, pb)`` (movers on rails about one well) are not proven apart
+        for the whole step
         without solving Kepler's equation: the separation ``d(t)`` leaves the chord between its two
         ends by at most ``A_d span^2 / 8``, with ``A_d`` the bound on ``|d''|`` (the sum of the two
         pulls, or the tidal ``2 mu D / (rho - D/2)^3`` for a pair never more than ``D`` apart; see
@@ -845,168 +877,260 @@ class GravitySystem(esper.Processor):
             acc = np.where(seg > 0, np.minimum(acc, 2.0 * mu * D / seg ** 3), acc)
         # (+ the rounding of the states: 1e-12 of their distance from the well, and a micrometre)
         slack = 0.125 * acc * span * span + 1e-12 * (kepler._norm(p0[pa]) + kepler._norm(p0[pb])) + 1e-6
-        keep = (closest - slack <= rad[pa] + rad[pb]) | ball[pa] | ball[pb]
-        return pa[keep], pb[keep]
+        return (closest - slack <= rad[pa] + rad[pb]) | ball[pa] | ball[pb]
 
-    def _sphere_contacts(self, sel, cs, wi, x, v, a, X0, V0, t0, t1, r1, u1, events, n_ob=0):
-        """Contacts of the colliders ``cs`` (bodies on rails about well ``wi``) with each other within
-        the step, exact on their conics, in time order together with the surface contacts of ``sel``;
-        returns the bodies given new epochs (whose end-of-step state ``r1, u1`` is stale)."""
+    # -- the movers of the contact pass: colliders on rails (0), on the n-body drift (1), obstacles (2) --
+    def _well_at(self, wi, t):
+        """Well ``wi``'s centre at absolute times ``t`` ``(n,)`` in the step: positions, velocities (world
+        frame). A root well moves straight; a moon on its conic about its parent."""
+        X0, V0, t0, _ = self._step
         wells = self._wells
-        mu, R = wells.mu[wi], wells.radius[wi]
-        col = self.world.table(SphereCollider).data
-        c_rows = self.c_rows[cs]
-        rad = col["radius"][c_rows].astype(np.float64)
+        t = np.asarray(t, dtype=np.float64)
+        p = wells.parent[wi]
+        if p < 0:
+            return X0[wi] + V0[wi] * (t - t0)[:, None], np.broadcast_to(V0[wi], (t.size, 3))
+        kk = int(np.flatnonzero(self.well_index == wi)[0])
+        r, v = kepler.propagate(np.broadcast_to(self.ep_r[kk], (t.size, 3)), np.broadcast_to(self.ep_v[kk], (t.size, 3)),
+                                wells.mu[p], t - self.ep_t[kk])
+        P, Vp = self._well_at(int(p), t)
+        return P + r, Vp + v
+
+    def _movers_at(self, mv, ms, t):
+        """Positions and velocities (world frame) of movers ``ms`` at absolute times ``t``."""
+        t0 = self._step[2]
+        kind, body, well = mv["kind"][ms], mv["body"][ms], mv["well"][ms]
+        pos = np.empty((ms.size, 3))
+        vel = np.empty((ms.size, 3))
+        line = kind != 0
+        if line.any():
+            pos[line] = mv["lp"][ms[line]] + mv["lu"][ms[line]] * (t[line] - t0)[:, None]
+            vel[line] = mv["lu"][ms[line]]
+        for wi in np.unique(well[~line]):
+            m = ~line & (well == wi)
+            k = body[m]
+            r, u = kepler.propagate(self.ep_r[k], self.ep_v[k], self._wells.mu[wi], t[m] - self.ep_t[k])
+            P, V = self._well_at(int(wi), t[m])
+            pos[m] = P + r
+            vel[m] = V + u
+        return pos, vel
+
+    def _rail_boxes(self, wi, rad, p0, w0, p1, w1, span, ball):
+        """World boxes, bounds ``A`` (on the pull relative to the well) and ``rho`` of colliders of radii
+        ``rad`` on rails about well ``wi``, from their states ``p0, w0`` about it at the start of the span
+        to ``p1, w1`` at its end: kepler.arc_boxes about the well, then moved into the world frame by the
+        box of the well centre's own path over the step (a point for a well at rest)."""
+        wells = self._wells
+        lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, w1, span, wells.mu[wi], wells.radius[wi], ball, rad)
+        X0, _, t0, t1 = self._step
+        a, b = X0[wi], self._X1[wi]
+        if np.array_equal(a, b):
+            if not a.any():                               # (a well at rest at the origin: the usual case)
+                return lo, hi, A, rho
+            return lo + a, hi + a, A, rho
+        grow = 0.125 * self._wA[wi] * (t1 - t0) ** 2
+        return lo + (np.minimum(a, b) - grow), hi + (np.maximum(a, b) + grow), A, rho
+
+    def _contacts(self, ends, nb, line, x, v, a, X0, V0, X1, t0, t1, events):
+        """Every sphere contact of the step in time order, exact on each body's path: colliders on
+        rails (each on its conic about its well, which may itself move on a conic), n-body colliders
+        on the leapfrog's straight drift, and obstacles (straight, inverse mass 0), together with the
+        surface contacts of the colliders on rails. Pairs on rails about one well take the conic
+        search with the tidal bound (:func:`framework.kepler.time_to_touch`); a collider on rails about
+        a root well against a straight path takes it with ``line_b``; every other pair (different wells,
+        a moon's frame against a line, two lines) the same conservative advancement on the world-frame
+        paths (:func:`framework.kepler.time_to_touch_paths`, the bound on the relative acceleration the
+        sum of each body's pull and its well's). Returns the bodies on rails given new epochs, and the
+        n-body drift lines after their contacts."""
+        wells = self._wells
         span = t1 - t0
-        # (every body a collider, the usual case for a swarm: slices, not gathers)
-        whole = cs.size == self._n
-        pc = slice(None) if cs.size == sel.size else np.searchsorted(sel, cs)
-        xc, vc = (x, v) if whole else (x[cs], v[cs])
-        # the conic's state at the step's start, about the well (thrust: after the first half kick)
-        p0 = xc - X0[wi]
-        w0 = vc - V0[wi]
-        if a.any():
-            w0 += 0.5 * span * a[cs]
-        p1 = r1[pc]
-        ball = self.ep_contact[cs] <= t1
-        late = self.ep_t[cs] > t0
-        if late.any():
-            # bodies that came into this well's sphere in the step: on its conic from then on, boxed as the
-            # sphere they can reach from there (their path before was about another well)
-            p0[late] = self.ep_r[cs[late]]
-            w0[late] = self.ep_v[cs[late]]
-            ball = ball | late
-        # each collider's swept box over the step (kepler.arc_boxes: the chord grown by how far a conic
-        # can leave it, or the sphere it can reach where it touches the surface), grown by its radius
-        lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, u1[pc], span, mu, R, ball, rad)
-        nc = len(cs)
-        if n_ob:
-            # the obstacles after the colliders (indices nc..): straight paths relative to the (root) well,
-            # acceleration 0, rho 0 (no tidal bound: they feel no pull), boxes of their two ends
-            q0 = self._ob_x - X0[wi]
-            qv = self._ob_v - V0[wi]
-            q1 = q0 + qv * span
-            orad = col["radius"][self.ob_c_rows].astype(np.float64)
-            lo = np.concatenate([lo, np.minimum(q0, q1) - orad[:, None]])
-            hi = np.concatenate([hi, np.maximum(q0, q1) + orad[:, None]])
-            A = np.concatenate([A, np.zeros(n_ob)])
-            rho = np.concatenate([rho, np.zeros(n_ob)])
-            p0 = np.concatenate([p0, q0])
-            p1 = np.concatenate([p1, q1])
-            rad = np.concatenate([rad, orad])
-            ball = np.concatenate([ball, np.zeros(n_ob, bool)])
+        self._X1 = X1
+        col = self.world.table(SphereCollider).data
+        kinds, bodies, wells_of, rads = [], [], [], []
+        p0s, p1s, w0s, w1s, balls = [], [], [], [], []
+        for wi, (sel, r1, u1, _, _) in ends.items():
+            is_c = self.c_rows[sel] >= 0
+            if is_c.all():                                # (every body a collider, the usual swarm: slices)
+                cs, pc = sel, slice(None)
+                g = slice(None) if sel.size == self._n else sel
+            else:
+                cs = sel[is_c]
+                if not cs.size:
+                    continue
+                pc = np.flatnonzero(is_c)
+                g = cs
+            p0 = x[g] - X0[wi]
+            w0 = v[g] - V0[wi]
+            if a.any():
+                w0 += 0.5 * span * a[g]                   # (thrust: after the first half kick)
+            late = self.ep_t[g] > t0
+            if late.any():
+                # bodies that came into this well's sphere in the step: on its conic from then on, boxed as
+                # the sphere they can reach from there (their path before was about another well)
+                p0[late] = self.ep_r[cs[late]]
+                w0[late] = self.ep_v[cs[late]]
+            kinds.append(np.zeros(cs.size, np.intp))
+            bodies.append(cs)
+            wells_of.append(np.full(cs.size, wi, np.intp))
+            rows = self.c_rows[g]
+            rads.append(col["radius"][rows].astype(np.float64))
+            p0s.append(p0)
+            w0s.append(w0)
+            p1s.append(r1[pc])
+            w1s.append(u1[pc])
+            balls.append((self.ep_contact[g] <= t1) | late)
+        n_rail = sum(b.size for b in bodies)
+        lp, lu = [], []
+        if line is not None:
+            p, u, _ = line
+            k = np.flatnonzero(self.nb_c_rows[nb] >= 0)
+            if k.size:
+                kinds.append(np.ones(k.size, np.intp))
+                bodies.append(nb[k])
+                wells_of.append(np.full(k.size, -1, np.intp))
+                rows = self.nb_c_rows[nb[k]]
+                rads.append(col["radius"][rows].astype(np.float64))
+                lp.append(p[k])
+                lu.append(u[k])
+        if self._n_ob:
+            kinds.append(np.full(self._n_ob, 2, np.intp))
+            bodies.append(np.arange(self._n_ob))
+            wells_of.append(np.full(self._n_ob, -1, np.intp))
+            rads.append(col["radius"][self.ob_c_rows].astype(np.float64))
+            lp.append(self._ob_x)
+            lu.append(self._ob_v)
+        one = len(kinds) == 1
+        mv = {"kind": kinds[0] if one else np.concatenate(kinds), "body": bodies[0] if one else np.concatenate(bodies),
+              "well": wells_of[0] if one else np.concatenate(wells_of), "rad": rads[0] if one else np.concatenate(rads),
+              "lp": np.concatenate([np.zeros((n_rail, 3))] + lp) if lp else None,
+              "lu": np.concatenate([np.zeros((n_rail, 3))] + lu) if lu else None}
+        M = mv["kind"].size
+        kind, body, well, rad = mv["kind"], mv["body"], mv["well"], mv["rad"]
+        # boxes (world frame), bounds, and each rails mover's states about its well for the pruning
+        if len(p0s) == 1 and M == n_rail:                 # (one well's colliders and nothing else: no copies)
+            lo, hi, A, rho = self._rail_boxes(int(well[0]), rad, p0s[0], w0s[0], p1s[0], w1s[0], span, balls[0])
+            P0, P1, ball = p0s[0], p1s[0], balls[0]
+        else:
+            lo = np.empty((M, 3))
+            hi = np.empty((M, 3))
+            A = np.zeros(M)                               # pull relative to the well (rails), 0 on a line
+            rho = np.zeros(M)
+            P0 = np.zeros((M, 3))
+            P1 = np.zeros((M, 3))
+            ball = np.zeros(M, bool)
+            at = 0
+            for k in range(len(p0s)):
+                ms = slice(at, at + p0s[k].shape[0])
+                lo[ms], hi[ms], A[ms], rho[ms] = self._rail_boxes(int(well[at]), rad[ms], p0s[k], w0s[k], p1s[k],
+                                                                  w1s[k], span, balls[k])
+                P0[ms], P1[ms], ball[ms] = p0s[k], p1s[k], balls[k]
+                at = ms.stop
+        lines = np.flatnonzero(kind != 0)
+        if lines.size:
+            q0 = mv["lp"][lines]
+            q1 = q0 + mv["lu"][lines] * span
+            lo[lines] = np.minimum(q0, q1) - rad[lines, None]
+            hi[lines] = np.maximum(q0, q1) + rad[lines, None]
+        if len(p0s) == 1 and M == n_rail:
+            wA = np.full(M, self._wA[int(well[0])])
+            root = np.full(M, wells.parent[int(well[0])] < 0)
+        else:
+            wA = np.where(kind == 0, self._wA[np.maximum(well, 0)], 0.0)
+            root = np.where(kind == 0, wells.parent[np.maximum(well, 0)] < 0, False)
         pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
-        if n_ob and len(pa):
-            # (box_pairs gives i < j: an obstacle is always pb; obstacle-obstacle pairs are not ours)
-            two_rails = pa < nc
-            pa, pb = pa[two_rails], pb[two_rails]
-        if len(pa):
-            pa, pb = self._near(pa, pb, ball, p0, p1, rad, A, rho, span, mu)
+        pa, pb = pa.astype(np.intp), pb.astype(np.intp)
+        if self._n_ob > 1:
+            keep = ~((kind[pa] == 2) & (kind[pb] == 2))  # obstacle with obstacle: not ours
+            pa, pb = pa[keep], pb[keep]
+        # the pairs on rails about one well: less those their chords prove apart (no Kepler solve)
+        if M == n_rail and len(p0s) == 1:                 # (all on rails about one well)
+            keep = self._near(pa, pb, ball, P0, P1, rad, A, rho, span, wells.mu[int(well[0])])
+            pa, pb = pa[keep], pb[keep]
+        else:
+            same = (kind[pa] == 0) & (kind[pb] == 0) & (well[pa] == well[pb])
+            if same.any():
+                keep = np.ones(pa.size, bool)
+                for wi in np.unique(well[pa[same]]):
+                    m = np.flatnonzero(same & (well[pa] == wi))
+                    keep[m] = self._near(pa[m], pb[m], ball, P0, P1, rad, A, rho, span, wells.mu[wi])
+                pa, pb = pa[keep], pb[keep]
+        # a line is always b of a pair with one rails mover (box_pairs gives i < j, rails movers first)
         touched = []
-        if not len(pa):                                   # the usual step: nobody near anybody
-            hit0 = self.ep_t[sel].copy()
-            self._surfaces(sel, wi, t1, events)
-            return sel[self.ep_t[sel] != hit0]
-        pa = pa.astype(np.intp)
-        pb = pb.astype(np.intp)
-        ts = np.full(len(pa), t0)                         # each pair is known to be apart up to ts ...
-        tc = np.full(len(pa), np.nan)                     # ... and touches at tc (inf: not before ts; NaN: look)
-        count = np.zeros(nc + n_ob, np.intp)                # (an obstacle's count stays 0: no cap on it)
-        for _ in range(64 + 4 * len(cs)):
+        rails_m = np.flatnonzero(kind == 0)
+        if not pa.size:
+            moved = []                                    # the usual step: nobody near anybody
+            at = 0
+            for k in range(len(p0s)):                     # (the rails movers come first, one well at a time)
+                wi, cs = int(well[at]), body[at:at + p0s[k].shape[0]]
+                at += cs.size
+                if (self.ep_contact[cs] <= t1).any():
+                    hit0 = self.ep_t[cs].copy()
+                    self._surfaces(cs, wi, t1, events)
+                    moved.append(cs[self.ep_t[cs] != hit0])
+            return (np.concatenate(moved) if moved else _NO_BODIES), line
+        ts = np.full(pa.size, t0)                         # each pair is known to be apart up to ts ...
+        tc = np.full(pa.size, np.nan)                     # ... and touches at tc (inf: not before ts; NaN: look)
+        count = np.zeros(M, np.intp)                      # (an obstacle's count stays 0: no cap on it)
+        after = np.full(M, -np.inf)                       # a line mover's last contact in the step
+        huge = np.inf
+        for _ in range(64 + 4 * M):
             need = np.flatnonzero(np.isnan(tc))
-            obs = need[pb[need] >= nc] if n_ob else _NO_BODIES
-            if obs.size:
-                need = need[pb[need] < nc]
-                ka = cs[pa[obs]]
-                upto = np.minimum(t1, self.ep_contact[ka])
-                start = np.maximum(ts[obs], self.ep_t[ka])
-                o = pb[obs] - nc
-                t, stuck = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka], q0[o], qv[o], t0,
-                                                mu, rad[pa[obs]] + rad[pb[obs]], start, upto, A[pa[obs]],
-                                                line_b=True)
-                _settle(tc, ts, obs, t, start, upto)
-                if stuck.any():
-                    self._warn_once("graze", f"gravity: body {int(self.ents[ka[stuck][0]])} and obstacle "
-                                             f"{int(self.ob_ents[o[stuck][0]])} graze too slowly to converge; "
-                                             "their contact (if any) in this step is not resolved")
             if need.size:
-                ka, kb = cs[pa[need]], cs[pb[need]]
-                # a pair is followed up to the first surface contact of either (its path changes there)
-                upto = np.minimum(t1, np.minimum(self.ep_contact[ka], self.ep_contact[kb]))
-                start = np.maximum(ts[need], np.maximum(self.ep_t[ka], self.ep_t[kb]))
-                t, stuck = kepler.time_to_touch(self.ep_r[ka], self.ep_v[ka], self.ep_t[ka],
-                                                self.ep_r[kb], self.ep_v[kb], self.ep_t[kb], mu,
-                                                rad[pa[need]] + rad[pb[need]], start, upto,
-                                                A[pa[need]] + A[pb[need]],
-                                                np.minimum(rho[pa[need]], rho[pb[need]]))
-                _settle(tc, ts, need, t, start, upto)
-                if stuck.any():
-                    self._warn_once("graze", f"gravity: bodies {int(self.ents[ka[stuck][0]])} and "
-                                             f"{int(self.ents[kb[stuck][0]])} graze too slowly to converge; "
-                                             "their contact (if any) in this step is not resolved")
+                self._search(mv, need, pa, pb, ts, tc, A, rho, wA, root, after, t0, t1)
             k = int(np.argmin(tc))
             tp = float(tc[k])
-            surf = self.ep_contact[sel]
+            surf = self.ep_contact[body[rails_m]] if rails_m.size else np.full(1, huge)
             ts_min = float(surf.min())
             if not min(tp, ts_min) <= t1:
                 break
             if ts_min < tp:                               # surface contacts come first
-                hit = sel[(surf < tp) & (surf <= t1)]
-                self._bounce(hit, wi, events)
-                touched.append(hit)
-                moved = np.isin(cs, hit)
-                if n_ob:
-                    moved = np.concatenate([moved, np.zeros(n_ob, bool)])
+                hm = rails_m[(surf < tp) & (surf <= t1)]
+                for wi in np.unique(well[hm]):
+                    self._bounce(body[hm[well[hm] == wi]], int(wi), events)
+                touched.append(body[hm])
+                moved = np.zeros(M, bool)
+                moved[hm] = True
                 # their pairs were followed up to the bounce: on from there, on the new conic
                 again = (moved[pa] | moved[pb]) & (ts < t1)
                 tc[again] = np.nan
                 continue
             ia, ib = int(pa[k]), int(pb[k])
-            if ib >= nc:                                  # a collider on rails meets an obstacle
-                i = int(cs[ia])
-                pe, we, sep = self._collide_fixed(i, ib - nc, wi, tp, q0, qv, X0, V0, t0, t1, events, A[ia])
-                touched.append(np.array([i]))
-                count[ia] += 1
-                two = np.array([ia])
-                lo[two], hi[two], A[two], rho[two] = kepler.arc_boxes(
-                    self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R,
-                    self.ep_contact[cs[two]] <= t1, rad[two])
-                # (a resting contact left at least the speed that keeps it apart to t1: see _collide_fixed;
-                # its pair is looked at again like the others, and is not found again in this step)
-                mine = np.isin(pa, two)
-                tc[mine] = np.nan
-                ts[mine] = tp
-                ends = (ia,)
-            else:
-                i, j = int(cs[ia]), int(cs[ib])
-                pe, we, sep = self._collide(i, j, wi, tp, X0, V0, t0, t1, events)
-                touched.append(np.array([i, j]))
-                count[ia] += 1
-                count[ib] += 1
-                ends = (ia, ib)
-                # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
-                two = np.array([ia, ib])
-                lo[two], hi[two], A[two], rho[two] = kepler.arc_boxes(
-                    self.ep_r[cs[two]], self.ep_v[cs[two]], pe, we, t1 - tp, mu, R,
-                    self.ep_contact[cs[two]] <= t1, rad[two])
-                mine = np.isin(pa, two) | np.isin(pb, two)
-                tc[mine] = np.nan
-                ts[mine] = tp
-                # a resting contact (e = 0, or a slow one): separating slower than the tidal pull between
-                # them could undo within the step. It is not looked at again this step (the next step
-                # resolves it afresh, one impulse per step) instead of a cascade of ever smaller impulses
-                reach = rad[ia] + rad[ib]
-                seg = min(rho[ia], rho[ib]) - reach
-                if seg > 0 and sep < 2.0 * mu * 2.0 * reach / seg ** 3 * (t1 - tp):
-                    tc[k] = np.inf
-                    ts[k] = t1
+            resting = self._resolve(mv, ia, ib, tp, A, rho, wA, root, after, t0, t1, events)
+            for m in (ia, ib):
+                if kind[m] == 0:
+                    touched.append(body[m:m + 1])
+                    count[m] += 1
+            # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
+            two = np.array([m for m in (ia, ib) if kind[m] != 2], np.intp)
+            for m in two:
+                if kind[m] == 0:
+                    i = body[m]
+                    wi = int(well[m])
+                    pe, we = kepler.propagate(self.ep_r[i:i + 1], self.ep_v[i:i + 1], wells.mu[wi], t1 - self.ep_t[i])
+                    ms = np.array([m])
+                    lo[ms], hi[ms], A[ms], rho[ms] = self._rail_boxes(
+                        wi, rad[ms], self.ep_r[i:i + 1], self.ep_v[i:i + 1], pe, we, t1 - tp,
+                        np.array([self.ep_contact[i] <= t1]))
+                else:
+                    q0 = mv["lp"][m] + mv["lu"][m] * (tp - t0)
+                    q1 = mv["lp"][m] + mv["lu"][m] * span
+                    lo[m] = np.minimum(q0, q1) - rad[m]
+                    hi[m] = np.maximum(q0, q1) + rad[m]
+            mine = np.isin(pa, two) | np.isin(pb, two)
+            tc[mine] = np.nan
+            ts[mine] = tp
+            if resting:
+                # not looked at again this step (the next step resolves it afresh, one impulse per step)
+                # instead of a cascade of ever smaller impulses
+                tc[k] = np.inf
+                ts[k] = t1
             add_a, add_b = [], []
-            for c in ends:
+            for c in two:
                 over = np.all((lo[c] <= hi) & (hi[c] >= lo), axis=1)
                 over[c] = False
+                over &= ~((kind == 2) & (kind[c] == 2))
                 have = np.concatenate([pb[pa == c], pa[pb == c]])
                 for o in np.flatnonzero(over):
-                    if o not in have and not (c == ib and o == ia):
+                    if o not in have and not (min(c, o), max(c, o)) in zip(add_a, add_b):
                         add_a.append(min(c, o))
                         add_b.append(max(c, o))
             if add_a:
@@ -1019,14 +1143,162 @@ class GravitySystem(esper.Processor):
                 drop = full[pa] | full[pb]
                 tc[drop] = np.inf
                 ts[drop] = t1
-                self._warn_once("cap", f"gravity: a body on rails met {MAX_SPHERE_CONTACTS} sphere contacts "
+                self._warn_once("cap", f"gravity: a body met {MAX_SPHERE_CONTACTS} sphere contacts "
                                        "in one step; its further contacts in that step are not resolved")
         else:
             self._warn_once("events", "gravity: too many contacts in one step; the rest of that step's "
                                       "contacts are not resolved")
-        if not touched:
-            return _NO_BODIES
-        return np.unique(np.concatenate(touched))
+        if line is not None:
+            p, u, _ = line
+            k = np.flatnonzero(self.nb_c_rows[nb] >= 0)
+            if k.size:
+                ms = np.flatnonzero(kind == 1)
+                p, u = p.copy(), u.copy()
+                p[k], u[k] = mv["lp"][ms], mv["lu"][ms]
+                since = np.full(nb.size, -np.inf)
+                since[k] = after[ms] - t0
+                line = (p, u, since)
+        return (np.unique(np.concatenate(touched)) if touched else _NO_BODIES), line
+
+    def _search(self, mv, need, pa, pb, ts, tc, A, rho, wA, root, after, t0, t1):
+        """The contact times of pairs ``need`` (from what each is known to be apart, ``ts``)."""
+        wells = self._wells
+        kind, body, well, rad = mv["kind"], mv["body"], mv["well"], mv["rad"]
+        ia, ib = pa[need], pb[need]
+        ka, kb = body[ia], body[ib]
+        ra, rb = kind[ia] == 0, kind[ib] == 0
+        # a pair is followed up to the first surface contact of a body on rails in it (its path changes
+        # there), and from its last contact (a rails body's epoch, a line's last contact)
+        upto = np.minimum(t1, np.minimum(np.where(ra, self.ep_contact[ka], np.inf),
+                                         np.where(rb, self.ep_contact[kb], np.inf)))
+        start = np.maximum(ts[need], np.maximum(np.where(ra, self.ep_t[ka], t0), np.where(rb, self.ep_t[kb], t0)))
+        start = np.maximum(start, np.maximum(after[ia], after[ib]))
+        reach = rad[ia] + rad[ib]
+        t = np.full(need.size, np.inf)
+        stuck = np.zeros(need.size, bool)
+        same = ra & rb & (well[ia] == well[ib])
+        line = ra & ~rb & root[ia]
+        for wi in np.unique(well[ia[same]]):
+            m = np.flatnonzero(same & (well[ia] == wi))
+            t[m], stuck[m] = kepler.time_to_touch(
+                self.ep_r[ka[m]], self.ep_v[ka[m]], self.ep_t[ka[m]], self.ep_r[kb[m]], self.ep_v[kb[m]],
+                self.ep_t[kb[m]], wells.mu[wi], reach[m], start[m], upto[m], A[ia[m]] + A[ib[m]],
+                np.minimum(rho[ia[m]], rho[ib[m]]))
+        X0, V0, _, _ = self._step
+        for wi in np.unique(well[ia[line]]):
+            m = np.flatnonzero(line & (well[ia] == wi))
+            q0 = mv["lp"][ib[m]] - X0[wi]                  # the line relative to the (straight-moving) root
+            qv = mv["lu"][ib[m]] - V0[wi]
+            t[m], stuck[m] = kepler.time_to_touch(
+                self.ep_r[ka[m]], self.ep_v[ka[m]], self.ep_t[ka[m]], q0, qv, t0, wells.mu[wi], reach[m],
+                start[m], upto[m], A[ia[m]], line_b=True)
+        gen = np.flatnonzero(~same & ~line)
+        if gen.size:
+            ga, gb = ia[gen], ib[gen]
+            t[gen], stuck[gen] = kepler.time_to_touch_paths(
+                lambda i, tt: self._movers_at(mv, ga[i], tt), lambda i, tt: self._movers_at(mv, gb[i], tt),
+                reach[gen], start[gen], upto[gen], A[ga] + wA[ga] + A[gb] + wA[gb])
+        _settle(tc, ts, need, t, start, upto)
+        if stuck.any():
+            m = int(np.flatnonzero(stuck)[0])
+            self._warn_once("graze", f"gravity: {self._mover_name(mv, ia[m])} and {self._mover_name(mv, ib[m])} "
+                                     "graze too slowly to converge; their contact (if any) in this step is not "
+                                     "resolved")
+
+    def _mover_mass_rest(self, mv, ms):
+        """Inverse masses (1/kg: Mass, 1 kg without; an obstacle's 0) and restitutions of movers ``ms``."""
+        world = self.world
+        kg_t = world.table(Mass).data["kg"]
+        col = world.table(SphereCollider).data["restitution"]
+        inv, rest = np.zeros(ms.size), np.zeros(ms.size)
+        for j, m in enumerate(ms):
+            k = mv["body"][m]
+            if mv["kind"][m] == 2:
+                rest[j] = col[self.ob_c_rows[k]]
+                continue
+            rest[j] = col[self.c_rows[k] if mv["kind"][m] == 0 else self.nb_c_rows[k]]
+            inv[j] = 1.0 / (kg_t[self.m_rows[k]] if self.m_rows[k] >= 0 else 1.0)
+        return inv, rest
+
+    def _mover_name(self, mv, m):
+        k = mv["body"][m]
+        if mv["kind"][m] == 2:
+            return f"obstacle {int(self.ob_ents[k])}"
+        return f"body {int(self.ents[k])}"
+
+    def _resolve(self, mv, ia, ib, tp, A, rho, wA, root, after, t0, t1, events):
+        """Movers ``ia`` and ``ib`` touch at ``tp``: the impulse, their new paths, the event. Returns
+        whether the contact is resting (the pair separates slower than the pulls on it can undo within
+        the step: not looked at again in this step)."""
+        kind, body, well, rad = mv["kind"], mv["body"], mv["well"], mv["rad"]
+        X0, V0, _, _ = self._step
+        if kind[ia] == 0 and kind[ib] == 0 and well[ia] == well[ib]:
+            wi = int(well[ia])
+            _, _, sep = self._collide(int(body[ia]), int(body[ib]), wi, tp, X0, V0, t0, t1, events)
+            # a resting contact (e = 0, or a slow one): separating slower than the tidal pull between them
+            reach = rad[ia] + rad[ib]
+            seg = min(rho[ia], rho[ib]) - reach
+            return bool(seg > 0 and sep < 2.0 * self._wells.mu[wi] * 2.0 * reach / seg ** 3 * (t1 - tp))
+        if kind[ia] == 0 and kind[ib] == 2 and root[ia]:
+            wi = int(well[ia])
+            o = int(body[ib])
+            self._collide_fixed(int(body[ia]), o, wi, tp, self._ob_x - X0[wi], self._ob_v - V0[wi], X0, V0, t0, t1,
+                                events, A[ia])
+            return False          # (a resting contact left at least the speed that keeps it apart to t1)
+        return self._collide_paths(mv, ia, ib, tp, A[ia] + wA[ia] + A[ib] + wA[ib], after, t0, t1, events)
+
+    def _collide_paths(self, mv, ia, ib, tp, accel, after, t0, t1, events):
+        """Any other pair touches at ``tp``: the impulse along the line of centres in the world frame
+        (masses from Mass, 1 kg without; an obstacle's inverse mass 0; restitution the smaller of the
+        two), a new epoch about its well for a body on rails, a new drift line for an n-body body, and
+        the CollisionEvent (``method="kepler"`` where a body on rails is in it, else ``"leapfrog"``). A
+        slow contact (separating slower than ``accel (t1 - tp) / 2``, ``accel`` the bound on the pair's
+        relative acceleration) against an obstacle leaves at that speed, as in :meth:`_collide_fixed`;
+        between two bodies it is resting."""
+        kind, body, well = mv["kind"], mv["body"], mv["well"]
+        ms = np.array([ia, ib])
+        pos, vel = self._movers_at(mv, ms, np.full(2, tp))
+        d = pos[1] - pos[0]
+        nrm = d / np.linalg.norm(d)
+        vn = float((vel[1] - vel[0]) @ nrm)                # < 0: approaching (the search finds only those)
+        inv, rest = self._mover_mass_rest(mv, ms)
+        e = float(rest.min())
+        fixed = bool((inv == 0).any())
+        keep_out = 0.5 * accel * (t1 - tp)
+        if vn < 0 and inv.sum() > 0:
+            sep = max(-e * vn, keep_out) if fixed else -e * vn
+            impulse = (sep - vn) / (inv[0] + inv[1])
+        else:
+            impulse = 0.0
+        vel[0] -= impulse * inv[0] * nrm
+        vel[1] += impulse * inv[1] * nrm
+        wells = self._wells
+        for j, m in enumerate(ms):
+            k = body[m]
+            if kind[m] == 0:
+                wi = int(well[m])
+                W, Wv = self._well_at(wi, np.array([tp]))
+                self._epoch_version += 1
+                self.ep_r[k] = pos[j] - W[0]
+                self.ep_v[k] = vel[j] - Wv[0]
+                self.ep_t[k] = tp
+                self.ep_chi[k] = 0.0
+                self.ep_contact[k] = tp + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], wells.mu[wi],
+                                                                wells.radius[wi], np.inf)[0]
+            elif kind[m] == 1:
+                mv["lp"][m] = pos[j] - vel[j] * (tp - t0)   # the line through the contact, as of t0
+                mv["lu"][m] = vel[j]
+                after[m] = tp
+        ents = [int(self.ob_ents[body[m]]) if kind[m] == 2 else int(self.ents[body[m]]) for m in ms]
+        first = 0 if ents[0] < ents[1] else 1
+        n_ab = nrm if first == 0 else -nrm
+        point = pos[first] + float(mv["rad"][ms[first]]) * n_ab
+        method = "kepler" if (kind[ms] == 0).any() else "leapfrog"
+        events.append(CollisionEvent(min(ents), max(ents), float(tp), float(tp - t0),
+                                     tuple(float(c) for c in point), tuple(float(c) for c in n_ab),
+                                     float(impulse), method=method, step=self.world.step_count))
+        sep_now = float((vel[1] - vel[0]) @ nrm)
+        return not fixed and sep_now < keep_out * 2.0
 
     def _collide(self, i, j, wi, tc, X0, V0, t0, t1, events):
         """Bodies ``i`` and ``j`` touch at ``tc``: the impulse along the line of centres (masses from
@@ -1155,14 +1427,21 @@ class GravitySystem(esper.Processor):
             acc -= np.einsum("ij,ijk->ik", gm[None, :] / (r2 * np.sqrt(r2)), d)
         return acc
 
-    def _leapfrog(self, sel, x, v, a, X0, X1, dt, t0, x1, v1, events):
+    def _kick(self, sel, x, v, a, X0, dt):
+        """The n-body bodies' first half kick: their straight drift over the step, ``p + u t`` (t from the
+        step's start), and each body's last contact time in the step (-inf: none)."""
+        p = x[sel]
+        u = v[sel] + 0.5 * dt * (self._accel(p, X0, self.gm[sel]) + a[sel])
+        return p, u, np.full(sel.size, -np.inf)
+
+    def _leapfrog_end(self, sel, line, a, X0, X1, dt, t0, x1, v1, events):
+        """The rest of the n-body step: the drift (met by the sphere contacts in :meth:`_contacts`, so
+        each body is on the line ``p + u t`` from its last contact on) swept against each well's surface,
+        then the second half kick."""
         w = self._wells
         gm = self.gm[sel]
-        p = x[sel]
-        u = v[sel] + 0.5 * dt * (self._accel(p, X0, gm) + a[sel])
-        # the drift is straight: colliders meet on it exactly (the collision system's kernel: times of
-        # impact, islands, restitution), and each body is on the line p + u t from its last contact on
-        p, u, after = self._drift_contacts(sel, p, u, dt, t0, events)
+        p, u, after = line
+        u = u.copy()
         q = p + u * dt
         # the drift is straight: sweep it (relative to each well, which moves straight over the step too)
         for wi in range(len(X0)):
@@ -1187,42 +1466,3 @@ class GravitySystem(esper.Processor):
         u = u + 0.5 * dt * (self._accel(q, X1, gm) + a[sel])
         x1[sel] = q
         v1[sel] = u
-
-    def _drift_contacts(self, sel, p, u, dt, t0, events):
-        """Sphere contacts among the n-body colliders ``sel`` on their straight drift ``p + u t``
-        (:func:`framework.contact.solve_all_pairs`, every pair: n-body is O(n^2) already). Returns
-        the paths after their contacts (``p`` moved so that ``p + u t`` holds from each body's last
-        contact on) and that contact's time in the step (-inf: none). A body's contacts after a
-        surface bounce in the same step are left to the next step."""
-        rows = self.nb_c_rows[sel]
-        col = rows >= 0
-        after = np.full(len(sel), -np.inf)
-        m = int(np.count_nonzero(col))
-        if m < 2:
-            return p, u, after
-        world = self.world
-        k = np.flatnonzero(col)
-        data = world.table(SphereCollider).data
-        r = np.ascontiguousarray(data["radius"][rows[k]], np.float64)
-        e = np.ascontiguousarray(data["restitution"][rows[k]], np.float64)
-        mr = self.m_rows[sel[k]]
-        kg = np.where(mr >= 0, world.table(Mass).data["kg"][np.maximum(mr, 0)], 1.0)
-        with np.errstate(divide="ignore"):
-            inv = 1.0 / kg
-        if self._nb_t_last is None or len(self._nb_t_last[1]) != m:
-            self._nb_t_last = (contact.all_pairs(m), np.full(m, -np.inf))
-        (pi, pj), t_abs = self._nb_t_last
-        t_last = t_abs - t0                               # relative to the step (the kernel's now = 0)
-        x = np.ascontiguousarray(p[k])
-        w = np.ascontiguousarray(u[k])
-        changed, ev, ev_n, ev_x, stats, flags = contact.solve_all_pairs(
-            x, w, r, inv, e, np.ones(m, np.bool_), t_last, 0.0, pi, pj, dt, contact.TC * dt, contact.CAP)
-        self._nb_t_last = ((pi, pj), t_last + t0)
-        if not len(ev):
-            return p, u, after
-        p, u = p.copy(), u.copy()
-        p[k], u[k] = x, w
-        hit = changed & (t_last >= 0.0)
-        after[k[hit]] = t_last[hit]
-        events += kernel_events(self.ents[sel[k]], ev, ev_n, ev_x, t0, world.step_count, method="leapfrog")
-        return p, u, after
