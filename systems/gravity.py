@@ -58,78 +58,83 @@ advanced for the rest of the step. n-body bodies sweep the straight drift of
 their step against each sphere. Each contact is a
 :class:`~components.gravity.SurfaceContact` in ``world.events``.
 
-**Sphere contacts on rails.** Bodies on rails about the same well that have a
-:class:`~components.collision.SphereCollider` collide with each other, exactly
-on their conics (the collision system leaves every ``Orbiting`` body out: it
-moves its colliders along straight chords). Only where a well has two or more
-such bodies is anything done; a scene without colliders pays one comparison.
-Each step, after the end-of-step states are known:
+**Sphere contacts.** Every :class:`~components.collision.SphereCollider`
+this system moves or meets takes part in one contact pass per step
+(:meth:`GravitySystem._contacts`), in time order, exact on each body's own
+path (the collision system leaves every ``Orbiting`` body out: it moves its
+colliders along straight chords). The *movers*: colliders on rails (each on
+its conic about its well, which is itself at rest, moving straight, or a moon
+on its conic about its parent), n-body colliders (on the leapfrog's straight
+drift between its two kicks), and *obstacles*, the colliders this system does
+not move (``Mass(inf)``, or no ``Velocity``; not a well): straight at their
+step-start velocity (the movement system moves them, after this system, so
+nothing is moved twice; an ``Acceleration`` on one is not followed). Only
+where two or more colliders move, or one and an obstacle, is anything done; a
+scene without colliders pays one comparison. Each step, after the
+end-of-step states on rails are known:
 
-1. *Swept boxes* (:func:`framework.kepler.arc_boxes`): the box of each body's
-   start and end, grown by its radius and by ``A h^2 / 8``, how far a path with
-   acceleration at most ``A = mu / rho^2`` can leave its chord in ``h`` (``rho``:
-   the nearer end's distance, or the periapsis where an apsis is passed, never
-   under the surface radius, so a radial orbit stays bounded); a body that
-   touches the surface in the step gets the cube it can reach at its top speed.
-   Candidate pairs from :func:`framework.broadphase.box_pairs`, less those whose
-   separation's chord stays farther apart than the same bound allows.
-2. *Times of contact* (:func:`framework.kepler.time_to_touch`), vectorised over
-   the pairs: conservative advancement on the gap ``|r_b - r_a| - (R_a + R_b)``
-   with the states from each body's epoch, each step the largest that cannot
+1. *Swept boxes* (world frame): for a body on rails
+   :func:`framework.kepler.arc_boxes` about its well (the box of its start and
+   end, grown by its radius and by ``A h^2 / 8``, how far a path with
+   acceleration at most ``A = mu / rho^2`` can leave its chord in ``h``;
+   ``rho``: the nearer end's distance, or the periapsis where an apsis is
+   passed, never under the surface radius; a body that touches the surface in
+   the step, or came into the well's sphere in it, gets the cube it can reach
+   at its top speed), moved by the box of the well centre's own path; a line's
+   box of its two ends. Candidate pairs from
+   :func:`framework.broadphase.box_pairs`; pairs on rails about one well less
+   those whose separation's chord stays farther apart than the same bound
+   allows (``_near``).
+2. *Times of contact*, vectorised over the pairs, by conservative advancement
+   on the gap ``|x_b - x_a| - (R_a + R_b)``, each step the largest that cannot
    pass a contact (from the closing rate and a bound on the relative
-   acceleration: the two pulls, or the tidal ``2 mu |d| / rho^3`` for bodies close
-   together), Newton's step near contact; the contact time is exact to ~1e-12
-   relative, at any step length or warp. Only approaching pairs touch.
-3. *Contacts in time order*, together with the surface contacts of the well's
-   bodies: the impulse along the line of centres (masses from ``Mass``, 1 kg
-   without; restitution the smaller of the two colliders', as in the collision
-   system), new epochs for both at the contact (so the rails stay exact: energy
-   kept to rounding, momentum of the pair to rounding), their next surface
-   contacts, new swept boxes from the contact on, their pairs looked at again
-   and new ones found, and a :class:`~components.collision.CollisionEvent`
-   (``method="kepler"``, fields as the collision system's) in ``world.events``.
-   The bodies touched get their end-of-step state from their new epochs.
+   acceleration), Newton's step near contact; exact to ~1e-12 relative at any
+   step length or warp. Two bodies on rails about one well: their conics about
+   it from their epochs, the bound the two pulls or the tidal
+   ``2 mu |d| / rho^3`` for bodies close together
+   (:func:`framework.kepler.time_to_touch`). A body on rails about a *root* well
+   against a line: the line relative to the well, which moves straight too
+   (``line_b=True``). Every other pair (bodies about different wells, a body
+   about a moon against an obstacle, rails against n-body, two n-body bodies):
+   the world-frame paths, the bound the sum of each body's pull and its well
+   centre's (:func:`framework.kepler.time_to_touch_paths`). Only approaching
+   pairs touch; a pair is followed from both bodies' last contacts up to the
+   first surface contact of a body on rails in it.
+3. *Contacts in time order*, together with the surface contacts of the
+   colliders on rails: the impulse along the line of centres (masses from
+   ``Mass``, 1 kg without, an obstacle's inverse mass 0; restitution the smaller
+   of the two colliders', as in the collision system); a new epoch at the
+   contact for a body on rails (so the rails stay exact: energy kept to
+   rounding, momentum of the pair to rounding), a new drift line for an n-body
+   body; new swept boxes from the contact on, their pairs looked at again and
+   new ones found; a :class:`~components.collision.CollisionEvent` (fields as
+   the collision system's, lower entity first, ``method="kepler"`` where a body
+   on rails is in it, else ``"leapfrog"``) in ``world.events``. The bodies on
+   rails touched get their end-of-step state from their new epochs.
 
 A *resting* contact (``e = 0``, or any contact after which the pair separates
-slower than the tidal pull between them could undo within the step) is not
-looked at again in that step: the next step resolves it afresh, so a pair
-pressed together by the tidal field costs one small impulse per step (no
-position correction: it may sink into itself by what that pull does over a
-step, ``~3 mu d dt^2 / (2 r^3)``, while it presses). A body meets at most
-:data:`MAX_SPHERE_CONTACTS` contacts in a step (further
-ones in that step are not looked for, with a warning); a pair that grazes too
-slowly to converge (``g' -> 0`` as ``g -> 0``) is taken to touch where it is
-within 1e-6 of ``R_a + R_b``, else left for the step with a warning.
-n-body colliders meet each other on the leapfrog's straight drift, exactly, by
-the collision system's kernel (:func:`framework.contact.solve_all_pairs`,
-``method="leapfrog"`` in the event); a body's contacts after a surface bounce
-in the same step are left to the next step.
-
-**Obstacles.** A collider gravity does not move (``Mass(inf)``, or no
-``Velocity``; not a well) moves straight at its velocity, or stays put (the
-movement system moves it, after this system). Colliders on rails about a
-*root* well meet it in the same loop, in time order with the rest: it is one
-more box (its straight sweep relative to the well, which moves straight too, so
-the path stays a line there), its times of contact from the same conservative
-advancement with the obstacle's acceleration 0 and no tidal bound
-(``time_to_touch(..., line_b=True)``), and at contact the impulse with the
-obstacle's inverse mass 0: its velocity is left alone, the body takes a new
-epoch, and the ``CollisionEvent`` is as above. A resting contact on an
-obstacle (the well's pull presses the body on, and the obstacle feels none of
-it) separates at the least speed that keeps the pair apart to the step's end,
+slower than the pulls between them could undo within the step) is not looked
+at again in that step: the next step resolves it afresh, so a pair pressed
+together by the tidal field costs one small impulse per step (no position
+correction: it may sink into itself by what that pull does over a step,
+``~3 mu d dt^2 / (2 r^3)``, while it presses). A resting contact on an obstacle
+(the well's pull presses the body on, and the obstacle feels none of it)
+separates at the least speed that keeps the pair apart to the step's end,
 ``A (t1 - tc) / 2``, instead of sinking in by ``A dt^2 / 2`` a step: the body
-hops by at most ``A dt^2 / 8``. The obstacle's state is read at
-the step's start, before the movement system moves it, so nothing is moved
-twice. An ``Acceleration`` on an obstacle is not followed (taken straight at
-its step-start velocity).
+hops by at most ``A dt^2 / 8``. A body meets at most
+:data:`MAX_SPHERE_CONTACTS` contacts in a step (further ones in that step are
+not looked for, with a warning); a pair that grazes too slowly to converge
+(``g' -> 0`` as ``g -> 0``) is taken to touch where it is within 1e-6 of
+``R_a + R_b``, else left for the step with a warning. An n-body body's surface
+contacts are swept after its sphere contacts, from its last one on.
 
-**Not modelled:** contacts between bodies about *different* wells (across a
-sphere of influence), between a body on rails and an n-body one, between an
-obstacle and a body on rails about a *moon* (not a straight line in its
-frame), and with a well's own collider (bodies meet its surface radius): none
-are looked for. The warp governor's look-ahead predicts the surface, rails and
-obstacle contacts (:meth:`GravitySystem.next_contact`,
-:meth:`GravitySystem.next_sphere_contact`).
+**Not modelled:** a well's own collider (bodies meet its surface radius; a
+``SphereCollider`` of another radius on a well is not used, with a warning).
+The warp governor's look-ahead predicts the surface contacts, the contacts
+between bodies on rails about one well, and between bodies on rails about a
+root well and obstacles (:meth:`GravitySystem.next_contact`,
+:meth:`GravitySystem.next_sphere_contact`); the other pairs are found exactly
+in the step, but not looked for ahead of it.
 
 **Checks** (the first step, and whenever wells or bodies are added): a well
 inside another's surface, a moon whose parent is missing or not a well, and
