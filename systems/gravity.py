@@ -465,11 +465,69 @@ class GravitySystem(esper.Processor):
         every ``horizon`` s; the obstacles (whose velocity anyone may change) are looked at on every
         call, from their state now. A pair is followed up to the first surface contact of the body on
         rails (itself an event the governor slows down for)."""
-        rails = self._next_rails_contact(horizon)
-        ob = self._next_obstacle_contact(horizon)
-        if ob is None or (rails is not None and rails[0] <= ob[0]):
-            return rails
-        return ob
+        found = [c for c in (self._next_rails_contact(horizon), self._next_obstacle_contact(horizon),
+                             self._next_cross_contact(horizon)) if c is not None]
+        return min(found) if found else None
+
+    def _next_cross_contact(self, horizon: float):
+        """next_sphere_contact's look at the pairs in different frames on rails: colliders on rails about
+        different wells, and about a moon against an obstacle, on their world-frame paths
+        (:func:`framework.kepler.time_to_touch_paths`) from the last step's epochs and wells."""
+        if self._wells is None or not self._n_col or not horizon > 0 or getattr(self, "_step", None) is None:
+            return None
+        wells = self._wells
+        cs = np.flatnonzero((self.c_rows >= 0) & (self.ep_well >= 0))
+        w_of = self.ep_well[cs]
+        moons_in = (wells.parent[w_of] >= 0).any() if cs.size else False
+        if not cs.size or (np.unique(w_of).size < 2 and not (moons_in and self._n_ob)):
+            return None
+        world = self.world
+        now = (world.step_count + 1) * world.dt
+        end = now + horizon
+        col = world.table(SphereCollider).data
+        n_ob = self._n_ob
+        M = cs.size + n_ob
+        mv = {"kind": np.concatenate([np.zeros(cs.size, np.intp), np.full(n_ob, 2, np.intp)]),
+              "body": np.concatenate([cs, np.arange(n_ob)]),
+              "well": np.concatenate([w_of, np.full(n_ob, -1, np.intp)]),
+              "rad": np.concatenate([col["radius"][self.c_rows[cs]], col["radius"][self.ob_c_rows]]).astype(np.float64),
+              "lp": np.concatenate([np.zeros((cs.size, 3)), self._ob_x]),
+              "lu": np.concatenate([np.zeros((cs.size, 3)), self._ob_v])}
+        pos, vel = self._movers_at(mv, np.arange(M), np.full(M, now))
+        # a box each can reach within the horizon: its speed now, and a bound on its acceleration (no body
+        # on rails comes nearer its well than the surface; a moon nearer its parent than the parent's)
+        acc = np.zeros(M)
+        for wi in np.unique(w_of):
+            chain, w = 0.0, int(wi)
+            while w >= 0:
+                chain += wells.mu[w] / wells.radius[w] ** 2
+                w = int(wells.parent[w])
+            acc[: cs.size][w_of == wi] = chain
+        h = horizon
+        half = kepler._norm(vel) * h + 0.5 * acc * h * h + mv["rad"]
+        lo, hi = pos - half[:, None], pos + half[:, None]
+        pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
+        pa, pb = pa.astype(np.intp), pb.astype(np.intp)
+        kind, well = mv["kind"], mv["well"]
+        cross = (kind[pa] == 0) & (((kind[pb] == 0) & (well[pa] != well[pb]))
+                                   | ((kind[pb] == 2) & (wells.parent[np.maximum(well[pa], 0)] >= 0)))
+        pa, pb = pa[cross], pb[cross]
+        if not pa.size:
+            return None
+        ka = mv["body"][pa]
+        upto = np.minimum(end, np.minimum(self.ep_contact[ka],
+                                          np.where(kind[pb] == 0, self.ep_contact[mv["body"][pb]], np.inf)))
+        t, _ = kepler.time_to_touch_paths(lambda i, tt: self._movers_at(mv, pa[i], tt),
+                                          lambda i, tt: self._movers_at(mv, pb[i], tt),
+                                          mv["rad"][pa] + mv["rad"][pb], np.full(pa.size, now), upto,
+                                          acc[pa] + acc[pb])
+        t = np.where(now <= upto, t, np.inf)
+        k = int(np.argmin(t))
+        if not np.isfinite(t[k]):
+            return None
+        name = lambda m: int(self.ob_ents[mv["body"][m]]) if kind[m] == 2 else int(self.ents[mv["body"][m]])  # noqa: E731
+        a, b = sorted((name(pa[k]), name(pb[k])))
+        return float(t[k]), a, b
 
     def _next_obstacle_contact(self, horizon: float):
         """next_sphere_contact's look at the obstacles: from their Transform and Velocity now (the
