@@ -689,7 +689,10 @@ class GravitySystem(esper.Processor):
         done = crossed = None
         if W > 1 and (wells.parent >= 0).any():
             # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
-            done, crossed = self._crossings(rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1)
+            done, crossed = self._crossings(rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1,
+                                            defer=(self.c_rows >= 0) if look else None)
+        else:
+            self.ep_cross = None
         ends = {}
         self._wA = np.zeros(W)                            # a bound on each well centre's acceleration
         for wi in range(W):                               # parents first: a moon is placed before its bodies
@@ -744,15 +747,17 @@ class GravitySystem(esper.Processor):
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
 
-    def _crossings(self, rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1):
+    def _crossings(self, rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1, defer=None):
         """Sphere-of-influence changes within the step, at their exact times (patched conics): a body
         on rails about well ``w`` enters a moon ``m`` of ``w`` where its conic comes within ``soi_m``
         of the moon's (:func:`framework.kepler.time_to_touch` about ``w``, approaching), and leaves a
         moon where its conic about it passes ``soi`` outwards (:func:`framework.kepler.time_to_radius`,
         ``outward=True``); it takes a new epoch about its new well there, so the rest of the step,
         a surface contact on the moon included, is on the new conic. Takes every body's epoch for the
-        step first. Returns the bodies whose epochs are taken (all of ``rails``) and those that crossed
-        (``dom`` is updated to each body's well at the step's end)."""
+        step first. The bodies in ``defer`` (the colliders, when the contact pass runs) only get their
+        first crossing's time (``ep_cross``, ``cross_to``): the contact pass makes it, in time order with
+        their contacts. Returns the bodies whose epochs are taken (all of ``rails``) and those that
+        crossed (``dom`` is updated to each body's well at the step's end)."""
         wells = self._wells
         W, n = len(wells), self._n
         dt = t1 - t0
@@ -764,70 +769,94 @@ class GravitySystem(esper.Processor):
                 done[sel] = True
         crossed = np.zeros(n, bool)
         movers = rails & (self.well_index < 0)            # (a moon keeps its parent, whatever the spheres say)
+        self.ep_cross = np.full(n, np.inf)
+        self.cross_to = np.full(n, -1, np.intp)
         t_from = np.full(n, t0)
+        state = (x, v, a, X0, V0, t0)
         for _ in range(MAX_CROSSINGS):
-            best_t = np.full(n, np.inf)
-            best_w = np.full(n, -1, np.intp)
-            for wi in range(W):
-                k = np.flatnonzero(movers & (self.ep_well == wi) & (t_from < t1))
-                moons = np.flatnonzero(wells.parent == wi)
-                if not k.size or (wells.parent[wi] < 0 and not moons.size):
-                    continue
-                mu, R = wells.mu[wi], wells.radius[wi]
-                upto = np.minimum(t1, self.ep_contact[k])   # (a surface contact first: its own conic after)
-                span = upto - t_from[k]
-                # the state at t_from: at the step's start the table's (no Kepler solve), after a crossing
-                # from the new epoch
-                r = x[k] - X0[wi]
-                u = v[k] - V0[wi] + 0.5 * dt * a[k]
-                later = t_from[k] > t0
-                if later.any():
-                    kl = k[later]
-                    r[later], u[later] = kepler.propagate(self.ep_r[kl], self.ep_v[kl], mu, t_from[kl] - self.ep_t[kl])
-                # how far a body can move in the span: no body on rails about wi comes nearer its centre
-                # than its surface, so no pull on it (nor on a moon of wi) exceeds mu / R^2
-                A = mu / (R * R)
-                rn = kepler._norm(r)
-                if wells.parent[wi] >= 0:                   # out through this moon's sphere
-                    out = rn + kepler._norm(u) * span + 0.5 * A * span * span >= wells.soi[wi]
-                    if out.any():
-                        ko = k[out]
-                        te = t_from[ko] + kepler.time_to_radius(r[out], u[out], mu, wells.soi[wi], span[out],
-                                                                outward=True)
-                        better = te < best_t[ko]
-                        best_t[ko[better]] = te[better]
-                        best_w[ko[better]] = wells.parent[wi]
-                for wj in moons:                            # into a moon's sphere
-                    kk = int(np.flatnonzero(self.well_index == wj)[0])
-                    rm = np.broadcast_to(X0[wj] - X0[wi], (k.size, 3)).copy()
-                    um = np.broadcast_to(V0[wj] - V0[wi], (k.size, 3)).copy()
-                    if later.any():
-                        ml = int(np.count_nonzero(later))
-                        rm[later], um[later] = kepler.propagate(np.broadcast_to(self.ep_r[kk], (ml, 3)),
-                                                                np.broadcast_to(self.ep_v[kk], (ml, 3)), mu,
-                                                                t_from[k[later]] - self.ep_t[kk])
-                    gap = kepler._norm(r - rm) - wells.soi[wj]
-                    near = gap <= kepler._norm(u - um) * span + A * span * span
-                    if not near.any():
-                        continue
-                    kn = k[near]
-                    tk, _ = kepler.time_to_touch(self.ep_r[kn], self.ep_v[kn], self.ep_t[kn],
-                                                 np.broadcast_to(self.ep_r[kk], (kn.size, 3)),
-                                                 np.broadcast_to(self.ep_v[kk], (kn.size, 3)), self.ep_t[kk],
-                                                 mu, wells.soi[wj], t_from[kn], upto[near], 2.0 * A)
-                    better = tk < best_t[kn]
-                    best_t[kn[better]] = tk[better]
-                    best_w[kn[better]] = wj
-            hit = np.flatnonzero(best_t <= t1)
-            if not hit.size:
+            k = np.flatnonzero(movers & (t_from < t1))
+            best_t, best_w = self._next_crossing(k, t_from[k], t1, state)
+            hit = best_t <= t1
+            if defer is not None:
+                later = hit & defer[k]
+                self.ep_cross[k[later]] = best_t[later]
+                self.cross_to[k[later]] = best_w[later]
+                hit &= ~defer[k]
+            if not hit.any():
                 break
             self._epoch_version += 1
-            for k in hit:
-                self._cross(int(k), int(best_w[k]), float(best_t[k]))
-            crossed[hit] = True
-            t_from[hit] = best_t[hit]
+            for j in np.flatnonzero(hit):
+                self._cross(int(k[j]), int(best_w[j]), float(best_t[j]))
+            crossed[k[hit]] = True
+            t_from[k[hit]] = best_t[hit]
+            movers[k[~hit]] = False
         dom[crossed] = self.ep_well[crossed]
         return done, crossed
+
+    def _next_crossing(self, k, t_from, t1, state=None):
+        """The first sphere-of-influence crossing of bodies ``k`` on rails (current epochs) in
+        ``[t_from, t1]``, before any surface contact: ``(time, new well)`` (inf, -1: none). ``state``:
+        the step-start table state, used for bodies looked at from the step's start (no Kepler solve)."""
+        wells = self._wells
+        best_t = np.full(k.size, np.inf)
+        best_w = np.full(k.size, -1, np.intp)
+        if not k.size:
+            return best_t, best_w
+        X0, V0, t0, _ = self._step
+        for wi in np.unique(self.ep_well[k]):
+            wi = int(wi)
+            moons = np.flatnonzero(wells.parent == wi)
+            if wells.parent[wi] < 0 and not moons.size:
+                continue
+            g = np.flatnonzero(self.ep_well[k] == wi)
+            kw, tf = k[g], t_from[g]
+            mu, R = wells.mu[wi], wells.radius[wi]
+            upto = np.minimum(t1, self.ep_contact[kw])      # (a surface contact first: its own conic after)
+            span = np.maximum(upto - tf, 0.0)
+            # the state at t_from: at the step's start the table's (no Kepler solve), else from the epoch
+            later = tf > t0 if state is not None else np.ones(kw.size, bool)
+            r = np.empty((kw.size, 3))
+            u = np.empty((kw.size, 3))
+            if (~later).any():
+                x, v, a, _, _, _ = state
+                ke = kw[~later]
+                r[~later] = x[ke] - X0[wi]
+                u[~later] = v[ke] - V0[wi] + 0.5 * (t1 - t0) * a[ke]
+            if later.any():
+                kl = kw[later]
+                r[later], u[later] = kepler.propagate(self.ep_r[kl], self.ep_v[kl], mu, tf[later] - self.ep_t[kl])
+            # how far a body can move in the span: no body on rails about wi comes nearer its centre
+            # than its surface, so no pull on it (nor on a moon of wi) exceeds mu / R^2
+            A = mu / (R * R)
+            if wells.parent[wi] >= 0:                       # out through this moon's sphere
+                out = kepler._norm(r) + kepler._norm(u) * span + 0.5 * A * span * span >= wells.soi[wi]
+                if out.any():
+                    te = tf[out] + kepler.time_to_radius(r[out], u[out], mu, wells.soi[wi], span[out], outward=True)
+                    better = te < best_t[g[out]]
+                    best_t[g[out][better]] = te[better]
+                    best_w[g[out][better]] = wells.parent[wi]
+            for wj in moons:                                # into a moon's sphere
+                kk = int(np.flatnonzero(self.well_index == wj)[0])
+                rm = np.broadcast_to(X0[wj] - X0[wi], (kw.size, 3)).copy()
+                um = np.broadcast_to(V0[wj] - V0[wi], (kw.size, 3)).copy()
+                if later.any():
+                    ml = int(np.count_nonzero(later))
+                    rm[later], um[later] = kepler.propagate(np.broadcast_to(self.ep_r[kk], (ml, 3)),
+                                                            np.broadcast_to(self.ep_v[kk], (ml, 3)), mu,
+                                                            tf[later] - self.ep_t[kk])
+                gap = kepler._norm(r - rm) - wells.soi[wj]
+                near = gap <= kepler._norm(u - um) * span + A * span * span
+                if not near.any():
+                    continue
+                kn = kw[near]
+                tk, _ = kepler.time_to_touch(self.ep_r[kn], self.ep_v[kn], self.ep_t[kn],
+                                             np.broadcast_to(self.ep_r[kk], (kn.size, 3)),
+                                             np.broadcast_to(self.ep_v[kk], (kn.size, 3)), self.ep_t[kk],
+                                             mu, wells.soi[wj], tf[near], upto[near], 2.0 * A)
+                better = tk < best_t[g[near]]
+                best_t[g[near][better]] = tk[better]
+                best_w[g[near][better]] = wj
+        return best_t, best_w
 
     def _cross(self, k, new, tc):
         """Body ``k`` changes well to ``new`` at ``tc``: its state at ``tc`` about the old well, moved
@@ -876,18 +905,30 @@ class GravitySystem(esper.Processor):
         g = slice(None) if sel.size == self._n else sel
         if touched.size:
             mine = touched[np.isin(touched, sel)]
+            mine = mine[self.ep_well[mine] == wi]
             if mine.size:
                 p = np.searchsorted(sel, mine)
                 r[p], u[p], chi[p] = kepler.Epoch(self.ep_r[mine], self.ep_v[mine], mu).at(
                     t1 - self.ep_t[mine], guess[p])
         self.ep_chi[g] = chi
+        dt = t1 - self._step[2]
         th = thrust[g]
         if th.any():
             # the second half kick; the state after it is the next step's epoch (taken then, as thrust)
-            u[th] += 0.5 * (t1 - self._step[2]) * a[sel[th]]
-            self.ep_well[sel[th]] = -1
+            u[th] += 0.5 * dt * a[sel[th]]
         x1[g] = X1[wi] + r
         v1[g] = V1[wi] + u
+        if touched.size:
+            # colliders that changed sphere of influence in the contact pass: about their new well
+            away = touched[np.isin(touched, sel) & (self.ep_well[touched] != wi)]
+            for c in away:
+                wj = int(self.ep_well[c])
+                rr, uu = kepler.propagate(self.ep_r[c], self.ep_v[c], self._wells.mu[wj], t1 - self.ep_t[c])
+                x1[c] = X1[wj] + rr
+                v1[c] = V1[wj] + uu + (0.5 * dt * a[c] if thrust[c] else 0.0)
+                self.ep_chi[c] = 0.0
+        if th.any():
+            self.ep_well[sel[th]] = -1
 
     def _surfaces(self, sel, wi, t1, events):
         """The surface contacts of bodies ``sel`` up to ``t1``, each body's in its own time order."""
@@ -1119,7 +1160,10 @@ class GravitySystem(esper.Processor):
         # a line is always b of a pair with one rails mover (box_pairs gives i < j, rails movers first)
         touched = []
         rails_m = np.flatnonzero(kind == 0)
-        if not pa.size:
+        xing = self.ep_cross                             # (sphere-of-influence crossings to come, or None)
+        if xing is not None and not (xing[body[rails_m]] <= t1).any():
+            xing = None
+        if not pa.size and xing is None:
             moved = []                                    # the usual step: nobody near anybody
             at = 0
             for k in range(len(p0s)):                     # (the rails movers come first, one well at a time)
@@ -1139,31 +1183,51 @@ class GravitySystem(esper.Processor):
             need = np.flatnonzero(np.isnan(tc))
             if need.size:
                 self._search(mv, need, pa, pb, ts, tc, A, rho, wA, root, after, t0, t1)
-            k = int(np.argmin(tc))
-            tp = float(tc[k])
+            k = int(np.argmin(tc)) if tc.size else -1
+            tp = float(tc[k]) if tc.size else huge
             surf = self.ep_contact[body[rails_m]] if rails_m.size else np.full(1, huge)
             ts_min = float(surf.min())
-            if not min(tp, ts_min) <= t1:
+            tx = float(xing[body[rails_m]].min()) if xing is not None else huge
+            if not min(tp, ts_min, tx) <= t1:
                 break
-            if ts_min < tp:                               # surface contacts come first
-                hm = rails_m[(surf < tp) & (surf <= t1)]
+            if ts_min < tp and ts_min <= tx:              # surface contacts come first
+                hm = rails_m[(surf < tp) & (surf <= t1) & (surf <= tx)]
                 for wi in np.unique(well[hm]):
                     self._bounce(body[hm[well[hm] == wi]], int(wi), events)
                 touched.append(body[hm])
                 moved = np.zeros(M, bool)
                 moved[hm] = True
+                if xing is not None:                      # (a new conic: its crossing looked for again)
+                    self._recross(body[hm], ts_min, t1)
                 # their pairs were followed up to the bounce: on from there, on the new conic
                 again = (moved[pa] | moved[pb]) & (ts < t1)
                 tc[again] = np.nan
                 continue
-            ia, ib = int(pa[k]), int(pb[k])
-            resting = self._resolve(mv, ia, ib, tp, A, rho, wA, root, after, t0, t1, events)
-            for m in (ia, ib):
-                if kind[m] == 0:
+            if tx < tp:
+                # bodies that change sphere of influence: a new epoch about the new well at the crossing,
+                # then as after a contact (new boxes, their pairs looked at again from there)
+                two = rails_m[xing[body[rails_m]] == tx]
+                for m in two:
+                    i = int(body[m])
+                    self._epoch_version += 1
+                    self._cross(i, int(self.cross_to[i]), tx)
+                    well[m] = self.ep_well[i]
+                    wA[m] = self._wA[well[m]]
+                    root[m] = wells.parent[well[m]] < 0
                     touched.append(body[m:m + 1])
-                    count[m] += 1
+                self._recross(body[two], tx, t1)
+                tp, k, resting = tx, -1, False
+            else:
+                ia, ib = int(pa[k]), int(pb[k])
+                resting = self._resolve(mv, ia, ib, tp, A, rho, wA, root, after, t0, t1, events)
+                for m in (ia, ib):
+                    if kind[m] == 0:
+                        touched.append(body[m:m + 1])
+                        count[m] += 1
+                two = np.array([m for m in (ia, ib) if kind[m] != 2], np.intp)
+                if xing is not None:
+                    self._recross(body[two[kind[two] == 0]], tp, t1)
             # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
-            two = np.array([m for m in (ia, ib) if kind[m] != 2], np.intp)
             for m in two:
                 if kind[m] == 0:
                     i = body[m]
@@ -1181,7 +1245,7 @@ class GravitySystem(esper.Processor):
             mine = np.isin(pa, two) | np.isin(pb, two)
             tc[mine] = np.nan
             ts[mine] = tp
-            if resting:
+            if resting and k >= 0:
                 # not looked at again this step (the next step resolves it afresh, one impulse per step)
                 # instead of a cascade of ever smaller impulses
                 tc[k] = np.inf
@@ -1223,6 +1287,16 @@ class GravitySystem(esper.Processor):
                 line = (p, u, since)
         return (np.unique(np.concatenate(touched)) if touched else _NO_BODIES), line
 
+    def _recross(self, ks, t_from, t1):
+        """Bodies ``ks`` on rails are on a new conic from ``t_from``: their next sphere-of-influence
+        crossing in the step."""
+        if self.ep_cross is None or not len(ks):
+            return
+        ks = np.asarray(ks, np.intp)
+        t, w = self._next_crossing(ks, np.full(ks.size, float(t_from)), t1)
+        self.ep_cross[ks] = t
+        self.cross_to[ks] = w
+
     def _search(self, mv, need, pa, pb, ts, tc, A, rho, wA, root, after, t0, t1):
         """The contact times of pairs ``need`` (from what each is known to be apart, ``ts``)."""
         wells = self._wells
@@ -1234,6 +1308,9 @@ class GravitySystem(esper.Processor):
         # there), and from its last contact (a rails body's epoch, a line's last contact)
         upto = np.minimum(t1, np.minimum(np.where(ra, self.ep_contact[ka], np.inf),
                                          np.where(rb, self.ep_contact[kb], np.inf)))
+        if self.ep_cross is not None:                     # (and up to a change of sphere of influence)
+            upto = np.minimum(upto, np.minimum(np.where(ra, self.ep_cross[ka], np.inf),
+                                               np.where(rb, self.ep_cross[kb], np.inf)))
         start = np.maximum(ts[need], np.maximum(np.where(ra, self.ep_t[ka], t0), np.where(rb, self.ep_t[kb], t0)))
         start = np.maximum(start, np.maximum(after[ia], after[ib]))
         reach = rad[ia] + rad[ib]

@@ -737,3 +737,23 @@ def test_the_checks_pass_for_the_exact_outcome(dt):
         x = pn + u2 * (t_now - tc)
         verify4(dt, moving, _event(2, 3, tc, dt, pn, n, R4_NB, J, "leapfrog"), 2, 3, t_now, x,
                 u2 + 0.5 * dt * acc_planet(x), q0 + qv * t_now if moving else q0.copy(), qv.copy() if moving else None)
+
+
+@pytest.mark.parametrize("dt", [1.0, 50.0])
+def test_the_warp_look_ahead_predicts_the_contact_across_the_moons_sphere(dt):
+    """GravitySystem.next_sphere_contact (what the warp governor slows down for) sees the contact of a
+    body about the moon with one about the planet ahead of time, at the time the step then finds."""
+    station, ship = scene1()
+    w = make(dt, moon=True)
+    try:
+        a = body(w, *station, R1, KG_STATION)
+        b = body(w, *ship, R1, KG_SHIP)
+        w.step(1)
+        from driftframe.systems.gravity import GravitySystem
+        g = w.get_system(GravitySystem)
+        ahead = g.next_sphere_contact(2 * T1)
+        assert ahead is not None and ahead[1:] == tuple(sorted((a, b)))
+        assert ahead[0] == pytest.approx(ref1(), rel=1e-9)
+        assert g.next_sphere_contact(0.5 * (ref1() - dt)) is None      # not within a shorter horizon
+    finally:
+        w.close()
