@@ -19,9 +19,11 @@ of one: the outward crossing of ``soi`` on its conic about the moon,
 :func:`framework.kepler.time_to_radius` with ``outward=True``), and goes on
 from there about the new well: so a long step cannot carry a ship through a
 moon (it meets the moon's surface at the time a short step finds), and the
-patched-conic path is the same at every step length. At most
-:data:`MAX_CROSSINGS` a step; a crossing after a surface bounce in the same
-step is made at the next step's start.
+patched-conic path is the same at every step length. A collider's crossings
+are events of the contact pass below, in time order with its contacts (a
+contact just before a crossing is met on the old conic, and a new conic looks
+for its crossing again); another body makes at most :data:`MAX_CROSSINGS` a
+step, and one after a surface bounce in the same step at the next step's start.
 
 **Modes, per body, vectorised over all bodies of a well:**
 
