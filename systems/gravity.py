@@ -57,7 +57,9 @@ no sampling, so nothing tunnels at any speed or warp): it is advanced to the
 contact, its radial velocity relative to the well reversed (elastic: kinetic
 energy relative to the well, hence the orbit energy, kept to rounding), and
 advanced for the rest of the step. n-body bodies sweep the straight drift of
-their step against each sphere. Each contact is a
+their step against each sphere: a root well's moves straight too (a
+quadratic), a moon's on its conic (conservative advancement on both paths).
+Each contact is a
 :class:`~components.gravity.SurfaceContact` in ``world.events``.
 
 **Sphere contacts.** Every :class:`~components.collision.SphereCollider`
@@ -1576,6 +1578,35 @@ class GravitySystem(esper.Processor):
         u = v[sel] + 0.5 * dt * (self._accel(p, X0, self.gm[sel]) + a[sel])
         return p, u, np.full(sel.size, -np.inf)
 
+    def _drift_to_moon(self, sel, wi, p, u, q, after, dt, t0, events):
+        """n-body bodies ``sel`` on their drift lines ``p + u t`` against moon ``wi``'s surface, the moon
+        on its conic (conservative advancement, :func:`framework.kepler.time_to_touch_paths`): at a
+        contact the velocity relative to the moon is reflected, and the body drifts on from there
+        (``u`` and ``q``, its end-of-step position, are updated in place)."""
+        R = self._wells.radius[wi]
+        X, V = self._well_at(wi, np.full(sel.size, t0))
+        # (a cheap test first: no closer than the start's gap less the most the relative speed can close)
+        near = np.flatnonzero(kepler._norm(p - X) - R <= (kepler._norm(u - V) + self._wA[wi] * dt) * dt)
+        if not near.size:
+            return
+        at_body = lambda i, t: (p[near[i]] + u[near[i]] * (t - t0)[:, None], u[near[i]])   # noqa: E731
+        at_moon = lambda i, t: self._well_at(wi, t)                                          # noqa: E731
+        start = t0 + np.maximum(after[near], 0.0)
+        tc, _ = kepler.time_to_touch_paths(at_body, at_moon, np.full(near.size, R), start, np.full(near.size, t0 + dt),
+                                           np.full(near.size, self._wA[wi]))
+        for j in np.flatnonzero(np.isfinite(tc)):
+            k = near[j]
+            xc = p[k] + u[k] * (tc[j] - t0)
+            Xc, Vc = self._well_at(wi, np.array([tc[j]]))
+            n_hat = (xc - Xc[0]) / np.linalg.norm(xc - Xc[0])
+            w_rel = u[k] - Vc[0]
+            un = float(w_rel @ n_hat)
+            events.append(SurfaceContact(int(self.ents[sel[k]]), self._wells.ents[wi], float(tc[j]),
+                                         float(np.linalg.norm(w_rel)), -un))
+            u[k] = w_rel - 2.0 * un * n_hat + Vc[0]
+            q[k] = xc + u[k] * (t0 + dt - tc[j])
+            p[k] = xc - u[k] * (tc[j] - t0)             # (the line through the contact, as of t0)
+
     def _leapfrog_end(self, sel, line, a, X0, X1, dt, t0, x1, v1, events):
         """The rest of the n-body step: the drift (met by the sphere contacts in :meth:`_contacts`, so
         each body is on the line ``p + u t`` from its last contact on) swept against each well's surface,
@@ -1585,8 +1616,12 @@ class GravitySystem(esper.Processor):
         p, u, after = line
         u = u.copy()
         q = p + u * dt
-        # the drift is straight: sweep it (relative to each well, which moves straight over the step too)
+        # the drift is straight: sweep it relative to each root well, which moves straight over the step
+        # too (a quadratic); a moon follows its conic, so against a moon the search is the contact pass's
         for wi in range(len(X0)):
+            if w.parent[wi] >= 0:
+                self._drift_to_moon(sel, wi, p, u, q, after, dt, t0, events)
+                continue
             d0 = p - X0[wi]
             w_rel = u - (X1[wi] - X0[wi]) / dt
             aa = np.einsum("ij,ij->i", w_rel, w_rel)

@@ -757,3 +757,27 @@ def test_the_warp_look_ahead_predicts_the_contact_across_the_moons_sphere(dt):
         assert g.next_sphere_contact(0.5 * (ref1() - dt)) is None      # not within a shorter horizon
     finally:
         w.close()
+
+
+@pytest.mark.parametrize("dt", [1.0, 600.0])
+def test_an_n_body_body_meets_a_moons_surface_on_the_moons_conic(dt):
+    """The drift against a moon: the moon on its conic during the step (not its chord), the hit found at
+    a long step too, elastic relative to the moon, and the body never inside the surface at a step's end."""
+    from driftframe.components.gravity import SurfaceContact
+    w = make(dt, moon=True)
+    try:
+        moon = int(w.moon)
+        b = body(w, np.array([D_MOON, -3e7, 0.0]), np.array([0.0, math.sqrt(MU / D_MOON) + 1.5e4, 0.0]),
+                 1.0, 10.0, nbody=True)
+        hits = []
+        w.subscribe(SurfaceContact, hits.append)
+        inside = []
+        for _ in range(int(3000.0 / dt)):
+            w.step()
+            x = states(w, [b, moon])[0]
+            inside.append(np.linalg.norm(x[0] - x[1]) < R_MOON)
+        assert [(h.entity, h.well) for h in hits] == [(b, moon)]
+        assert hits[0].time == pytest.approx(1881.4, abs=1.0)          # the leapfrog's path: within a second
+        assert hits[0].normal_speed > 0 and not any(inside)
+    finally:
+        w.close()
