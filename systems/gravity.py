@@ -1225,9 +1225,10 @@ class GravitySystem(esper.Processor):
                 ia, ib = int(pa[k]), int(pb[k])
                 resting = self._resolve(mv, ia, ib, tp, A, rho, wA, root, after, t0, t1, events)
                 for m in (ia, ib):
+                    if kind[m] != 2:
+                        count[m] += 1
                     if kind[m] == 0:
                         touched.append(body[m:m + 1])
-                        count[m] += 1
                 two = np.array([m for m in (ia, ib) if kind[m] != 2], np.intp)
                 if xing is not None:
                     self._recross(body[two[kind[two] == 0]], tp, t1)
