@@ -279,6 +279,59 @@ def _broad_method(lo, hi) -> str:
     return "sweep" if n * width <= SWEEP_OVERLAPS * extent else "grid"
 
 
+class _PairTimes:
+    """The contact pass's candidate pairs ``(pa, pb)`` (movers, ``pa < pb``), each known to be apart up
+    to ``ts`` and touching at ``tc`` (inf: not before ``ts`` in the step; NaN: to be looked at)."""
+
+    def __init__(self, pa, pb, t0, n_movers):
+        self.n = n_movers
+        self.pa, self.pb = pa, pb
+        self.ts = np.full(pa.size, t0)
+        self.tc = np.full(pa.size, np.nan)
+
+    def look_again(self, movers, t1):
+        """Movers' paths changed at a time their pairs were followed to: look at those pairs again."""
+        moved = np.zeros(self.n, bool)
+        moved[movers] = True
+        again = (moved[self.pa] | moved[self.pb]) & (self.ts < t1)
+        self.tc[again] = np.nan
+
+    def renew(self, movers, tp):
+        """Movers' paths are new from ``tp``: their pairs are looked at again from there."""
+        mine = np.isin(self.pa, movers) | np.isin(self.pb, movers)
+        self.tc[mine] = np.nan
+        self.ts[mine] = tp
+
+    def settle(self, k, t1):
+        """Pair ``k`` is not looked at again in this step."""
+        self.tc[k] = np.inf
+        self.ts[k] = t1
+
+    def drop(self, mask, t1):
+        self.tc[mask] = np.inf
+        self.ts[mask] = t1
+
+    def add(self, new, tp):
+        """New pairs ``[(a, b), ...]`` (``a < b``), apart up to ``tp``."""
+        if new:
+            a, b = (np.array(c, np.intp) for c in zip(*new))
+            self.pa = np.concatenate([self.pa, a])
+            self.pb = np.concatenate([self.pb, b])
+            self.ts = np.concatenate([self.ts, np.full(a.size, tp)])
+            self.tc = np.concatenate([self.tc, np.full(a.size, np.nan)])
+
+
+def _overlapping(mv, c, pairs) -> list:
+    """The pairs mover ``c``'s (new) box makes that are not candidates yet (obstacle pairs left out)."""
+    lo, hi, kind = mv["lo"], mv["hi"], mv["kind"]
+    over = np.all((lo[c] <= hi) & (hi[c] >= lo), axis=1)
+    over[c] = False
+    if kind[c] == 2:
+        over &= kind != 2
+    have = set(pairs.pb[pairs.pa == c].tolist()) | set(pairs.pa[pairs.pb == c].tolist())
+    return [(min(c, int(o)), max(c, int(o))) for o in np.flatnonzero(over) if int(o) not in have]
+
+
 class GravitySystem(esper.Processor):
     """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody, SphereCollider; writes Transform,
     Velocity, Orbiting; appends SurfaceContact and CollisionEvent to world.events.  Gravity: on rails
@@ -1049,9 +1102,93 @@ class GravitySystem(esper.Processor):
         paths (:func:`framework.kepler.time_to_touch_paths`, the bound on the relative acceleration the
         sum of each body's pull and its well's). Returns the bodies on rails given new epochs, and the
         n-body drift lines after their contacts."""
-        wells = self._wells
-        span = t1 - t0
         self._X1 = X1
+        mv = self._movers(ends, nb, line, x, v, a, X0, V0, t0, t1)
+        kind, body, well = mv["kind"], mv["body"], mv["well"]
+        pairs = _PairTimes(*self._candidates(mv, t1 - t0), t0, mv["kind"].size)
+        rails_m = np.flatnonzero(kind == 0)
+        xing = self.ep_cross                             # (sphere-of-influence crossings to come, or None)
+        if xing is not None and not (xing[body[rails_m]] <= t1).any():
+            xing = None
+        if not pairs.pa.size and xing is None:            # the usual step: nobody near anybody
+            return self._surfaces_of(mv, t1, events), line
+        wells = self._wells
+        touched = []
+        count = np.zeros(mv["kind"].size, np.intp)        # (an obstacle's count stays 0: no cap on it)
+        for _ in range(64 + 4 * count.size):
+            need = np.flatnonzero(np.isnan(pairs.tc))
+            if need.size:
+                self._search(mv, need, pairs, t0, t1)
+            k = int(np.argmin(pairs.tc)) if pairs.tc.size else -1
+            tp = float(pairs.tc[k]) if k >= 0 else np.inf
+            surf = self.ep_contact[body[rails_m]]
+            ts_min = float(surf.min()) if surf.size else np.inf
+            tx = float(xing[body[rails_m]].min()) if xing is not None else np.inf
+            if not min(tp, ts_min, tx) <= t1:
+                break
+            if ts_min < tp and ts_min <= tx:              # surface contacts come first
+                hm = rails_m[(surf < tp) & (surf <= t1) & (surf <= tx)]
+                for wi in np.unique(well[hm]):
+                    self._bounce(body[hm[well[hm] == wi]], int(wi), events)
+                touched.append(body[hm])
+                if xing is not None:                      # (a new conic: its crossing looked for again)
+                    self._recross(body[hm], ts_min, t1)
+                # their pairs were followed up to the bounce (their boxes hold both conics): on from there
+                pairs.look_again(hm, t1)
+                continue
+            if tx < tp:
+                # bodies that change sphere of influence: a new epoch about the new well at the crossing,
+                # then as after a contact (new boxes, their pairs looked at again from there)
+                moved = rails_m[xing[body[rails_m]] == tx]
+                for m in moved:
+                    i = int(body[m])
+                    self._epoch_version += 1
+                    self._cross(i, int(self.cross_to[i]), tx)
+                    well[m] = self.ep_well[i]
+                    mv["wA"][m] = self._wA[well[m]]
+                    mv["root"][m] = wells.parent[well[m]] < 0
+                    touched.append(body[m:m + 1])
+                self._recross(body[moved], tx, t1)
+                tp, resting = tx, False
+            else:
+                ia, ib = int(pairs.pa[k]), int(pairs.pb[k])
+                resting = self._resolve(mv, ia, ib, tp, t0, t1, events)
+                moved = np.array([m for m in (ia, ib) if kind[m] != 2], np.intp)
+                count[moved] += 1
+                on_rails = moved[kind[moved] == 0]
+                touched.append(body[on_rails])
+                if xing is not None:
+                    self._recross(body[on_rails], tp, t1)
+            # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
+            for m in moved:
+                self._rebox(mv, int(m), tp, t0, t1)
+            pairs.renew(moved, tp)
+            if resting:
+                # not looked at again this step (the next step resolves it afresh, one impulse per step)
+                # instead of a cascade of ever smaller impulses
+                pairs.settle(k, t1)
+            for c in moved:
+                pairs.add(_overlapping(mv, int(c), pairs), tp)
+            full = count >= MAX_SPHERE_CONTACTS
+            if full.any():
+                pairs.drop(full[pairs.pa] | full[pairs.pb], t1)
+                self._warn_once("cap", f"gravity: a body met {MAX_SPHERE_CONTACTS} sphere contacts "
+                                       "in one step; its further contacts in that step are not resolved")
+        else:
+            self._warn_once("events", "gravity: too many contacts in one step; the rest of that step's "
+                                      "contacts are not resolved")
+        return (np.unique(np.concatenate(touched)) if touched else _NO_BODIES), self._lines_after(mv, nb, line, t0)
+
+    def _movers(self, ends, nb, line, x, v, a, X0, V0, t0, t1):
+        """The contact pass's movers, as columns of one dict: ``kind`` (0 rails, 1 n-body line,
+        2 obstacle), ``body`` (index into this system's bodies, or the obstacle's), ``well`` (rails: its
+        well, else -1), ``rad``; lines' ``lp, lu`` (world position at the step's start, velocity);
+        world boxes ``lo, hi`` over the step; the pull bound ``A`` and distance bound ``rho`` about the
+        well and the well centre's own acceleration bound ``wA`` (rails; 0 on a line), ``root`` (rails
+        about a root well); ``P0, P1, ball`` (rails: the states about the well at the span's ends, and
+        whether its box is the cube it can reach) for the pruning; ``after`` (a line's last contact);
+        ``groups``: the rails movers' slices, one per well (rails movers first, then lines)."""
+        span = t1 - t0
         col = self.world.table(SphereCollider).data
         kinds, bodies, wells_of, rads = [], [], [], []
         p0s, p1s, w0s, w1s, balls = [], [], [], [], []
@@ -1079,8 +1216,7 @@ class GravitySystem(esper.Processor):
             kinds.append(np.zeros(cs.size, np.intp))
             bodies.append(cs)
             wells_of.append(np.full(cs.size, wi, np.intp))
-            rows = self.c_rows[g]
-            rads.append(col["radius"][rows].astype(np.float64))
+            rads.append(col["radius"][self.c_rows[g]].astype(np.float64))
             p0s.append(p0)
             w0s.append(w0)
             p1s.append(r1[pc])
@@ -1095,8 +1231,7 @@ class GravitySystem(esper.Processor):
                 kinds.append(np.ones(k.size, np.intp))
                 bodies.append(nb[k])
                 wells_of.append(np.full(k.size, -1, np.intp))
-                rows = self.nb_c_rows[nb[k]]
-                rads.append(col["radius"][rows].astype(np.float64))
+                rads.append(col["radius"][self.nb_c_rows[nb[k]]].astype(np.float64))
                 lp.append(p[k])
                 lu.append(u[k])
         if self._n_ob:
@@ -1107,190 +1242,111 @@ class GravitySystem(esper.Processor):
             lp.append(self._ob_x)
             lu.append(self._ob_v)
         one = len(kinds) == 1
-        mv = {"kind": kinds[0] if one else np.concatenate(kinds), "body": bodies[0] if one else np.concatenate(bodies),
-              "well": wells_of[0] if one else np.concatenate(wells_of), "rad": rads[0] if one else np.concatenate(rads),
+        cat = (lambda parts: parts[0]) if one else np.concatenate            # noqa: E731
+        mv = {"kind": cat(kinds), "body": cat(bodies), "well": cat(wells_of), "rad": cat(rads),
               "lp": np.concatenate([np.zeros((n_rail, 3))] + lp) if lp else None,
               "lu": np.concatenate([np.zeros((n_rail, 3))] + lu) if lu else None}
         M = mv["kind"].size
-        kind, body, well, rad = mv["kind"], mv["body"], mv["well"], mv["rad"]
-        # boxes (world frame), bounds, and each rails mover's states about its well for the pruning
-        if len(p0s) == 1 and M == n_rail:                 # (one well's colliders and nothing else: no copies)
-            lo, hi, A, rho = self._rail_boxes(int(well[0]), rad, p0s[0], w0s[0], p1s[0], w1s[0], span, balls[0])
-            P0, P1, ball = p0s[0], p1s[0], balls[0]
+        kind, well, rad = mv["kind"], mv["well"], mv["rad"]
+        groups, at = [], 0
+        for p0 in p0s:
+            groups.append((int(well[at]), slice(at, at + p0.shape[0])))
+            at += p0.shape[0]
+        mv["groups"] = groups
+        if one and n_rail:                                # (one well's colliders and nothing else: no copies)
+            wi = groups[0][0]
+            mv["lo"], mv["hi"], mv["A"], mv["rho"] = self._rail_boxes(wi, rad, p0s[0], w0s[0], p1s[0], w1s[0],
+                                                                      span, balls[0])
+            mv["P0"], mv["P1"], mv["ball"] = p0s[0], p1s[0], balls[0]
+            mv["wA"] = np.full(M, self._wA[wi])
+            mv["root"] = np.full(M, self._wells.parent[wi] < 0)
         else:
-            lo = np.empty((M, 3))
-            hi = np.empty((M, 3))
-            A = np.zeros(M)                               # pull relative to the well (rails), 0 on a line
-            rho = np.zeros(M)
-            P0 = np.zeros((M, 3))
-            P1 = np.zeros((M, 3))
-            ball = np.zeros(M, bool)
-            at = 0
-            for k in range(len(p0s)):
-                ms = slice(at, at + p0s[k].shape[0])
-                lo[ms], hi[ms], A[ms], rho[ms] = self._rail_boxes(int(well[at]), rad[ms], p0s[k], w0s[k], p1s[k],
-                                                                  w1s[k], span, balls[k])
-                P0[ms], P1[ms], ball[ms] = p0s[k], p1s[k], balls[k]
-                at = ms.stop
-        lines = np.flatnonzero(kind != 0)
-        if lines.size:
-            q0 = mv["lp"][lines]
-            q1 = q0 + mv["lu"][lines] * span
-            lo[lines] = np.minimum(q0, q1) - rad[lines, None]
-            hi[lines] = np.maximum(q0, q1) + rad[lines, None]
-        if len(p0s) == 1 and M == n_rail:
-            wA = np.full(M, self._wA[int(well[0])])
-            root = np.full(M, wells.parent[int(well[0])] < 0)
-        else:
-            wA = np.where(kind == 0, self._wA[np.maximum(well, 0)], 0.0)
-            root = np.where(kind == 0, wells.parent[np.maximum(well, 0)] < 0, False)
+            lo, hi = np.empty((M, 3)), np.empty((M, 3))
+            mv["A"], mv["rho"] = np.zeros(M), np.zeros(M)         # 0 on a line
+            mv["P0"], mv["P1"], mv["ball"] = np.zeros((M, 3)), np.zeros((M, 3)), np.zeros(M, bool)
+            for k, (wi, ms) in enumerate(groups):
+                lo[ms], hi[ms], mv["A"][ms], mv["rho"][ms] = self._rail_boxes(wi, rad[ms], p0s[k], w0s[k], p1s[k],
+                                                                              w1s[k], span, balls[k])
+                mv["P0"][ms], mv["P1"][ms], mv["ball"][ms] = p0s[k], p1s[k], balls[k]
+            lines = np.flatnonzero(kind != 0)
+            if lines.size:
+                q0 = mv["lp"][lines]
+                q1 = q0 + mv["lu"][lines] * span
+                lo[lines] = np.minimum(q0, q1) - rad[lines, None]
+                hi[lines] = np.maximum(q0, q1) + rad[lines, None]
+            mv["lo"], mv["hi"] = lo, hi
+            mv["wA"] = np.where(kind == 0, self._wA[np.maximum(well, 0)], 0.0)
+            mv["root"] = np.where(kind == 0, self._wells.parent[np.maximum(well, 0)] < 0, False)
+        mv["after"] = np.full(M, -np.inf)
+        return mv
+
+    def _candidates(self, mv, span):
+        """The pairs of movers whose boxes meet (``i < j``: a rails mover before a line), less obstacle
+        pairs and the pairs on rails about one well whose chords prove them apart (``_near``)."""
+        kind, well = mv["kind"], mv["well"]
+        lo, hi = mv["lo"], mv["hi"]
         pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
         pa, pb = pa.astype(np.intp), pb.astype(np.intp)
         if self._n_ob > 1:
             keep = ~((kind[pa] == 2) & (kind[pb] == 2))  # obstacle with obstacle: not ours
             pa, pb = pa[keep], pb[keep]
-        # the pairs on rails about one well: less those their chords prove apart (no Kepler solve)
-        if M == n_rail and len(p0s) == 1:                 # (all on rails about one well)
-            keep = self._near(pa, pb, ball, P0, P1, rad, A, rho, span, wells.mu[int(well[0])])
+        mu = self._wells.mu
+        near = lambda i, j, wi: self._near(i, j, mv["ball"], mv["P0"], mv["P1"], mv["rad"], mv["A"],  # noqa: E731
+                                           mv["rho"], span, mu[wi])
+        groups = mv["groups"]
+        if len(groups) == 1 and groups[0][1].stop == kind.size:      # (all on rails about one well)
+            keep = near(pa, pb, groups[0][0])
+            return pa[keep], pb[keep]
+        same = (kind[pa] == 0) & (kind[pb] == 0) & (well[pa] == well[pb])
+        if same.any():
+            keep = np.ones(pa.size, bool)
+            for wi in np.unique(well[pa[same]]):
+                m = np.flatnonzero(same & (well[pa] == wi))
+                keep[m] = near(pa[m], pb[m], int(wi))
             pa, pb = pa[keep], pb[keep]
+        return pa, pb
+
+    def _surfaces_of(self, mv, t1, events):
+        """No pair near: only the rails movers' surface contacts, well by well. Returns those that bounced."""
+        moved = []
+        for wi, ms in mv["groups"]:
+            cs = mv["body"][ms]
+            if (self.ep_contact[cs] <= t1).any():
+                hit0 = self.ep_t[cs].copy()
+                self._surfaces(cs, wi, t1, events)
+                moved.append(cs[self.ep_t[cs] != hit0])
+        return np.concatenate(moved) if moved else _NO_BODIES
+
+    def _rebox(self, mv, m, tp, t0, t1):
+        """Mover ``m`` is on a new path from ``tp``: its box (and bounds) from there to ``t1``."""
+        if mv["kind"][m] == 0:
+            i = mv["body"][m]
+            wi = int(mv["well"][m])
+            pe, we = kepler.propagate(self.ep_r[i:i + 1], self.ep_v[i:i + 1], self._wells.mu[wi], t1 - self.ep_t[i])
+            ms = np.array([m])
+            mv["lo"][ms], mv["hi"][ms], mv["A"][ms], mv["rho"][ms] = self._rail_boxes(
+                wi, mv["rad"][ms], self.ep_r[i:i + 1], self.ep_v[i:i + 1], pe, we, t1 - tp,
+                np.array([self.ep_contact[i] <= t1]))
         else:
-            same = (kind[pa] == 0) & (kind[pb] == 0) & (well[pa] == well[pb])
-            if same.any():
-                keep = np.ones(pa.size, bool)
-                for wi in np.unique(well[pa[same]]):
-                    m = np.flatnonzero(same & (well[pa] == wi))
-                    keep[m] = self._near(pa[m], pb[m], ball, P0, P1, rad, A, rho, span, wells.mu[wi])
-                pa, pb = pa[keep], pb[keep]
-        # a line is always b of a pair with one rails mover (box_pairs gives i < j, rails movers first)
-        touched = []
-        rails_m = np.flatnonzero(kind == 0)
-        xing = self.ep_cross                             # (sphere-of-influence crossings to come, or None)
-        if xing is not None and not (xing[body[rails_m]] <= t1).any():
-            xing = None
-        if not pa.size and xing is None:
-            moved = []                                    # the usual step: nobody near anybody
-            at = 0
-            for k in range(len(p0s)):                     # (the rails movers come first, one well at a time)
-                wi, cs = int(well[at]), body[at:at + p0s[k].shape[0]]
-                at += cs.size
-                if (self.ep_contact[cs] <= t1).any():
-                    hit0 = self.ep_t[cs].copy()
-                    self._surfaces(cs, wi, t1, events)
-                    moved.append(cs[self.ep_t[cs] != hit0])
-            return (np.concatenate(moved) if moved else _NO_BODIES), line
-        ts = np.full(pa.size, t0)                         # each pair is known to be apart up to ts ...
-        tc = np.full(pa.size, np.nan)                     # ... and touches at tc (inf: not before ts; NaN: look)
-        count = np.zeros(M, np.intp)                      # (an obstacle's count stays 0: no cap on it)
-        after = np.full(M, -np.inf)                       # a line mover's last contact in the step
-        huge = np.inf
-        for _ in range(64 + 4 * M):
-            need = np.flatnonzero(np.isnan(tc))
-            if need.size:
-                self._search(mv, need, pa, pb, ts, tc, A, rho, wA, root, after, t0, t1)
-            k = int(np.argmin(tc)) if tc.size else -1
-            tp = float(tc[k]) if tc.size else huge
-            surf = self.ep_contact[body[rails_m]] if rails_m.size else np.full(1, huge)
-            ts_min = float(surf.min())
-            tx = float(xing[body[rails_m]].min()) if xing is not None else huge
-            if not min(tp, ts_min, tx) <= t1:
-                break
-            if ts_min < tp and ts_min <= tx:              # surface contacts come first
-                hm = rails_m[(surf < tp) & (surf <= t1) & (surf <= tx)]
-                for wi in np.unique(well[hm]):
-                    self._bounce(body[hm[well[hm] == wi]], int(wi), events)
-                touched.append(body[hm])
-                moved = np.zeros(M, bool)
-                moved[hm] = True
-                if xing is not None:                      # (a new conic: its crossing looked for again)
-                    self._recross(body[hm], ts_min, t1)
-                # their pairs were followed up to the bounce: on from there, on the new conic
-                again = (moved[pa] | moved[pb]) & (ts < t1)
-                tc[again] = np.nan
-                continue
-            if tx < tp:
-                # bodies that change sphere of influence: a new epoch about the new well at the crossing,
-                # then as after a contact (new boxes, their pairs looked at again from there)
-                two = rails_m[xing[body[rails_m]] == tx]
-                for m in two:
-                    i = int(body[m])
-                    self._epoch_version += 1
-                    self._cross(i, int(self.cross_to[i]), tx)
-                    well[m] = self.ep_well[i]
-                    wA[m] = self._wA[well[m]]
-                    root[m] = wells.parent[well[m]] < 0
-                    touched.append(body[m:m + 1])
-                self._recross(body[two], tx, t1)
-                tp, k, resting = tx, -1, False
-            else:
-                ia, ib = int(pa[k]), int(pb[k])
-                resting = self._resolve(mv, ia, ib, tp, A, rho, wA, root, after, t0, t1, events)
-                for m in (ia, ib):
-                    if kind[m] != 2:
-                        count[m] += 1
-                    if kind[m] == 0:
-                        touched.append(body[m:m + 1])
-                two = np.array([m for m in (ia, ib) if kind[m] != 2], np.intp)
-                if xing is not None:
-                    self._recross(body[two[kind[two] == 0]], tp, t1)
-            # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
-            for m in two:
-                if kind[m] == 0:
-                    i = body[m]
-                    wi = int(well[m])
-                    pe, we = kepler.propagate(self.ep_r[i:i + 1], self.ep_v[i:i + 1], wells.mu[wi], t1 - self.ep_t[i])
-                    ms = np.array([m])
-                    lo[ms], hi[ms], A[ms], rho[ms] = self._rail_boxes(
-                        wi, rad[ms], self.ep_r[i:i + 1], self.ep_v[i:i + 1], pe, we, t1 - tp,
-                        np.array([self.ep_contact[i] <= t1]))
-                else:
-                    q0 = mv["lp"][m] + mv["lu"][m] * (tp - t0)
-                    q1 = mv["lp"][m] + mv["lu"][m] * span
-                    lo[m] = np.minimum(q0, q1) - rad[m]
-                    hi[m] = np.maximum(q0, q1) + rad[m]
-            mine = np.isin(pa, two) | np.isin(pb, two)
-            tc[mine] = np.nan
-            ts[mine] = tp
-            if resting and k >= 0:
-                # not looked at again this step (the next step resolves it afresh, one impulse per step)
-                # instead of a cascade of ever smaller impulses
-                tc[k] = np.inf
-                ts[k] = t1
-            add_a, add_b = [], []
-            for c in two:
-                over = np.all((lo[c] <= hi) & (hi[c] >= lo), axis=1)
-                over[c] = False
-                over &= ~((kind == 2) & (kind[c] == 2))
-                have = np.concatenate([pb[pa == c], pa[pb == c]])
-                for o in np.flatnonzero(over):
-                    if o not in have and not (min(c, o), max(c, o)) in zip(add_a, add_b):
-                        add_a.append(min(c, o))
-                        add_b.append(max(c, o))
-            if add_a:
-                pa = np.concatenate([pa, np.array(add_a, np.intp)])
-                pb = np.concatenate([pb, np.array(add_b, np.intp)])
-                ts = np.concatenate([ts, np.full(len(add_a), tp)])
-                tc = np.concatenate([tc, np.full(len(add_a), np.nan)])
-            full = count >= MAX_SPHERE_CONTACTS
-            if full.any():
-                drop = full[pa] | full[pb]
-                tc[drop] = np.inf
-                ts[drop] = t1
-                self._warn_once("cap", f"gravity: a body met {MAX_SPHERE_CONTACTS} sphere contacts "
-                                       "in one step; its further contacts in that step are not resolved")
-        else:
-            self._warn_once("events", "gravity: too many contacts in one step; the rest of that step's "
-                                      "contacts are not resolved")
-        if line is not None:
-            p, u, _ = line
-            k = np.flatnonzero(self.nb_c_rows[nb] >= 0)
-            if k.size:
-                ms = np.flatnonzero(kind == 1)
-                p, u = p.copy(), u.copy()
-                p[k], u[k] = mv["lp"][ms], mv["lu"][ms]
-                since = np.full(nb.size, -np.inf)
-                since[k] = after[ms] - t0
-                line = (p, u, since)
-        return (np.unique(np.concatenate(touched)) if touched else _NO_BODIES), line
+            q0 = mv["lp"][m] + mv["lu"][m] * (tp - t0)
+            q1 = mv["lp"][m] + mv["lu"][m] * (t1 - t0)
+            mv["lo"][m] = np.minimum(q0, q1) - mv["rad"][m]
+            mv["hi"][m] = np.maximum(q0, q1) + mv["rad"][m]
+
+    def _lines_after(self, mv, nb, line, t0):
+        """The n-body drift lines after the pass: ``(p, u, since)``, ``since`` each body's last contact in
+        the step (s from its start; -inf: none)."""
+        if line is None:
+            return None
+        k = np.flatnonzero(self.nb_c_rows[nb] >= 0)
+        if not k.size:
+            return line
+        ms = np.flatnonzero(mv["kind"] == 1)
+        p, u = line[0].copy(), line[1].copy()
+        p[k], u[k] = mv["lp"][ms], mv["lu"][ms]
+        since = np.full(nb.size, -np.inf)
+        since[k] = mv["after"][ms] - t0
+        return p, u, since
 
     def _recross(self, ks, t_from, t1):
         """Bodies ``ks`` on rails are on a new conic from ``t_from``: their next sphere-of-influence
@@ -1302,11 +1358,13 @@ class GravitySystem(esper.Processor):
         self.ep_cross[ks] = t
         self.cross_to[ks] = w
 
-    def _search(self, mv, need, pa, pb, ts, tc, A, rho, wA, root, after, t0, t1):
-        """The contact times of pairs ``need`` (from what each is known to be apart, ``ts``)."""
+    def _search(self, mv, need, pairs, t0, t1):
+        """The contact times of pairs ``need`` (from what each is known to be apart, ``pairs.ts``)."""
         wells = self._wells
         kind, body, well, rad = mv["kind"], mv["body"], mv["well"], mv["rad"]
-        ia, ib = pa[need], pb[need]
+        A, rho, wA, root, after = mv["A"], mv["rho"], mv["wA"], mv["root"], mv["after"]
+        ts, tc = pairs.ts, pairs.tc
+        ia, ib = pairs.pa[need], pairs.pb[need]
         ka, kb = body[ia], body[ib]
         ra, rb = kind[ia] == 0, kind[ib] == 0
         # a pair is followed up to the first surface contact of a body on rails in it (its path changes
@@ -1371,11 +1429,12 @@ class GravitySystem(esper.Processor):
             return f"obstacle {int(self.ob_ents[k])}"
         return f"body {int(self.ents[k])}"
 
-    def _resolve(self, mv, ia, ib, tp, A, rho, wA, root, after, t0, t1, events):
+    def _resolve(self, mv, ia, ib, tp, t0, t1, events):
         """Movers ``ia`` and ``ib`` touch at ``tp``: the impulse, their new paths, the event. Returns
         whether the contact is resting (the pair separates slower than the pulls on it can undo within
         the step: not looked at again in this step)."""
         kind, body, well, rad = mv["kind"], mv["body"], mv["well"], mv["rad"]
+        A, rho, wA, root = mv["A"], mv["rho"], mv["wA"], mv["root"]
         X0, V0, _, _ = self._step
         if kind[ia] == 0 and kind[ib] == 0 and well[ia] == well[ib]:
             wi = int(well[ia])
@@ -1390,9 +1449,9 @@ class GravitySystem(esper.Processor):
             self._collide_fixed(int(body[ia]), o, wi, tp, self._ob_x - X0[wi], self._ob_v - V0[wi], X0, V0, t0, t1,
                                 events, A[ia])
             return False          # (a resting contact left at least the speed that keeps it apart to t1)
-        return self._collide_paths(mv, ia, ib, tp, A[ia] + wA[ia] + A[ib] + wA[ib], after, t0, t1, events)
+        return self._collide_paths(mv, ia, ib, tp, A[ia] + wA[ia] + A[ib] + wA[ib], t0, t1, events)
 
-    def _collide_paths(self, mv, ia, ib, tp, accel, after, t0, t1, events):
+    def _collide_paths(self, mv, ia, ib, tp, accel, t0, t1, events):
         """Any other pair touches at ``tp``: the impulse along the line of centres in the world frame
         (masses from Mass, 1 kg without; an obstacle's inverse mass 0; restitution the smaller of the
         two), a new epoch about its well for a body on rails, a new drift line for an n-body body, and
@@ -1433,7 +1492,7 @@ class GravitySystem(esper.Processor):
             elif kind[m] == 1:
                 mv["lp"][m] = pos[j] - vel[j] * (tp - t0)   # the line through the contact, as of t0
                 mv["lu"][m] = vel[j]
-                after[m] = tp
+                mv["after"][m] = tp
         ents = [int(self.ob_ents[body[m]]) if kind[m] == 2 else int(self.ents[body[m]]) for m in ms]
         first = 0 if ents[0] < ents[1] else 1
         n_ab = nrm if first == 0 else -nrm
@@ -1471,7 +1530,7 @@ class GravitySystem(esper.Processor):
         self.ep_chi[k] = 0.0
         self.ep_contact[k] = tc + kepler.time_to_radius(rc, uc, mu, R, np.inf)
         # the event in the world frame, named as the collision system names it (lower entity first)
-        well = self._well_position(wi, tc, X0, V0, t0)
+        well = self._well_at(wi, np.array([tc]))[0][0]
         radius = world.table(SphereCollider).data["radius"][self.c_rows[k]]
         ea, eb = int(self.ents[i]), int(self.ents[j])
         first = 0 if ea < eb else 1
@@ -1514,7 +1573,7 @@ class GravitySystem(esper.Processor):
         self.ep_r[i], self.ep_v[i], self.ep_t[i] = rc[0], uc[0], tc
         self.ep_chi[i] = 0.0
         self.ep_contact[i] = tc + kepler.time_to_radius(rc, uc, mu, R, np.inf)[0]
-        well = self._well_position(wi, tc, X0, V0, t0)
+        well = self._well_at(wi, np.array([tc]))[0][0]
         ra = float(col["radius"][self.c_rows[i]])
         rb = float(col["radius"][self.ob_c_rows[o]])
         ea, eb = int(self.ents[i]), int(self.ob_ents[o])
@@ -1527,17 +1586,6 @@ class GravitySystem(esper.Processor):
                                      float(impulse), method="kepler", step=world.step_count))
         pe, we = kepler.propagate(rc, uc, mu, t1 - tc)
         return pe, we, float((qv[o] - uc[0]) @ nrm)
-
-    def _well_position(self, wi, t, X0, V0, t0):
-        """Well ``wi``'s centre at time ``t`` in the step (world frame): a root well moves straight, a
-        moon on its conic about its parent."""
-        wells = self._wells
-        p = wells.parent[wi]
-        if p < 0:
-            return X0[wi] + V0[wi] * (t - t0)
-        kk = int(np.flatnonzero(self.well_index == wi)[0])
-        r, _ = kepler.propagate(self.ep_r[kk], self.ep_v[kk], wells.mu[p], t - self.ep_t[kk])
-        return self._well_position(int(p), t, X0, V0, t0) + r
 
     def _warn_once(self, key: str, text: str) -> None:
         if key not in self._warned:
