@@ -134,11 +134,12 @@ contacts are swept after its sphere contacts, from its last one on.
 
 **Not modelled:** a well's own collider (bodies meet its surface radius; a
 ``SphereCollider`` of another radius on a well is not used, with a warning).
-The warp governor's look-ahead predicts the surface contacts, the contacts
-between bodies on rails about one well, and between bodies on rails about a
-root well and obstacles (:meth:`GravitySystem.next_contact`,
-:meth:`GravitySystem.next_sphere_contact`); the other pairs are found exactly
-in the step, but not looked for ahead of it.
+The warp governor's look-ahead (:meth:`GravitySystem.next_contact`,
+:meth:`GravitySystem.next_sphere_contact`) predicts every contact of a body on
+rails: its surface contacts, and its sphere contacts with bodies on rails
+about any well and with obstacles; an n-body body's path is not known beyond
+its step, so its contacts are found exactly in the step but not looked for
+ahead of it.
 
 **Checks** (the first step, and whenever wells or bodies are added): a well
 inside another's surface, a moon whose parent is missing or not a well, and
