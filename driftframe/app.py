@@ -78,17 +78,20 @@ def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = 
     from driftframe.systems.render import attach
 
     size = parse_size(size) if isinstance(size, str) else size
+    from driftframe.framework.gl import current
+
     render = attach(world, ctx, size, skybox=sky, **options)
     cache = world.resources["model_cache"]
-    for mname, (path, colour, shading) in world.resources.get("model_files", {}).items():
-        if mname not in cache:          # before the variants, which may scale them
-            cache.load(mname, path, shading=shading, **({} if colour is None else {"colour": colour}))
-    for vname, (base, scale, colour) in world.resources.get("model_variants", {}).items():
-        if vname not in cache:
-            cache.variant(vname, base, scale=scale, colour=colour)
-    if hud:
-        from driftframe.systems.hud import HudSystem
-        world.add_system(HudSystem(render))
+    with current(render.ctx):                      # (the meshes and the HUD's objects are this context's)
+        for mname, (path, colour, shading) in world.resources.get("model_files", {}).items():
+            if mname not in cache:          # before the variants, which may scale them
+                cache.load(mname, path, shading=shading, **({} if colour is None else {"colour": colour}))
+        for vname, (base, scale, colour) in world.resources.get("model_variants", {}).items():
+            if vname not in cache:
+                cache.variant(vname, base, scale=scale, colour=colour)
+        if hud:
+            from driftframe.systems.hud import HudSystem
+            world.add_system(HudSystem(render))
     if camera is not None:
         camera_sys.switch_camera(world, camera)
     return render

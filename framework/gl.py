@@ -13,6 +13,16 @@ With no usable driver both raise :class:`GLUnavailableError`, whose message
 names what is missing and the Debian/Ubuntu packages that provide it, instead
 of a traceback from inside the EGL loader.
 
+Several off-screen contexts may live in one process (a world each): GL calls go
+to the context that is *current*, so whatever draws, reads or frees GL objects
+makes its own current first (:func:`current`: ``with current(ctx):``). The
+world does it for its frame (``World.render`` enters its resources'
+``frame_scope``, which :class:`ContextHandle` gives), :func:`systems.render.attach`
+for the objects it makes, :class:`RenderTarget` for a read-back, and
+:class:`ContextHandle` for the release. A window's context is the window's:
+it is current already and is left alone. (Each stays current after the block:
+a program with one context sees no change.)
+
 A context works only in the thread that created it, and a process must not
 ``fork`` once a context exists (the child hangs): use the ``spawn`` start
 method for worker processes. Starting a program that ``exec``s (ffmpeg) is fine.
@@ -30,6 +40,8 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
+import weakref
+from contextlib import nullcontext
 
 import numpy as np
 
@@ -107,9 +119,28 @@ def create_context(*, require: int = REQUIRE, backend: str = "egl", **settings):
     except ImportError as e:   # pragma: no cover - moderngl is a hard dependency
         raise GLUnavailableError(f"moderngl is not installed ({e}); pip install 'moderngl>=5.10,<6'") from e
     try:
-        return moderngl.create_standalone_context(backend=backend, require=require, **settings)
+        ctx = moderngl.create_standalone_context(backend=backend, require=require, **settings)
     except Exception as e:  # glcontext raises bare Exception / OSError from deep inside the loader
         raise GLUnavailableError(explain_failure(e, missing_pieces())) from None
+    _OFFSCREEN.add(ctx)
+    return ctx
+
+
+#: The off-screen contexts :func:`create_context` made (weakly: a released, dropped one leaves).
+_OFFSCREEN: "weakref.WeakSet" = weakref.WeakSet()
+
+
+def current(ctx):
+    """``with current(ctx):`` the block's GL calls go to ``ctx``, an off-screen context
+    (:func:`create_context`); any other (a window's, current already, or None) is left as it is.
+
+    The context stays current after the block: moderngl's own ``with ctx:`` leaves *no* context current
+    when it ends (measured: the next call fails with "cannot create renderbuffer"), which would break
+    every caller that uses its one context directly, as a program with one context may."""
+    if ctx is None or ctx not in _OFFSCREEN:
+        return nullcontext()
+    ctx.__enter__()                  # (eglMakeCurrent; Mesa returns at once when it is current already)
+    return nullcontext(ctx)
 
 
 def wrap_current_context(*, require: int = REQUIRE):
@@ -150,10 +181,15 @@ class ContextHandle:
         """Call ``fn()`` when this handle is released (systems free their GL objects here)."""
         self._on_release.append(fn)
 
+    def frame_scope(self):
+        """What ``World.render`` enters for the frame: this context made current (off-screen ones)."""
+        return current(self.ctx)
+
     def release(self) -> None:
         callbacks, self._on_release = self._on_release, []
-        for fn in reversed(callbacks):
-            fn()
+        with current(self.ctx):
+            for fn in reversed(callbacks):
+                fn()
         if self.owned and self.ctx is not None:
             self.ctx.release()
         self.ctx = None
@@ -234,7 +270,8 @@ class RenderTarget:
 
     def read_raw(self) -> bytes:
         """The frame as RGBA bytes, *bottom row first* (GL order). RGBA reads fastest (no conversion)."""
-        data = self.fbo.read(viewport=self.viewport, components=4, alignment=1)
+        with current(self.ctx):
+            data = self.fbo.read(viewport=self.viewport, components=4, alignment=1)
         if self.is_screen:
             _ = self.ctx.error   # reading a window's screen leaves a pending GL_INVALID_OPERATION: clear it
         return data

@@ -83,6 +83,7 @@ from pathlib import Path
 import numpy as np
 
 from driftframe.framework import warp as time_warp
+from driftframe.framework.gl import current
 
 FORMATS = ("mp4", "gif", "png")
 _SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
@@ -922,18 +923,19 @@ class _YuvConverter:
         import moderngl
 
         ctx = target.ctx
-        w, h = target.size
-        self.ctx, self.target, self.size = ctx, target, (w, h)
-        self._rgb = ctx.texture((w, h), 4)
-        self._rgb.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self._planes = [ctx.texture((w // 4, h // 2), 4) for _ in range(3)]
-        self._fbo = ctx.framebuffer(color_attachments=self._planes)
-        self._prog = ctx.program(vertex_shader=_FULLSCREEN_VS, fragment_shader=_NV12_FS)
-        self._prog["u_rgb"].value = 0
-        self._prog["u_size"].value = (float(w), float(h))
-        self._vao = ctx.vertex_array(self._prog, [])
-        self._state = moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND
-        self._triangles = moderngl.TRIANGLES
+        with current(ctx):                         # (its objects are the target's context's)
+            w, h = target.size
+            self.ctx, self.target, self.size = ctx, target, (w, h)
+            self._rgb = ctx.texture((w, h), 4)
+            self._rgb.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._planes = [ctx.texture((w // 4, h // 2), 4) for _ in range(3)]
+            self._fbo = ctx.framebuffer(color_attachments=self._planes)
+            self._prog = ctx.program(vertex_shader=_FULLSCREEN_VS, fragment_shader=_NV12_FS)
+            self._prog["u_rgb"].value = 0
+            self._prog["u_size"].value = (float(w), float(h))
+            self._vao = ctx.vertex_array(self._prog, [])
+            self._state = moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND
+            self._triangles = moderngl.TRIANGLES
 
     def convert(self, rgba: bytes | None = None) -> np.ndarray:
         """NV12 of the target's current frame (or of ``rgba``, GL order, e.g. a motion-blurred average).
@@ -941,29 +943,31 @@ class _YuvConverter:
         A new uint8 array each call (the writer thread may still hold the last one).
         """
         ctx = self.ctx
-        if rgba is None:
-            ctx.copy_framebuffer(self._rgb, self.target.fbo)
-        else:
-            self._rgb.write(rgba)
-        self._rgb.use(0)
-        w, h = self.size
-        # a plain pass: the render system sets depth test and culling again at the start of each frame
-        ctx.disable(self._state)
-        self._fbo.use()
-        ctx.viewport = (0, 0, w // 4, h // 2)
-        self._vao.render(self._triangles, vertices=3)
-        out = np.empty(w * h * 3 // 2, np.uint8)
-        luma = out[:w * h].reshape(h // 2, 2, w)            # rows 2y and 2y + 1 from the two luma targets
-        for j in range(2):
-            luma[:, j, :] = np.frombuffer(self._fbo.read(components=4, attachment=j, alignment=1),
-                                          np.uint8).reshape(h // 2, w)
-        out[w * h:] = np.frombuffer(self._fbo.read(components=4, attachment=2, alignment=1), np.uint8)
-        self.target.use()
-        return out
+        with current(ctx):
+            if rgba is None:
+                ctx.copy_framebuffer(self._rgb, self.target.fbo)
+            else:
+                self._rgb.write(rgba)
+            self._rgb.use(0)
+            w, h = self.size
+            # a plain pass: the render system sets depth test and culling again at the start of each frame
+            ctx.disable(self._state)
+            self._fbo.use()
+            ctx.viewport = (0, 0, w // 4, h // 2)
+            self._vao.render(self._triangles, vertices=3)
+            out = np.empty(w * h * 3 // 2, np.uint8)
+            luma = out[:w * h].reshape(h // 2, 2, w)            # rows 2y and 2y + 1 from the two luma targets
+            for j in range(2):
+                luma[:, j, :] = np.frombuffer(self._fbo.read(components=4, attachment=j, alignment=1),
+                                              np.uint8).reshape(h // 2, w)
+            out[w * h:] = np.frombuffer(self._fbo.read(components=4, attachment=2, alignment=1), np.uint8)
+            self.target.use()
+            return out
 
     def release(self) -> None:
-        for obj in (self._vao, self._prog, self._fbo, *self._planes, self._rgb):
-            obj.release()
+        with current(self.ctx):
+            for obj in (self._vao, self._prog, self._fbo, *self._planes, self._rgb):
+                obj.release()
         self._planes = []
 
 

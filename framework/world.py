@@ -40,6 +40,7 @@ import itertools
 import re
 import time
 from collections import defaultdict
+from contextlib import ExitStack
 from operator import attrgetter, itemgetter
 
 import esper
@@ -603,9 +604,23 @@ class World:
             self.step_count += 1
 
     def render(self) -> None:
-        """Run the per-frame systems (render, record) once; the frame's events are then consumed."""
-        self._run("frame", self.dt)
+        """Run the per-frame systems (render, record) once; the frame's events are then consumed.
+
+        Resources with a ``frame_scope()`` (a GL context: :class:`framework.gl.ContextHandle`) are
+        entered for the frame, so a process with several worlds, each with its own context, draws each
+        into its own."""
+        with self._frame_scopes():
+            self._run("frame", self.dt)
         self._rendered = True
+
+    def _frame_scopes(self) -> ExitStack:
+        """The ``frame_scope()`` of every resource that has one, entered (see :meth:`render`)."""
+        scopes = ExitStack()
+        for res in list(self.resources.values()):
+            scope = getattr(res, "frame_scope", None)
+            if scope is not None:
+                scopes.enter_context(scope())
+        return scopes
 
     @property
     def time(self) -> float:
@@ -668,15 +683,16 @@ class World:
         and delete the esper world context. Components keep their values."""
         if self.closed:
             return
-        for phase in ("frame", "step"):
-            for e in reversed(self._order[phase]):
-                release = getattr(e.system, "release", None)
+        with self._frame_scopes():           # (a system's GL objects are freed in its own context)
+            for phase in ("frame", "step"):
+                for e in reversed(self._order[phase]):
+                    release = getattr(e.system, "release", None)
+                    if callable(release):
+                        release()
+            for res in list(self.resources.values()):
+                release = getattr(res, "release", None)
                 if callable(release):
                     release()
-        for res in list(self.resources.values()):
-            release = getattr(res, "release", None)
-            if callable(release):
-                release()
         self.resources.clear()
         for table in self._tables.values():
             table.detach_all()

@@ -61,7 +61,7 @@ from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
 from driftframe.framework import validate
-from driftframe.framework.gl import ContextHandle, RenderTarget, create_context
+from driftframe.framework.gl import ContextHandle, RenderTarget, create_context, current
 from driftframe.framework.model_cache import ModelCache, check_colour
 from driftframe.framework.store import to_indices
 from driftframe.systems import camera as camera_sys
@@ -506,26 +506,27 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
             own_context = True if own_context is None else own_context
     if handle is None or handle.ctx is not ctx:
         handle = ContextHandle(ctx, owned=bool(own_context))
-    cache = world.resources.get("model_cache")
-    if cache is None:
-        cache = ModelCache(ctx)
-    if target is None:
-        target = RenderTarget(ctx, size)
-    # release order on world.close(): cache, target, then systems and (if owned) the context
-    world.resources["model_cache"] = cache
-    world.resources["render_target"] = target
-    world.resources["gl"] = handle
-    if world.get_system(camera_sys.CameraSystem) is None:
-        world.add_system(camera_sys.CameraSystem())
-    # world.close() calls release() on every system (this one, the skybox, the HUD) before the resources
-    render = world.add_system(RenderSystem(ctx, cache, target, **options))
-    if sky == "lines":
-        world.add_system(SkyboxSystem(ctx, cache, render))
-    elif sky == "starfield":
-        world.add_system(StarfieldSystem(ctx, render, seed=world.resources.get("seed", 0)))
-    world.activate()
-    if any(True for _ in esper.get_component(Camera)):
-        camera_sys.update_cameras(world, snap=True)
+    with current(ctx):                           # (the objects are this context's, whichever was current)
+        cache = world.resources.get("model_cache")
+        if cache is None:
+            cache = ModelCache(ctx)
+        if target is None:
+            target = RenderTarget(ctx, size)
+        # release order on world.close(): cache, target, then systems and (if owned) the context
+        world.resources["model_cache"] = cache
+        world.resources["render_target"] = target
+        world.resources["gl"] = handle
+        if world.get_system(camera_sys.CameraSystem) is None:
+            world.add_system(camera_sys.CameraSystem())
+        # world.close() calls release() on every system (this one, the skybox, the HUD) before the resources
+        render = world.add_system(RenderSystem(ctx, cache, target, **options))
+        if sky == "lines":
+            world.add_system(SkyboxSystem(ctx, cache, render))
+        elif sky == "starfield":
+            world.add_system(StarfieldSystem(ctx, render, seed=world.resources.get("seed", 0)))
+        world.activate()
+        if any(True for _ in esper.get_component(Camera)):
+            camera_sys.update_cameras(world, snap=True)
     return render
 
 

@@ -110,3 +110,57 @@ def test_context_handle_releases_the_context_only_when_it_owns_it(ctx):
     handle = gl.ContextHandle(own, owned=True)
     handle.release()
     assert handle.ctx is None
+
+
+def _frames(world, render, n):
+    out = []
+    for _ in range(n):
+        world.step()
+        world.render()
+        out.append(render.read_rgba())
+    return out
+
+
+@pytest.mark.gl
+def test_worlds_with_their_own_contexts_draw_into_their_own_and_survive_each_others_close():
+    """GL calls go to the current context: each world makes its own current for its frame, for the
+    objects attach makes, for a read-back and for its close. Closing one world used to free its GL
+    objects in whichever context was current (the other world's: the same object names), so the
+    other then drew garbage (a frame's mean anywhere from 4 to 220 instead of 111)."""
+    from driftframe.app import attach_rendering, make_world
+
+    def alone(name, n):
+        w, _ = make_world(name)
+        try:
+            return _frames(w, attach_rendering(w, size=(160, 90)), n)
+        finally:
+            w.close()
+
+    want_a, want_b = alone("asteroids", 4), alone("swarm", 4)
+    a, _ = make_world("asteroids")
+    b, _ = make_world("swarm")
+    try:
+        ra = attach_rendering(a, size=(160, 90))
+        rb = attach_rendering(b, size=(160, 90))         # made last: its context is the current one
+        for k in range(3):                                 # drawn alternately
+            assert np.array_equal(_frames(a, ra, 1)[0], want_a[k])
+            assert np.array_equal(_frames(b, rb, 1)[0], want_b[k])
+        a.close()
+        assert np.array_equal(_frames(b, rb, 1)[0], want_b[3])
+    finally:
+        a.close()
+        b.close()
+
+
+def test_current_makes_an_off_screen_context_current_and_leaves_it_current(ctx):
+    other = gl.create_context()                           # made current by its creation
+    try:
+        with gl.current(ctx) as c:
+            assert c is ctx
+            target = gl.RenderTarget(ctx, (4, 4))       # this context's objects
+        ctx.renderbuffer((2, 2)).release()                # still current after the block
+        target.release()
+    finally:
+        other.release()
+    with gl.current(None) as nothing:
+        assert nothing is None
