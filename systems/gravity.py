@@ -137,9 +137,10 @@ contacts are swept after its sphere contacts, from its last one on.
 The warp governor's look-ahead (:meth:`GravitySystem.next_contact`,
 :meth:`GravitySystem.next_sphere_contact`) predicts every contact of a body on
 rails: its surface contacts, and its sphere contacts with bodies on rails
-about any well and with obstacles; an n-body body's path is not known beyond
-its step, so its contacts are found exactly in the step but not looked for
-ahead of it.
+about any well and with obstacles. An n-body body's path is not known beyond
+its step: for its sphere contacts the look-ahead gives a lower bound on when
+it could first touch (the gap at the pair's speed plus the most the pulls can
+add), so the warp drops before such a contact, perhaps early, never late.
 
 **Checks** (the first step, and whenever wells or bodies are added): a well
 inside another's surface, a moon whose parent is missing or not a well, and
@@ -524,8 +525,56 @@ class GravitySystem(esper.Processor):
         call, from their state now. A pair is followed up to the first surface contact of the body on
         rails (itself an event the governor slows down for)."""
         found = [c for c in (self._next_rails_contact(horizon), self._next_obstacle_contact(horizon),
-                             self._next_cross_contact(horizon)) if c is not None]
+                             self._next_cross_contact(horizon), self._next_nbody_contact(horizon))
+                 if c is not None]
         return min(found) if found else None
+
+    def _next_nbody_contact(self, horizon: float):
+        """next_sphere_contact's look at the n-body colliders, whose paths are not known beyond their
+        step: the earliest time any of them *could* touch another collider within the horizon, a lower
+        bound (the gap closed at the pair's speed now plus the most the pulls can add: every well's
+        ``mu / R^2`` on each body, each n-body body's ``G m / (r + r_k)^2``, their sum over the other
+        n-body colliders), so the warp drops before such a contact, never after it."""
+        if not self._n_nb_col or not horizon > 0 or self._wells is None or self._n_col + self._n_nb_col + self._n_ob < 2:
+            return None
+        world = self.world
+        now = (world.step_count + 1) * world.dt
+        wells = self._wells
+        pos_t = world.table(Transform).data["position"]
+        vel_t = world.table(Velocity).data["linear"]
+        col = world.table(SphereCollider).data["radius"]
+        nbk = np.flatnonzero(self.nb_c_rows >= 0)
+        rk = np.flatnonzero(self.c_rows >= 0)
+        t_rows, v_rows = (np.arange(r.start, r.stop, r.step or 1) if isinstance(r, slice) else r
+                          for r in (self.t_rows, self.v_rows))
+        x = np.concatenate([pos_t[t_rows[nbk]], pos_t[t_rows[rk]], pos_t[self.ob_t_rows]])
+        v = np.concatenate([vel_t[v_rows[nbk]], vel_t[v_rows[rk]],
+                            np.where((self.ob_v_rows >= 0)[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)])
+        r = np.concatenate([col[self.nb_c_rows[nbk]], col[self.c_rows[rk]], col[self.ob_c_rows]]).astype(np.float64)
+        pull = float(np.sum(wells.mu / wells.radius ** 2))
+        gm = self.gm[nbk]
+        acc = np.concatenate([np.full(nbk.size, pull + float(np.sum(gm / (r[:nbk.size].min() * 2.0) ** 2))),
+                              np.full(rk.size, pull), np.zeros(self._n_ob)])
+        h = horizon
+        half = kepler._norm(v) * h + 0.5 * acc * h * h + r
+        pa, pb = bp.box_pairs(x - half[:, None], x + half[:, None], "sweep")
+        pa, pb = pa.astype(np.intp), pb.astype(np.intp)
+        mine = pa < nbk.size                              # (i < j: an n-body collider is always a)
+        pa, pb = pa[mine], pb[mine]
+        if not pa.size:
+            return None
+        g = np.maximum(kepler._norm(x[pb] - x[pa]) - r[pa] - r[pb], 0.0)
+        A = acc[pa] + acc[pb]
+        # (the leapfrog's first half kick moves a drift's velocity by up to A dt / 2 at once)
+        w = kepler._norm(v[pb] - v[pa]) + A * world.dt
+        tau = 2.0 * g / (w + np.sqrt(w * w + 2.0 * A * g))
+        tau = np.where(g > 0, tau, 0.0)
+        k = int(np.argmin(tau))
+        if not tau[k] <= h:
+            return None
+        ents = np.concatenate([self.ents[nbk], self.ents[rk], self.ob_ents])
+        a, b = sorted((int(ents[pa[k]]), int(ents[pb[k]])))
+        return float(now + tau[k]), a, b
 
     def _next_cross_contact(self, horizon: float):
         """next_sphere_contact's look at the pairs in different frames on rails: colliders on rails about

@@ -197,3 +197,46 @@ def test_warp_drops_before_a_body_on_rails_meets_an_obstacle_and_the_contact_is_
     assert any("touch" in why for _, _, why in seen)
     _, hits1, v1 = run(1)
     assert [h.time for h in hits1] == [h.time for h in hits] and np.array_equal(v1, v_end)
+
+
+def test_warp_drops_before_n_body_colliders_could_touch():
+    """n-body paths are not known beyond their step: the governor slows down from a lower bound on when
+    two n-body colliders could first touch (the gap at their speed plus the most the pulls can add), so
+    no frame at the warp in force runs into the contact, and the contact is the one 1x finds."""
+    from driftframe import Mass, SphereCollider
+    from driftframe.components.collision import CollisionEvent
+    from driftframe.components.gravity import NBody
+
+    def run(request):
+        w = World(dt=1.0)
+        for s in (GravitySystem(), MovementSystem(), WarpGovernorSystem(lead_frames=3)):
+            w.add_system(s)
+        w.create_entity(Transform(), GravityWell(mu=MU, radius=R))
+        # falling together far out (0.16 m/s^2), closing at 10 m/s from 20 km: they touch after ~2,000 s
+        ents = [w.create_entity(Transform((5e7, 0.0, 0.0)), Velocity((0.0, 5.0, 0.0)), Mass(10.0), NBody(),
+                                SphereCollider(radius=20.0)),
+                w.create_entity(Transform((5e7, 2.0e4, 0.0)), Velocity((0.0, -5.0, 0.0)), Mass(10.0), NBody(),
+                                SphereCollider(radius=20.0))]
+        hits = []
+        w.subscribe(CollisionEvent, hits.append)
+        warp = time_warp.of(w)
+        warp.request(request)
+        seen = []
+        try:
+            while w.time < 2500.0:
+                w.step()
+                seen.append((w.time, warp.factor, warp.reason))
+            return seen, hits, w.columns(Transform, ents).position.copy()
+        finally:
+            w.close()
+
+    seen, hits, x_end = run(10_000)
+    assert hits and hits[0].method == "leapfrog"
+    first = hits[0].time
+    for t, f, why in seen:
+        if t < first:
+            assert f * 1.0 * 3 <= max(first - t, 3.0) + 1e-9, (t, f)
+    assert any("touch" in why for _, _, why in seen)
+    assert max(f for t, f, _ in seen if t < first) >= 10       # far apart: faster than 1x
+    _, hits1, x1 = run(1)
+    assert [h.time for h in hits1] == [h.time for h in hits] and np.array_equal(x1, x_end)
