@@ -270,6 +270,14 @@ def _settle(tc, ts, idx, t, start, upto) -> None:
     ts[idx] = np.where(np.isfinite(t), start, upto)
 
 
+def _first_reach(g, c, A):
+    """The least time a gap ``g`` (m) closing at up to ``c`` (m/s) with up to ``A`` (m/s^2) more can
+    reach 0: the smaller positive root of ``g - c t - A t^2 / 2`` (0 where ``g`` is 0)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = 2.0 * g / (c + np.sqrt(c * c + 2.0 * A * g))
+    return np.where(g > 0, t, 0.0)
+
+
 def _broad_method(lo, hi) -> str:
     """"sweep" or "grid" for boxes ``lo, hi`` (n, 3): the sweep's work is the overlaps along its axis,
     about ``n^2 width / extent`` for boxes spread evenly."""
@@ -533,8 +541,10 @@ class GravitySystem(esper.Processor):
         """next_sphere_contact's look at the n-body colliders, whose paths are not known beyond their
         step: the earliest time any of them *could* touch another collider within the horizon, a lower
         bound (the gap closed at the pair's speed now plus the most the pulls can add: every well's
-        ``mu / R^2`` on each body, each n-body body's ``G m / (r + r_k)^2``, their sum over the other
-        n-body colliders), so the warp drops before such a contact, never after it."""
+        ``mu / R^2`` on each body and the n-body bodies' own pulls; for two n-body bodies, which feel the
+        same wells, the tidal difference ``2 mu D / (R - D/2)^3`` instead), so the warp drops before
+        such a contact, never after it (two n-body colliders 1 km apart in low orbit hold it at 100x:
+        the tidal field can bring them together within a few hundred seconds)."""
         if not self._n_nb_col or not horizon > 0 or self._wells is None or self._n_col + self._n_nb_col + self._n_ob < 2:
             return None
         world = self.world
@@ -563,12 +573,36 @@ class GravitySystem(esper.Processor):
         pa, pb = pa[mine], pb[mine]
         if not pa.size:
             return None
-        g = np.maximum(kepler._norm(x[pb] - x[pa]) - r[pa] - r[pb], 0.0)
+        d = kepler._norm(x[pb] - x[pa])
+        g = np.maximum(d - r[pa] - r[pb], 0.0)
         A = acc[pa] + acc[pb]
         # (the leapfrog's first half kick moves a drift's velocity by up to A dt / 2 at once)
         w = kepler._norm(v[pb] - v[pa]) + A * world.dt
-        tau = 2.0 * g / (w + np.sqrt(w * w + 2.0 * A * g))
-        tau = np.where(g > 0, tau, 0.0)
+        tau = _first_reach(g, w, A)
+        both = pb < nbk.size
+        if both.any():
+            # two n-body bodies feel the same wells: their relative acceleration is the tidal difference
+            # (|grad g| = 2 mu / r^3, and no body is nearer a well's centre than its surface) plus their
+            # own pulls. Over a trial span T their distance stays under D = d + w T + A_T T^2 / 2, A_T
+            # the bound at D (iterated up from the first guess: the least such D is a bound); the step
+            # min(root, T) is safe for each trial, and the longest of them is taken
+            own = 2.0 * self.gm[nbk].sum() / (2.0 * r[:nbk.size].min()) ** 2
+            db, wb, gb = d[both], w[both], g[both]
+            best = tau[both]
+            for T in h * 0.25 ** np.arange(12):
+                D = db + wb * T
+                for _ in range(4):
+                    seg = wells.radius[None, :] - 0.5 * D[:, None]
+                    with np.errstate(divide="ignore", over="ignore"):
+                        A_T = np.where((seg > 0).all(axis=1),
+                                       np.sum(2.0 * wells.mu[None, :] * D[:, None] / np.where(seg > 0, seg, 1.0) ** 3,
+                                              axis=1), np.inf) + own
+                    D_next = db + wb * T + 0.5 * A_T * T * T
+                    done = D_next <= D * 1.001
+                    D = np.maximum(D, D_next)
+                ok = done & np.isfinite(A_T)
+                best = np.where(ok, np.maximum(best, np.minimum(_first_reach(gb, wb, A_T), T)), best)
+            tau[both] = best
         k = int(np.argmin(tau))
         if not tau[k] <= h:
             return None
