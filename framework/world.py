@@ -283,7 +283,11 @@ class World:
         :meth:`columns`, so esper's own ``add_component`` / ``remove_component``
         / ``delete_entity`` calls are seen before any column is read.
         """
-        self.activate()
+        if esper.current_world != self.name:
+            self.activate()
+        # (the fast path, every system of every step: esper's cache is clean and holds the same probe list)
+        if not getattr(esper, "_cache_dirty", True) and esper._get_component_cache.get(_Probe) is self._probe:
+            return
         probe = esper.get_component(_Probe)
         if probe is self._probe:
             return

@@ -284,11 +284,35 @@ class CollisionSystem(esper.Processor):
         return lay
 
     def prepare(self) -> None:
-        """The packed layout of the current colliders and the buffers a step fills (see
-        :meth:`World.prepare`)."""
+        """The packed layout of the current colliders, the buffers a step fills and, where the step
+        uses one, the neighbour list of the bodies as they are now (see :meth:`World.prepare`): the
+        first step then costs what the others do. (The list is checked every step against where the
+        bodies are, so one built here for a state changed before the step is rebuilt then.)"""
         lay = self._refresh()
-        if lay.n and lay.buffers is None:
-            State(self.world, lay, self.world.dt)
+        if not lay.n:
+            return
+        st = State(self.world, lay, self.world.dt)      # (it makes the layout's buffers the first time)
+        if self._uses_list(lay.n) and lay.n >= 2 and st.bad(lay) is None:
+            self._build_list(lay, st, self.world.dt)
+
+    def _uses_list(self, n: int) -> bool:
+        """Whether a step of ``n`` colliders takes its candidate pairs from the neighbour list."""
+        return not (self.broadphase == "all" or (self.broadphase == "auto" and n <= bp.ALL_PAIRS_MAX))
+
+    def _build_list(self, lay, st, dt, x=None, u=None, r=None) -> None:
+        """The neighbour list of the layout's bodies from their state ``st`` (positions, mean velocities)."""
+        x = st.x if x is None else x
+        u = st.u if u is None else u
+        r = st.r if r is None else r
+        n = lay.n
+        nl = self._list
+        nl.build(x.T, r, np.sqrt((u * u).sum(axis=1)) * dt)
+        self._list_layout = lay
+        self._list_dirty = False
+        self._pi = nl.i.astype(np.int64)
+        self._pj = nl.j.astype(np.int64)
+        self._blo = np.empty((n, 3))
+        self._bhi = np.empty((n, 3))
 
     def _now(self) -> float:
         return self.world.time if self.world is not None else 0.0
@@ -369,7 +393,7 @@ class CollisionSystem(esper.Processor):
             self._t_last_layout = lay
         t_last = self._t_last                              # absolute: the kernel makes it relative to now
 
-        if self.broadphase == "all" or (self.broadphase == "auto" and n <= bp.ALL_PAIRS_MAX):
+        if not self._uses_list(n):
             if self._pairs_n != n:                           # every pair (kept for this n only)
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
@@ -384,13 +408,7 @@ class CollisionSystem(esper.Processor):
                 new, total = bp.mark_strays(x, u, dt, nl.centre, nl.skin, nl.swept, r, nl.radius)
                 rebuild = new < 0 or (new > 0 and total > nl.budget)   # too many to sweep each step: rebuild
             if rebuild:
-                nl.build(x.T, r, np.sqrt((u * u).sum(axis=1)) * dt)
-                self._list_layout = lay
-                self._list_dirty = False
-                self._pi = nl.i.astype(np.int64)
-                self._pj = nl.j.astype(np.int64)
-                self._blo = np.empty((n, 3))
-                self._bhi = np.empty((n, 3))
+                self._build_list(lay, st, dt, x, u, r)
                 self.stats["builds"] = 1
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
             out = contact.solve_step(x, u, r, inv, e, live, t_last, now, self._pi, self._pj, dt, t_c,

@@ -92,7 +92,33 @@ def test_prepare_builds_the_systems_caches_and_changes_nothing():
             w.prepare()
             assert w.state_hash() == before
             assert cs._layout is not None and cs._layout.buffers is not None     # built at load, not in step 1
-        w.step(40)
-        return w.state_hash(), len(w.events)
+            assert cs._list_layout is cs._layout                                   # and the neighbour list
+        w.step()
+        first_builds = cs.stats["builds"]
+        w.step(39)
+        return w.state_hash(), len(w.events), first_builds
 
-    assert world(True) == world(False)
+    (h1, n1, builds1), (h0, n0, builds0) = world(True), world(False)
+    assert (h1, n1) == (h0, n0)
+    assert builds0 == 1 and builds1 == 0              # prepared: the first step builds nothing
+
+    # a state changed between prepare() and the first step: the list built at load is not trusted blindly
+    def moved(teleport):
+        w = World()
+        w.add_system(MovementSystem())
+        w.add_system(CollisionSystem())
+        a = w.create_entity(Transform((0.0, 0, 0)), Velocity((0.0, 0, 0)), SphereCollider(radius=0.5))
+        w.create_entity(Transform((50.0, 0, 0)), Velocity((0.0, 0, 0)), SphereCollider(radius=0.5))
+        for k in range(58):                            # enough bodies for the list (far off, at rest)
+            w.create_entity(Transform((0.0, 1e3 + 5.0 * k, 0)), Velocity((0.0, 0, 0)), SphereCollider(radius=0.5))
+        w.prepare()
+        if teleport:
+            w.columns(Transform, [a]).position = np.array([[48.0, 0.0, 0.0]])   # 1 m off b, closing fast
+            w.columns(Velocity, [a]).linear = np.array([[30.0, 0.0, 0.0]])
+        hits = []
+        from driftframe.components.collision import CollisionEvent
+        w.subscribe(CollisionEvent, hits.append)
+        w.step(3)
+        w.close()
+        return hits
+    assert moved(False) == [] and len(moved(True)) == 1
