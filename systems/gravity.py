@@ -367,6 +367,7 @@ class GravitySystem(esper.Processor):
         self._n_ob = 0                                    # colliders gravity does not move (obstacles)
         self._ob_version = None
         self._warned: set = set()
+        self.lookahead_is_bound = False
 
     # -- the scene ------------------------------------------------------------------------------
     def _build_bodies(self, q) -> None:
@@ -532,10 +533,13 @@ class GravitySystem(esper.Processor):
         every ``horizon`` s; the obstacles (whose velocity anyone may change) are looked at on every
         call, from their state now. A pair is followed up to the first surface contact of the body on
         rails (itself an event the governor slows down for)."""
-        found = [c for c in (self._next_rails_contact(horizon), self._next_obstacle_contact(horizon),
-                             self._next_cross_contact(horizon), self._next_nbody_contact(horizon))
-                 if c is not None]
-        return min(found) if found else None
+        exact = [c for c in (self._next_rails_contact(horizon), self._next_obstacle_contact(horizon),
+                             self._next_cross_contact(horizon)) if c is not None]
+        bound = self._next_nbody_contact(horizon)
+        best = min(exact) if exact else None
+        #: Whether the last answer is only a lower bound (an n-body pair that *could* touch by then).
+        self.lookahead_is_bound = bound is not None and (best is None or bound[0] < best[0])
+        return bound if self.lookahead_is_bound else best
 
     def _next_nbody_contact(self, horizon: float):
         """next_sphere_contact's look at the n-body colliders, whose paths are not known beyond their

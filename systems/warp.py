@@ -54,7 +54,8 @@ class WarpGovernorSystem(esper.Processor):
             best = (t - now, f"entity {ent} reaches the surface of {well}")
         pair = g.next_sphere_contact(horizon) if g is not None and math.isfinite(horizon) else None
         if pair is not None and (best is None or pair[0] - now < best[0]):
-            best = (pair[0] - now, f"entities {pair[1]} and {pair[2]} touch")
+            verb = "may touch" if g.lookahead_is_bound else "touch"     # (n-body: a lower bound)
+            best = (pair[0] - now, f"entities {pair[1]} and {pair[2]} {verb}")
         burns = [(ent, ap) for ent, ap in esper.get_component(Autopilot) if ap.mode == "burn" and not ap.done]
         for ent, plan in esper.get_component(FlightPlan):          # and the burns a plan has still to come
             burns += [(ent, leg) for _, leg in plan.legs[plan.next:] if leg.mode == "burn"]

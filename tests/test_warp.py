@@ -236,7 +236,7 @@ def test_warp_drops_before_n_body_colliders_could_touch():
     for t, f, why in seen:
         if t < first:
             assert f * 1.0 * 3 <= max(first - t, 3.0) + 1e-9, (t, f)
-    assert any("touch" in why for _, _, why in seen)
+    assert any("may touch" in why for _, _, why in seen)       # (a lower bound, and it says so)
     assert max(f for t, f, _ in seen if t < first) >= 10       # far apart: faster than 1x
     _, hits1, x1 = run(1)
     assert [h.time for h in hits1] == [h.time for h in hits] and np.array_equal(x1, x_end)
