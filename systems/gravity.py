@@ -129,8 +129,11 @@ hops by at most ``A dt^2 / 8``. A body meets at most
 :data:`MAX_SPHERE_CONTACTS` contacts in a step (further ones in that step are
 not looked for, with a warning); a pair that grazes too slowly to converge
 (``g' -> 0`` as ``g -> 0``) is taken to touch where it is within 1e-6 of
-``R_a + R_b``, else left for the step with a warning. An n-body body's surface
-contacts are swept after its sphere contacts, from its last one on.
+``R_a + R_b``, else left for the step with a warning. An n-body collider's
+surface contacts are events of the same pass (its drift line against a root
+well in closed form, against a moon by conservative advancement), so a body that
+bounces off a surface meets what lies on its new path in the same step; an
+n-body body without a collider sweeps its drift against the surfaces after it.
 
 **Not modelled:** a well's own collider (bodies meet its surface radius; a
 ``SphereCollider`` of another radius on a well is not used, with a warning).
@@ -860,6 +863,7 @@ class GravitySystem(esper.Processor):
         if nb.size:
             line = self._kick(nb, x, v, a, X0, dt)
         touched = _NO_BODIES
+        self._nb_surfaces_done = False
         if look:
             # every sphere contact of the step, in time order: on rails, on the n-body drift, obstacles
             touched, line = self._contacts(ends, nb, line, x, v, a, X0, V0, X1, t0, t1, events)
@@ -1198,8 +1202,14 @@ class GravitySystem(esper.Processor):
         xing = self.ep_cross                             # (sphere-of-influence crossings to come, or None)
         if xing is not None and not (xing[body[rails_m]] <= t1).any():
             xing = None
-        if not pairs.pa.size and xing is None:            # the usual step: nobody near anybody
+        lines_m = np.flatnonzero(kind == 1)
+        nb_surf = np.full(kind.size, np.inf)              # each n-body collider's next surface contact, and where
+        nb_well = np.full(kind.size, -1, np.intp)
+        if lines_m.size:
+            nb_surf[lines_m], nb_well[lines_m] = self._line_surfaces(mv, lines_m, np.full(lines_m.size, t0), t1)
+        if not pairs.pa.size and xing is None and not (nb_surf <= t1).any():   # the usual step: nobody near
             return self._surfaces_of(mv, t1, events), line
+        self._nb_surfaces_done = True                    # (their surface contacts are met here, in time order)
         wells = self._wells
         touched = []
         count = np.zeros(mv["kind"].size, np.intp)        # (an obstacle's count stays 0: no cap on it)
@@ -1212,8 +1222,21 @@ class GravitySystem(esper.Processor):
             surf = self.ep_contact[body[rails_m]]
             ts_min = float(surf.min()) if surf.size else np.inf
             tx = float(xing[body[rails_m]].min()) if xing is not None else np.inf
-            if not min(tp, ts_min, tx) <= t1:
+            tn = float(nb_surf.min())
+            if not min(tp, ts_min, tx, tn) <= t1:
                 break
+            if tn < min(tp, ts_min, tx):
+                # an n-body collider meets a well's surface: its drift reflected there (relative to the well)
+                moved = np.flatnonzero(nb_surf == tn)
+                for m in moved:
+                    self._line_bounce(mv, int(m), int(nb_well[m]), tn, events)
+                nb_surf[moved], nb_well[moved] = self._line_surfaces(mv, moved, np.full(moved.size, tn), t1)
+                for m in moved:
+                    self._rebox(mv, int(m), tn, t0, t1)
+                pairs.renew(moved, tn)
+                for c in moved:
+                    pairs.add(_overlapping(mv, int(c), pairs), tn)
+                continue
             if ts_min < tp and ts_min <= tx:              # surface contacts come first
                 hm = rails_m[(surf < tp) & (surf <= t1) & (surf <= tx)]
                 for wi in np.unique(well[hm]):
@@ -1247,6 +1270,9 @@ class GravitySystem(esper.Processor):
                 touched.append(body[on_rails])
                 if xing is not None:
                     self._recross(body[on_rails], tp, t1)
+                on_line = moved[kind[moved] == 1]
+                if on_line.size:
+                    nb_surf[on_line], nb_well[on_line] = self._line_surfaces(mv, on_line, np.full(on_line.size, tp), t1)
             # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
             for m in moved:
                 self._rebox(mv, int(m), tp, t0, t1)
@@ -1266,6 +1292,54 @@ class GravitySystem(esper.Processor):
             self._warn_once("events", "gravity: too many contacts in one step; the rest of that step's "
                                       "contacts are not resolved")
         return (np.unique(np.concatenate(touched)) if touched else _NO_BODIES), self._lines_after(mv, nb, line, t0)
+
+    def _line_surfaces(self, mv, ms, t_from, t1):
+        """The first surface contact of line movers ``ms`` (n-body drifts) after ``t_from``, by ``t1``:
+        ``(time, well)`` (inf, -1: none). A root well moves straight: the closed form of two lines; a
+        moon on its conic: conservative advancement (:func:`framework.kepler.time_to_touch_paths`)."""
+        wells = self._wells
+        X0, V0, t0, _ = self._step
+        best_t = np.full(ms.size, np.inf)
+        best_w = np.full(ms.size, -1, np.intp)
+        lp, lu = mv["lp"][ms], mv["lu"][ms]
+        for wi in range(len(wells)):
+            R = wells.radius[wi]
+            if wells.parent[wi] < 0:
+                d0 = lp + lu * (t_from - t0)[:, None] - (X0[wi] + V0[wi] * (t_from - t0)[:, None])
+                w_rel = lu - V0[wi]
+                aa = kepler._dot(w_rel, w_rel)
+                bb = kepler._dot(d0, w_rel)
+                cc = kepler._dot(d0, d0) - R * R
+                disc = bb * bb - aa * cc
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    s = cc / (-bb + np.sqrt(np.maximum(disc, 0.0)))     # the smaller root, without cancelling
+                t = t_from + s
+                hit = (bb < 0) & (disc >= 0) & (cc > 0) & (t <= t1)
+            else:
+                at_line = lambda i, tt: (lp[i] + lu[i] * (tt - t0)[:, None], lu[i])          # noqa: E731
+                at_moon = lambda i, tt: self._well_at(wi, tt)                                  # noqa: E731
+                t, _ = kepler.time_to_touch_paths(at_line, at_moon, np.full(ms.size, R), t_from,
+                                                  np.full(ms.size, t1), np.full(ms.size, self._wA[wi]))
+                hit = np.isfinite(t)
+            better = hit & (t < best_t)
+            best_t[better] = t[better]
+            best_w[better] = wi
+        return best_t, best_w
+
+    def _line_bounce(self, mv, m, wi, tc, events):
+        """Line mover ``m`` (an n-body drift) meets well ``wi``'s surface at ``tc``: its velocity relative
+        to the well reflected about the normal (elastic), the line through the contact from then on."""
+        t0 = self._step[2]
+        xc = mv["lp"][m] + mv["lu"][m] * (tc - t0)
+        Xc, Vc = self._well_at(wi, np.array([tc]))
+        n_hat = (xc - Xc[0]) / np.linalg.norm(xc - Xc[0])
+        w_rel = mv["lu"][m] - Vc[0]
+        un = float(w_rel @ n_hat)
+        events.append(SurfaceContact(int(self.ents[mv["body"][m]]), self._wells.ents[wi], float(tc),
+                                     float(np.linalg.norm(w_rel)), -un))
+        mv["lu"][m] = w_rel - 2.0 * un * n_hat + Vc[0]
+        mv["lp"][m] = xc - mv["lu"][m] * (tc - t0)
+        mv["after"][m] = tc
 
     def _movers(self, ends, nb, line, x, v, a, X0, V0, t0, t1):
         """The contact pass's movers, as columns of one dict: ``kind`` (0 rails, 1 n-body line,
@@ -1753,6 +1827,9 @@ class GravitySystem(esper.Processor):
         p, u, after = line
         u = u.copy()
         q = p + u * dt
+        if self._nb_surfaces_done:
+            # the colliders met their surfaces in the contact pass, in time order with their other contacts
+            after = np.where(self.nb_c_rows[sel] >= 0, np.inf, after)
         # the drift is straight: sweep it relative to each root well, which moves straight over the step
         # too (a quadratic); a moon follows its conic, so against a moon the search is the contact pass's
         for wi in range(len(X0)):

@@ -781,3 +781,40 @@ def test_an_n_body_body_meets_a_moons_surface_on_the_moons_conic(dt):
         assert hits[0].normal_speed > 0 and not any(inside)
     finally:
         w.close()
+
+
+@pytest.mark.parametrize("dt", [0.5, 10.0])
+def test_an_n_body_collider_that_bounces_off_a_surface_meets_what_is_on_its_new_path_in_the_same_step(dt):
+    """The drift's surface contact and its sphere contacts in one time order: a body that bounces off a
+    well and then reaches an obstacle on the reflected path meets it, even when one step holds both
+    (swept after the sphere contacts, the obstacle was missed and the body went through it)."""
+    from driftframe.components.gravity import SurfaceContact
+    w = World(dt=dt)
+    w.add_system(GravitySystem())
+    w.add_system(MovementSystem())
+    well = w.create_entity(Transform(), GravityWell(mu=1e-6, radius=1000.0))     # (a pull of 1e-12 m/s^2)
+    x0, v0 = np.array([1500.0, 0.0, 0.0]), np.array([-100.0, 50.0, 0.0])
+    # straight to the surface: |x0 + v0 t| = 1000, the smaller root; reflected about the normal there
+    a_, b_, c_ = v0 @ v0, 2 * x0 @ v0, x0 @ x0 - 1000.0 ** 2
+    t_s = (-b_ - math.sqrt(b_ * b_ - 4 * a_ * c_)) / (2 * a_)
+    xs = x0 + v0 * t_s
+    n = xs / np.linalg.norm(xs)
+    v1 = v0 - 2 * (v0 @ n) * n
+    q = xs + v1 * 3.0                                             # an obstacle 3 s along the new path
+    body_ = w.create_entity(Transform(x0), Velocity(v0), Mass(1.0), NBody(), SphereCollider(radius=5.0))
+    ob = w.create_entity(Transform(q), SphereCollider(radius=20.0))
+    seen = []
+    w.subscribe(SurfaceContact, seen.append)
+    w.subscribe(CollisionEvent, seen.append)
+    try:
+        w.step(int(round(10.0 / dt)))                            # (it comes back to the surface at 10.9 s)
+        assert [type(e).__name__ for e in seen] == ["SurfaceContact", "CollisionEvent"], seen
+        assert (seen[0].entity, seen[0].well) == (body_, well)
+        assert seen[0].time == pytest.approx(t_s, abs=1e-9)
+        # the obstacle's surface is 25 m short of q along the reflected path
+        assert seen[1].time == pytest.approx(t_s + 3.0 - 25.0 / np.linalg.norm(v1), abs=1e-9)
+        assert (seen[1].a, seen[1].b) == (body_, ob) and seen[1].method == "leapfrog"
+        x = w.columns(Transform, [body_]).position[0]
+        assert np.linalg.norm(x - q) > 25.0 and np.linalg.norm(x) > 1000.0
+    finally:
+        w.close()
