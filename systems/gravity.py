@@ -1110,8 +1110,7 @@ class GravitySystem(esper.Processor):
     # -- sphere-sphere contacts along the conics ------------------------------------------------
     def _near(self, pa, pb, ball, p0, p1, rad, A, rho, span, mu):
         """Which of the candidate pairs ``(pa, pb)`` (movers on rails about one well) are not proven apart
-        for the whole step
-        without solving Kepler's equation: the separation ``d(t)`` leaves the chord between its two
+        for the whole step without solving Kepler's equation: the separation ``d(t)`` leaves the chord between its two
         ends by at most ``A_d span^2 / 8``, with ``A_d`` the bound on ``|d''|`` (the sum of the two
         pulls, or the tidal ``2 mu D / (rho - D/2)^3`` for a pair never more than ``D`` apart; see
         kepler.time_to_touch), so a chord that stays farther than that plus ``r_a + r_b`` from zero
@@ -1206,7 +1205,8 @@ class GravitySystem(esper.Processor):
         nb_surf = np.full(kind.size, np.inf)              # each n-body collider's next surface contact, and where
         nb_well = np.full(kind.size, -1, np.intp)
         if lines_m.size:
-            nb_surf[lines_m], nb_well[lines_m] = self._line_surfaces(mv, lines_m, np.full(lines_m.size, t0), t1)
+            nb_surf[lines_m], nb_well[lines_m] = self._line_surfaces(mv["lp"][lines_m], mv["lu"][lines_m],
+                                                                     np.full(lines_m.size, t0), t1)
         if not pairs.pa.size and xing is None and not (nb_surf <= t1).any():   # the usual step: nobody near
             return self._surfaces_of(mv, t1, events), line
         self._nb_surfaces_done = True                    # (their surface contacts are met here, in time order)
@@ -1229,8 +1229,11 @@ class GravitySystem(esper.Processor):
                 # an n-body collider meets a well's surface: its drift reflected there (relative to the well)
                 moved = np.flatnonzero(nb_surf == tn)
                 for m in moved:
-                    self._line_bounce(mv, int(m), int(nb_well[m]), tn, events)
-                nb_surf[moved], nb_well[moved] = self._line_surfaces(mv, moved, np.full(moved.size, tn), t1)
+                    mv["lp"][m], mv["lu"][m] = self._reflect(body[m], mv["lp"][m], mv["lu"][m], int(nb_well[m]),
+                                                             tn, events)
+                    mv["after"][m] = tn
+                nb_surf[moved], nb_well[moved] = self._line_surfaces(mv["lp"][moved], mv["lu"][moved],
+                                                                     np.full(moved.size, tn), t1)
                 for m in moved:
                     self._rebox(mv, int(m), tn, t0, t1)
                 pairs.renew(moved, tn)
@@ -1272,7 +1275,8 @@ class GravitySystem(esper.Processor):
                     self._recross(body[on_rails], tp, t1)
                 on_line = moved[kind[moved] == 1]
                 if on_line.size:
-                    nb_surf[on_line], nb_well[on_line] = self._line_surfaces(mv, on_line, np.full(on_line.size, tp), t1)
+                    nb_surf[on_line], nb_well[on_line] = self._line_surfaces(mv["lp"][on_line], mv["lu"][on_line],
+                                                                             np.full(on_line.size, tp), t1)
             # their paths from tp on: new boxes, their pairs looked at again from tp, and new pairs
             for m in moved:
                 self._rebox(mv, int(m), tp, t0, t1)
@@ -1293,15 +1297,16 @@ class GravitySystem(esper.Processor):
                                       "contacts are not resolved")
         return (np.unique(np.concatenate(touched)) if touched else _NO_BODIES), self._lines_after(mv, nb, line, t0)
 
-    def _line_surfaces(self, mv, ms, t_from, t1):
-        """The first surface contact of line movers ``ms`` (n-body drifts) after ``t_from``, by ``t1``:
-        ``(time, well)`` (inf, -1: none). A root well moves straight: the closed form of two lines; a
-        moon on its conic: conservative advancement (:func:`framework.kepler.time_to_touch_paths`)."""
+    def _line_surfaces(self, lp, lu, t_from, t1):
+        """The first surface contact of drift lines ``lp + lu (t - t0)`` (n-body bodies, world frame,
+        ``(n, 3)``) after ``t_from`` ``(n,)``, by ``t1``: ``(time, well)`` (inf, -1: none). A root well
+        moves straight: the closed form of two lines; a moon on its conic: conservative advancement
+        (:func:`framework.kepler.time_to_touch_paths`), after a cheap test of how far the gap can close."""
         wells = self._wells
         X0, V0, t0, _ = self._step
-        best_t = np.full(ms.size, np.inf)
-        best_w = np.full(ms.size, -1, np.intp)
-        lp, lu = mv["lp"][ms], mv["lu"][ms]
+        n = lp.shape[0]
+        best_t = np.full(n, np.inf)
+        best_w = np.full(n, -1, np.intp)
         for wi in range(len(wells)):
             R = wells.radius[wi]
             if wells.parent[wi] < 0:
@@ -1316,30 +1321,36 @@ class GravitySystem(esper.Processor):
                 t = t_from + s
                 hit = (bb < 0) & (disc >= 0) & (cc > 0) & (t <= t1)
             else:
-                at_line = lambda i, tt: (lp[i] + lu[i] * (tt - t0)[:, None], lu[i])          # noqa: E731
-                at_moon = lambda i, tt: self._well_at(wi, tt)                                  # noqa: E731
-                t, _ = kepler.time_to_touch_paths(at_line, at_moon, np.full(ms.size, R), t_from,
-                                                  np.full(ms.size, t1), np.full(ms.size, self._wA[wi]))
+                X, V = self._well_at(wi, t_from)
+                span = np.maximum(t1 - t_from, 0.0)
+                near = np.flatnonzero(kepler._norm(lp + lu * (t_from - t0)[:, None] - X) - R
+                                      <= (kepler._norm(lu - V) + self._wA[wi] * span) * span)
+                t = np.full(n, np.inf)
+                if near.size:
+                    at_line = lambda i, tt: (lp[near[i]] + lu[near[i]] * (tt - t0)[:, None], lu[near[i]])  # noqa: E731
+                    at_moon = lambda i, tt: self._well_at(wi, tt)                                          # noqa: E731
+                    t[near], _ = kepler.time_to_touch_paths(at_line, at_moon, np.full(near.size, R), t_from[near],
+                                                            np.full(near.size, t1), np.full(near.size, self._wA[wi]))
                 hit = np.isfinite(t)
             better = hit & (t < best_t)
             best_t[better] = t[better]
             best_w[better] = wi
         return best_t, best_w
 
-    def _line_bounce(self, mv, m, wi, tc, events):
-        """Line mover ``m`` (an n-body drift) meets well ``wi``'s surface at ``tc``: its velocity relative
-        to the well reflected about the normal (elastic), the line through the contact from then on."""
+    def _reflect(self, k, p, u, wi, tc, events):
+        """n-body body ``self.ents[k]`` on the line ``p + u (t - t0)`` meets well ``wi``'s surface at
+        ``tc``: its velocity relative to the well reflected about the normal (elastic); returns the line
+        through the contact from then on, ``(p, u)``."""
         t0 = self._step[2]
-        xc = mv["lp"][m] + mv["lu"][m] * (tc - t0)
+        xc = p + u * (tc - t0)
         Xc, Vc = self._well_at(wi, np.array([tc]))
         n_hat = (xc - Xc[0]) / np.linalg.norm(xc - Xc[0])
-        w_rel = mv["lu"][m] - Vc[0]
+        w_rel = u - Vc[0]
         un = float(w_rel @ n_hat)
-        events.append(SurfaceContact(int(self.ents[mv["body"][m]]), self._wells.ents[wi], float(tc),
+        events.append(SurfaceContact(int(self.ents[k]), self._wells.ents[wi], float(tc),
                                      float(np.linalg.norm(w_rel)), -un))
-        mv["lu"][m] = w_rel - 2.0 * un * n_hat + Vc[0]
-        mv["lp"][m] = xc - mv["lu"][m] * (tc - t0)
-        mv["after"][m] = tc
+        u_new = w_rel - 2.0 * un * n_hat + Vc[0]
+        return xc - u_new * (tc - t0), u_new
 
     def _movers(self, ends, nb, line, x, v, a, X0, V0, t0, t1):
         """The contact pass's movers, as columns of one dict: ``kind`` (0 rails, 1 n-body line,
@@ -1596,31 +1607,30 @@ class GravitySystem(esper.Processor):
         whether the contact is resting (the pair separates slower than the pulls on it can undo within
         the step: not looked at again in this step)."""
         kind, body, well, rad = mv["kind"], mv["body"], mv["well"], mv["rad"]
-        A, rho, wA, root = mv["A"], mv["rho"], mv["wA"], mv["root"]
-        X0, V0, _, _ = self._step
+        A, rho, wA = mv["A"], mv["rho"], mv["wA"]
         if kind[ia] == 0 and kind[ib] == 0 and well[ia] == well[ib]:
             wi = int(well[ia])
-            _, _, sep = self._collide(int(body[ia]), int(body[ib]), wi, tp, X0, V0, t0, t1, events)
+            sep = self._collide(int(body[ia]), int(body[ib]), wi, tp, t0, events)
             # a resting contact (e = 0, or a slow one): separating slower than the tidal pull between them
             reach = rad[ia] + rad[ib]
             seg = min(rho[ia], rho[ib]) - reach
             return bool(seg > 0 and sep < 2.0 * self._wells.mu[wi] * 2.0 * reach / seg ** 3 * (t1 - tp))
-        if kind[ia] == 0 and kind[ib] == 2 and root[ia]:
-            wi = int(well[ia])
-            o = int(body[ib])
-            self._collide_fixed(int(body[ia]), o, wi, tp, self._ob_x - X0[wi], self._ob_v - V0[wi], X0, V0, t0, t1,
-                                events, A[ia])
-            return False          # (a resting contact left at least the speed that keeps it apart to t1)
         return self._collide_paths(mv, ia, ib, tp, A[ia] + wA[ia] + A[ib] + wA[ib], t0, t1, events)
 
     def _collide_paths(self, mv, ia, ib, tp, accel, t0, t1, events):
-        """Any other pair touches at ``tp``: the impulse along the line of centres in the world frame
-        (masses from Mass, 1 kg without; an obstacle's inverse mass 0; restitution the smaller of the
-        two), a new epoch about its well for a body on rails, a new drift line for an n-body body, and
-        the CollisionEvent (``method="kepler"`` where a body on rails is in it, else ``"leapfrog"``). A
-        slow contact (separating slower than ``accel (t1 - tp) / 2``, ``accel`` the bound on the pair's
-        relative acceleration) against an obstacle leaves at that speed, as in :meth:`_collide_fixed`;
-        between two bodies it is resting."""
+        """Any pair but two bodies on rails about one well touches at ``tp``: the impulse along the line
+        of centres in the world frame (masses from Mass, 1 kg without; an obstacle's inverse mass 0, so
+        its velocity is left alone; restitution the smaller of the two), a new epoch about its well for
+        a body on rails, a new drift line for an n-body body, and the CollisionEvent
+        (``method="kepler"`` where a body on rails is in it, else ``"leapfrog"``). Returns whether the
+        contact is resting.
+
+        A slow contact against an obstacle (separating slower than ``accel (t1 - tp) / 2``, ``accel`` the
+        bound on the pair's relative acceleration: restitution 0, or a body pressed on by a well's pull)
+        leaves at that speed, the least that keeps the gap ``g >= s tau - accel tau^2 / 2`` open up to
+        ``t1``: the obstacle feels none of the pull, so a body left at rest on it would sink by
+        ``accel dt^2 / 2`` a step and, step after step, pass through it. The cost is a hop of at most
+        ``accel dt^2 / 8``, only in such slow contacts. Between two bodies such a contact is resting."""
         kind, body, well = mv["kind"], mv["body"], mv["well"]
         ms = np.array([ia, ib])
         pos, vel = self._movers_at(mv, ms, np.full(2, tp))
@@ -1666,11 +1676,11 @@ class GravitySystem(esper.Processor):
         sep_now = float((vel[1] - vel[0]) @ nrm)
         return not fixed and sep_now < keep_out * 2.0
 
-    def _collide(self, i, j, wi, tc, X0, V0, t0, t1, events):
+    def _collide(self, i, j, wi, tc, t0, events):
         """Bodies ``i`` and ``j`` touch at ``tc``: the impulse along the line of centres (masses from
         Mass, 1 kg without; restitution the smaller of the two), new epochs for both at ``tc``, their
-        next surface contacts, the CollisionEvent. Returns their states about the well at ``t1`` and
-        their separating speed along the normal after the impulse."""
+        next surface contacts, the CollisionEvent. Returns their separating speed along the normal after
+        the impulse."""
         world = self.world
         wells = self._wells
         mu, R = wells.mu[wi], wells.radius[wi]
@@ -1701,53 +1711,7 @@ class GravitySystem(esper.Processor):
         events.append(CollisionEvent(min(ea, eb), max(ea, eb), float(tc), float(tc - t0),
                                      tuple(float(c) for c in point), tuple(float(c) for c in n_ab),
                                      float(impulse), method="kepler", step=world.step_count))
-        pe, we = kepler.propagate(rc, uc, mu, t1 - tc)
-        return pe, we, float((uc[1] - uc[0]) @ nrm)
-
-    def _collide_fixed(self, i, o, wi, tc, q0, qv, X0, V0, t0, t1, events, accel):
-        """Body ``i`` (on rails about root well ``wi``) touches obstacle ``o`` (straight path ``q0 + qv
-        (t - t0)`` relative to the well) at ``tc``: the impulse along the line of centres with the
-        obstacle's inverse mass 0 (its velocity unchanged), a new epoch for ``i``, the CollisionEvent.
-        Returns ``i``'s state about the well at ``t1`` (``(1, 3)``) and the separating speed.
-
-        A *resting* contact (the body would separate slower than ``accel (t1 - tc) / 2``, ``accel``
-        the bound on its acceleration over the step: restitution 0, or a body pressed against the
-        obstacle by the well's pull) separates at that speed instead, the least that keeps the gap
-        ``g >= s tau - accel tau^2 / 2`` open up to ``t1``: the obstacle feels none of the pull, so
-        a body left at rest on it would sink by ``accel dt^2 / 2`` a step and, step after step, pass
-        through it. The cost: a hop of at most ``accel dt^2 / 8`` and the energy of that speed, only
-        in such slow contacts (an elastic contact faster than it is exact)."""
-        world = self.world
-        wells = self._wells
-        mu, R = wells.mu[wi], wells.radius[wi]
-        rc, uc = kepler.propagate(self.ep_r[i:i + 1], self.ep_v[i:i + 1], mu, tc - self.ep_t[i:i + 1])
-        qc = q0[o] + qv[o] * (tc - t0)
-        d = qc - rc[0]
-        nrm = d / np.linalg.norm(d)
-        vn = float((qv[o] - uc[0]) @ nrm)                  # < 0: approaching
-        kg = float(world.table(Mass).data["kg"][self.m_rows[i]]) if self.m_rows[i] >= 0 else 1.0
-        col = world.table(SphereCollider).data
-        e = float(min(col["restitution"][self.c_rows[i]], col["restitution"][self.ob_c_rows[o]]))
-        keep_out = 0.5 * accel * (t1 - tc)
-        impulse = kg * (max(-e * vn, keep_out) - vn) if vn < 0 else 0.0
-        uc[0] -= impulse / kg * nrm
-        self._epoch_version += 1
-        self.ep_r[i], self.ep_v[i], self.ep_t[i] = rc[0], uc[0], tc
-        self.ep_chi[i] = 0.0
-        self.ep_contact[i] = tc + kepler.time_to_radius(rc, uc, mu, R, np.inf)[0]
-        well = self._well_at(wi, np.array([tc]))[0][0]
-        ra = float(col["radius"][self.c_rows[i]])
-        rb = float(col["radius"][self.ob_c_rows[o]])
-        ea, eb = int(self.ents[i]), int(self.ob_ents[o])
-        if ea < eb:
-            n_ab, point = nrm, well + rc[0] + ra * nrm
-        else:
-            n_ab, point = -nrm, well + qc - rb * nrm
-        events.append(CollisionEvent(min(ea, eb), max(ea, eb), float(tc), float(tc - t0),
-                                     tuple(float(c) for c in point), tuple(float(c) for c in n_ab),
-                                     float(impulse), method="kepler", step=world.step_count))
-        pe, we = kepler.propagate(rc, uc, mu, t1 - tc)
-        return pe, we, float((qv[o] - uc[0]) @ nrm)
+        return float((uc[1] - uc[0]) @ nrm)
 
     def _warn_once(self, key: str, text: str) -> None:
         if key not in self._warned:
@@ -1789,71 +1753,22 @@ class GravitySystem(esper.Processor):
         u = v[sel] + 0.5 * dt * (self._accel(p, X0, self.gm[sel]) + a[sel])
         return p, u, np.full(sel.size, -np.inf)
 
-    def _drift_to_moon(self, sel, wi, p, u, q, after, dt, t0, events):
-        """n-body bodies ``sel`` on their drift lines ``p + u t`` against moon ``wi``'s surface, the moon
-        on its conic (conservative advancement, :func:`framework.kepler.time_to_touch_paths`): at a
-        contact the velocity relative to the moon is reflected, and the body drifts on from there
-        (``u`` and ``q``, its end-of-step position, are updated in place)."""
-        R = self._wells.radius[wi]
-        X, V = self._well_at(wi, np.full(sel.size, t0))
-        # (a cheap test first: no closer than the start's gap less the most the relative speed can close)
-        near = np.flatnonzero(kepler._norm(p - X) - R <= (kepler._norm(u - V) + self._wA[wi] * dt) * dt)
-        if not near.size:
-            return
-        at_body = lambda i, t: (p[near[i]] + u[near[i]] * (t - t0)[:, None], u[near[i]])   # noqa: E731
-        at_moon = lambda i, t: self._well_at(wi, t)                                          # noqa: E731
-        start = t0 + np.maximum(after[near], 0.0)
-        tc, _ = kepler.time_to_touch_paths(at_body, at_moon, np.full(near.size, R), start, np.full(near.size, t0 + dt),
-                                           np.full(near.size, self._wA[wi]))
-        for j in np.flatnonzero(np.isfinite(tc)):
-            k = near[j]
-            xc = p[k] + u[k] * (tc[j] - t0)
-            Xc, Vc = self._well_at(wi, np.array([tc[j]]))
-            n_hat = (xc - Xc[0]) / np.linalg.norm(xc - Xc[0])
-            w_rel = u[k] - Vc[0]
-            un = float(w_rel @ n_hat)
-            events.append(SurfaceContact(int(self.ents[sel[k]]), self._wells.ents[wi], float(tc[j]),
-                                         float(np.linalg.norm(w_rel)), -un))
-            u[k] = w_rel - 2.0 * un * n_hat + Vc[0]
-            q[k] = xc + u[k] * (t0 + dt - tc[j])
-            p[k] = xc - u[k] * (tc[j] - t0)             # (the line through the contact, as of t0)
-
     def _leapfrog_end(self, sel, line, a, X0, X1, dt, t0, x1, v1, events):
         """The rest of the n-body step: the drift (met by the sphere contacts in :meth:`_contacts`, so
-        each body is on the line ``p + u t`` from its last contact on) swept against each well's surface,
-        then the second half kick."""
-        w = self._wells
+        each body is on the line ``p + u t`` from its last contact on) against each well's surface (the
+        colliders' met there already, when the contact pass ran), then the second half kick."""
         gm = self.gm[sel]
         p, u, after = line
-        u = u.copy()
-        q = p + u * dt
+        p, u = p.copy(), u.copy()
+        todo = np.arange(sel.size)
         if self._nb_surfaces_done:
-            # the colliders met their surfaces in the contact pass, in time order with their other contacts
-            after = np.where(self.nb_c_rows[sel] >= 0, np.inf, after)
-        # the drift is straight: sweep it relative to each root well, which moves straight over the step
-        # too (a quadratic); a moon follows its conic, so against a moon the search is the contact pass's
-        for wi in range(len(X0)):
-            if w.parent[wi] >= 0:
-                self._drift_to_moon(sel, wi, p, u, q, after, dt, t0, events)
-                continue
-            d0 = p - X0[wi]
-            w_rel = u - (X1[wi] - X0[wi]) / dt
-            aa = np.einsum("ij,ij->i", w_rel, w_rel)
-            bb = np.einsum("ij,ij->i", d0, w_rel)
-            cc = np.einsum("ij,ij->i", d0, d0) - w.radius[wi] ** 2
-            disc = bb * bb - aa * cc
-            with np.errstate(invalid="ignore", divide="ignore"):
-                s = cc / (-bb + np.sqrt(np.maximum(disc, 0.0)))     # smaller root, written without cancelling
-            # (a body that met another in the drift is on its line only from that contact on: s >= after)
-            for k in np.flatnonzero((bb < 0) & (disc >= 0) & (cc > 0) & (s <= dt) & (s >= after)):
-                dc = d0[k] + w_rel[k] * s[k]
-                n_hat = dc / np.linalg.norm(dc)
-                un = float(w_rel[k] @ n_hat)
-                w_new = w_rel[k] - 2.0 * un * n_hat
-                events.append(SurfaceContact(int(self.ents[sel[k]]), w.ents[wi], float(t0 + s[k]),
-                                             float(np.linalg.norm(w_rel[k])), -un))
-                u[k] = w_new + (X1[wi] - X0[wi]) / dt
-                q[k] = X1[wi] + dc + w_new * (dt - s[k])           # relative drift from contact to step end
+            todo = todo[self.nb_c_rows[sel] < 0]
+        if todo.size:
+            t_hit, w_hit = self._line_surfaces(p[todo], u[todo], t0 + np.maximum(after[todo], 0.0), t0 + dt)
+            for j in np.flatnonzero(np.isfinite(t_hit)):
+                k = todo[j]
+                p[k], u[k] = self._reflect(sel[k], p[k], u[k], int(w_hit[j]), float(t_hit[j]), events)
+        q = p + u * dt
         u = u + 0.5 * dt * (self._accel(q, X1, gm) + a[sel])
         x1[sel] = q
         v1[sel] = u

@@ -158,7 +158,11 @@ def test_current_makes_an_off_screen_context_current_and_leaves_it_current(ctx):
         with gl.current(ctx) as c:
             assert c is ctx
             target = gl.RenderTarget(ctx, (4, 4))       # this context's objects
-        ctx.renderbuffer((2, 2)).release()                # still current after the block
+        # still current after the block: its own framebuffer cleared and read with no current() around it
+        target.fbo.use()
+        ctx.clear(1.0, 0.0, 0.0, 1.0)
+        px = np.frombuffer(target.fbo.read(components=4, alignment=1), np.uint8).reshape(-1, 4)
+        np.testing.assert_array_equal(px, [[255, 0, 0, 255]] * 16)
         target.release()
     finally:
         other.release()

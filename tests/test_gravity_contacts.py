@@ -44,12 +44,15 @@ def first_touch(sa, sb, reach, t_end, samples=400_000, t_start=0.0):
     pb, _ = kepler.propagate(np.repeat(sb[0][None], ts.size, 0), np.repeat(sb[1][None], ts.size, 0), MU, ts)
     gap = np.linalg.norm(pa - pb, axis=1) - reach
     k = int(np.flatnonzero(gap <= 0)[0])
-    lo, hi = ts[k - 1], ts[k]
+    return bisect(lambda t: np.linalg.norm(kepler.propagate(sa[0], sa[1], MU, t)[0]
+                                           - kepler.propagate(sb[0], sb[1], MU, t)[0]) - reach, ts[k - 1], ts[k])
+
+
+def bisect(gap, lo, hi):
+    """The time in (lo, hi] where ``gap`` (positive at lo, <= 0 at hi) reaches 0, to 1e-13 relative."""
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        a, _ = kepler.propagate(sa[0], sa[1], MU, mid)
-        b, _ = kepler.propagate(sb[0], sb[1], MU, mid)
-        if np.linalg.norm(a - b) - reach > 0:
+        if gap(mid) > 0:
             lo = mid
         else:
             hi = mid
@@ -431,17 +434,8 @@ def first_touch_line(sa, q0, qv, reach, t_end, samples=400_000):
     pa, _ = kepler.propagate(np.repeat(sa[0][None], ts.size, 0), np.repeat(sa[1][None], ts.size, 0), MU, ts)
     gap = np.linalg.norm(pa - (q0 + qv * ts[:, None]), axis=1) - reach
     k = int(np.flatnonzero(gap <= 0)[0])
-    lo, hi = ts[k - 1], ts[k]
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        a, _ = kepler.propagate(sa[0], sa[1], MU, mid)
-        if np.linalg.norm(a - (q0 + qv * mid)) - reach > 0:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo < 1e-13 * hi:
-            break
-    return 0.5 * (lo + hi)
+    return bisect(lambda t: np.linalg.norm(kepler.propagate(sa[0], sa[1], MU, t)[0] - (q0 + qv * t)) - reach,
+                  ts[k - 1], ts[k])
 
 
 def run_obstacle(dt, T=500.3, steps=None, outward=50.0, moving=None, kg=2.0, obstacle=True):

@@ -35,6 +35,22 @@ def scene(dt=1.0):
     return w, ship, rock, hits
 
 
+def fly(w, request, until):
+    """Step ``w`` at warp ``request`` (the governor caps it) up to ``until`` s; every contact and each
+    step's ``(time, warp in force, reason)``."""
+    from driftframe.components.collision import CollisionEvent
+
+    hits = []
+    w.subscribe(CollisionEvent, hits.append)
+    warp = time_warp.of(w)
+    warp.request(request)
+    seen = []
+    while w.time < until:
+        w.step()
+        seen.append((w.time, warp.factor, warp.reason))
+    return seen, hits
+
+
 class Clock:
     def __init__(self):
         self.t = 0.0
@@ -118,7 +134,6 @@ def test_warp_drops_before_the_burn_and_the_contact_and_says_why():
 def test_warp_drops_before_two_bodies_on_rails_touch_and_the_contact_is_the_same():
     """The governor also sees contacts between colliders on rails (predicted on their conics)."""
     from driftframe import SphereCollider
-    from driftframe.components.collision import CollisionEvent
 
     T = 900.0
     where = np.array([7e6, 0.0, 0.0])
@@ -133,15 +148,8 @@ def test_warp_drops_before_two_bodies_on_rails_touch_and_the_contact_is_the_same
         for v in ((0, vc, 0), (0, 0, vc)):                     # equatorial and polar: they meet at T
             r0, v0 = kepler.propagate(where, np.array(v, float), MU, -T)
             ents.append(w.create_entity(Transform(r0), Velocity(v0), SphereCollider(radius=50.0)))
-        hits = []
-        w.subscribe(CollisionEvent, hits.append)
-        warp = time_warp.of(w)
-        warp.request(request)
-        seen = []
         try:
-            while w.time < 6000.0:
-                w.step()
-                seen.append((w.time, warp.factor, warp.reason))
+            seen, hits = fly(w, request, 6000.0)
             return seen, hits, w.columns(Velocity, ents).linear.copy()
         finally:
             w.close()
@@ -162,7 +170,6 @@ def test_warp_drops_before_two_bodies_on_rails_touch_and_the_contact_is_the_same
 def test_warp_drops_before_a_body_on_rails_meets_an_obstacle_and_the_contact_is_the_same():
     """The governor also sees a collider on rails coming to a collider gravity does not move."""
     from driftframe import SphereCollider
-    from driftframe.components.collision import CollisionEvent
 
     T = 900.0
     vc = math.sqrt(MU / 7e6)
@@ -176,15 +183,8 @@ def test_warp_drops_before_a_body_on_rails_meets_an_obstacle_and_the_contact_is_
         w.create_entity(Transform(), GravityWell(mu=MU, radius=R))
         body = w.create_entity(Transform(r0), Velocity(v0), SphereCollider(radius=50.0))
         w.create_entity(Transform(pT * (1.0 + 30.0 / np.linalg.norm(pT))), SphereCollider(radius=50.0))
-        hits = []
-        w.subscribe(CollisionEvent, hits.append)
-        warp = time_warp.of(w)
-        warp.request(request)
-        seen = []
         try:
-            while w.time < 1500.0:
-                w.step()
-                seen.append((w.time, warp.factor, warp.reason))
+            seen, hits = fly(w, request, 1500.0)
             return seen, hits, w.columns(Velocity, [body]).linear.copy()
         finally:
             w.close()
@@ -204,7 +204,6 @@ def test_warp_drops_before_n_body_colliders_could_touch():
     two n-body colliders could first touch (the gap at their speed plus the most the pulls can add), so
     no frame at the warp in force runs into the contact, and the contact is the one 1x finds."""
     from driftframe import Mass, SphereCollider
-    from driftframe.components.collision import CollisionEvent
     from driftframe.components.gravity import NBody
 
     def run(request):
@@ -217,15 +216,8 @@ def test_warp_drops_before_n_body_colliders_could_touch():
                                 SphereCollider(radius=20.0)),
                 w.create_entity(Transform((5e7, 2.0e4, 0.0)), Velocity((0.0, -5.0, 0.0)), Mass(10.0), NBody(),
                                 SphereCollider(radius=20.0))]
-        hits = []
-        w.subscribe(CollisionEvent, hits.append)
-        warp = time_warp.of(w)
-        warp.request(request)
-        seen = []
         try:
-            while w.time < 2500.0:
-                w.step()
-                seen.append((w.time, warp.factor, warp.reason))
+            seen, hits = fly(w, request, 2500.0)
             return seen, hits, w.columns(Transform, ents).position.copy()
         finally:
             w.close()
