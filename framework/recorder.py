@@ -15,13 +15,18 @@ Nothing reads the wall clock, so the same scene and seed give the same frames.
 Formats, from the path (or ``format=``):
 
 * ``.mp4`` — H.264 (libx264, 4:2:0) through the ffmpeg that the
-  ``imageio-ffmpeg`` wheel ships (x264 preset ``veryfast`` with ``subme=1``,
-  crf 20 by default). RGBA frames are piped to ffmpeg, in its own process,
-  which flips and converts them (BT.709, limited range; the video is tagged
-  so) and encodes, overlapping rendering. ``gpu_yuv=True`` converts to NV12
-  in a shader instead, with the same matrix: faster only while other work
-  loads the CPU (on a quiet 2-core machine it was 0.56 of bare against 0.61
-  for the default; ``benchmarks/record_throughput.py``). Flags pin
+  ``imageio-ffmpeg`` wheel ships: x264 preset ``ultrafast`` with CABAC and
+  the deblocking filter back on, crf 26 by default (:data:`X264_PRESET`,
+  :data:`X264_TUNING`, :data:`X264_CRF`). On the demos that is at least the
+  quality (luma PSNR) of ``veryfast`` at crf 20 for 0.45-0.75 of its
+  encoder CPU and files 1.7-2.6 times as large
+  (``benchmarks/record_throughput.py``): on a 2-core machine shared with a
+  software renderer, encoder CPU is recording speed. Frames are converted to
+  NV12 (BT.709, limited range; the video is tagged so) by
+  :mod:`framework.yuv` on the calling thread as they are read back, and
+  piped to ffmpeg, in its own process, which only encodes, overlapping
+  rendering. ``yuv="gpu"`` converts in a shader instead, ``yuv="ffmpeg"``
+  pipes RGBA and lets ffmpeg convert; both measured slower. Flags pin
   everything that could vary (thread count, ``+bitexact``, no metadata):
   the same frames give the same bytes on every run. Width and height must
   be even.
@@ -89,12 +94,23 @@ FORMATS = ("mp4", "gif", "png")
 _SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
 _PNG_NAME = "frame_{:06d}.png"
 X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow")
+#: The default x264 preset. Measured on the demos at 1280x720 (``benchmarks/record_throughput.py``):
+#: ultrafast (with :data:`X264_TUNING`) at crf 26 matched or beat veryfast at crf 20 in luma PSNR on every
+#: demo for 0.45-0.75 of its encoder CPU; the price is files 1.7-2.6 times as large (asteroids: 3.7 against
+#: 1.4 KiB a frame, about 1.8 Mbit/s at 720p60).
+X264_PRESET = "ultrafast"
 #: x264 threads, pinned: the encoded bytes depend on it, so it must not follow the machine's cores.
 X264_THREADS = 2
-#: Per-preset x264 settings beyond the preset. veryfast with the cheapest sub-pixel refinement (subme 1)
-#: took 22 % less encoder CPU on the asteroids demo at 1280x720 for 10 % larger files (0.54 vs 0.49 KiB
-#: per frame at crf 20): on 2 cores shared with a software renderer, encoder CPU is recording speed.
-X264_TUNING = {"veryfast": ["-x264-params", "subme=1"]}
+#: Per-preset x264 settings beyond the preset. ultrafast turns off CABAC and the deblocking filter; at
+#: these bit rates both cost little CPU (3.0 against 2.9 ms a 720p frame) and are worth having: CABAC
+#: saves 13 % of the bits at the same quality, the deblocking filter another 2 % and 0.7 dB.
+X264_TUNING = {"ultrafast": ["-x264-params", "cabac=1:deblock=0,0"]}
+#: Default crf per preset (others: :data:`X264_DEFAULT_CRF`): what gives ultrafast the quality of veryfast at 20.
+X264_CRF = {"ultrafast": 26}
+X264_DEFAULT_CRF = 20
+#: How MP4 frames reach x264 (``record(yuv=...)``): converted on the CPU by :mod:`framework.yuv` (the
+#: default), in a shader, or by ffmpeg from piped RGBA.
+YUV_PATHS = ("cpu", "gpu", "ffmpeg")
 #: Signals that stop a recording the way Ctrl-C does (SIGINT arrives as KeyboardInterrupt).
 STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s)
 #: Most sub-frames averaged into one frame.
@@ -425,9 +441,12 @@ class _Writer:
     next ``put`` or at ``close``.
     """
 
-    def __init__(self, sink: _Sink, depth: int = 3):
+    #: Frames queued for the thread at most (plus the one it is writing).
+    DEPTH = 3
+
+    def __init__(self, sink: _Sink):
         self.sink = sink
-        self._q: queue.Queue = queue.Queue(maxsize=depth)
+        self._q: queue.Queue = queue.Queue(maxsize=self.DEPTH)
         self._error: BaseException | None = None
         self._closed = False
         self._thread = threading.Thread(target=self._run, name="driftframe-recorder", daemon=True)
@@ -668,10 +687,10 @@ def _signal_name(signum: int) -> str:
 
 
 def record(world, path, *, frames: int, fps: float | None = None, steps_per_frame: int = 1,
-           progress: bool = True, before_step=None, gif_scale: float = 0.5, crf: int = 20,
-           preset: str = "veryfast", overwrite: bool = False, format: str | None = None,
+           progress: bool = True, before_step=None, gif_scale: float = 0.5, crf: int | None = None,
+           preset: str = X264_PRESET, overwrite: bool = False, format: str | None = None,
            motion_blur: int = 1, interpolate=None, handle_signals: bool = True,
-           gpu_yuv: bool | None = None) -> RecordResult:
+           yuv: str = "cpu") -> RecordResult:
     """Step, render and write ``frames`` frames of ``world`` to ``path`` (.mp4, .gif or a directory).
 
     ``fps``: playback rate (default ``1 / (dt * steps_per_frame)``: real
@@ -688,10 +707,10 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     ``/``). ``motion_blur``: sub-frames averaged per frame (1: none), posed by
     ``interpolate`` (see the module docstring). ``handle_signals``: turn
     SIGTERM and SIGHUP into an interrupt while recording (main thread only).
-    ``gpu_yuv``: for MP4, convert frames to NV12 in a shader and hand ffmpeg
-    finished planes (an off-screen target whose width is a multiple of 4);
-    the default (None or False) pipes RGBA and lets ffmpeg convert, which
-    measured faster on a quiet machine.
+    ``yuv``: for MP4, where frames become NV12: ``"cpu"`` (default,
+    :mod:`framework.yuv` on this thread), ``"gpu"`` (a shader; an off-screen
+    target whose width is a multiple of 4) or ``"ffmpeg"`` (RGBA piped,
+    ffmpeg converts); the pictures agree to within rounding, the bytes differ.
     Returns a :class:`RecordResult`. See the module docstring for what
     happens on Ctrl-C and on failure.
     """
@@ -714,10 +733,14 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         raise TypeError(f"before_step must be a function (world, step_index) or None, got {before_step!r}")
     if not 0 < gif_scale <= 1:
         raise ValueError(f"gif_scale must be in (0, 1], got {gif_scale!r}")
-    if isinstance(crf, bool) or not isinstance(crf, int) or not 0 <= crf <= 51:
-        raise ValueError(f"crf must be an int in [0, 51], got {crf!r}")
     if preset not in X264_PRESETS:
         raise ValueError(f"preset must be one of {', '.join(X264_PRESETS)}, got {preset!r}")
+    if crf is None:
+        crf = X264_CRF.get(preset, X264_DEFAULT_CRF)
+    if isinstance(crf, bool) or not isinstance(crf, (int, np.integer)) or not 0 <= crf <= 51:
+        raise ValueError(f"crf must be an int in [0, 51], got {crf!r}")
+    if yuv not in YUV_PATHS:
+        raise ValueError(f"yuv must be one of {', '.join(map(repr, YUV_PATHS))}, got {yuv!r}")
     target = world.resources.get("render_target")
     if target is None:
         raise LookupError("record: the world has no render target; call systems.render.attach(world, ...) first")
@@ -734,11 +757,10 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     if fmt == "mp4" and (size[0] % 2 or size[1] % 2):
         raise ValueError(f"H.264 (yuv420p) needs an even width and height, got {size[0]}x{size[1]}")
     rate = Fraction(fps).limit_denominator(10000)
-    yuv_ok = fmt == "mp4" and not getattr(target, "is_screen", True) and size[0] % 4 == 0
-    if gpu_yuv and not yuv_ok:
-        raise ValueError(f"gpu_yuv needs an MP4 output from an off-screen target whose width is a multiple of 4, "
+    if yuv == "gpu" and (fmt != "mp4" or getattr(target, "is_screen", True) or size[0] % 4):
+        raise ValueError(f"yuv='gpu' needs an MP4 output from an off-screen target whose width is a multiple of 4, "
                          f"got {fmt} at {size[0]}x{size[1]}")
-    use_yuv = bool(gpu_yuv)
+    nv12 = fmt == "mp4" and yuv != "ffmpeg"           # NV12 reaches ffmpeg: it only encodes
 
     from tqdm import tqdm
 
@@ -747,8 +769,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         tmp = _prepare_path(path, fmt, bool(overwrite))
         try:
             if fmt == "mp4":
-                sink: _Sink = _FFmpegSink(tmp, size, rate, crf=crf, preset=preset,
-                                          pixel_format="nv12" if use_yuv else "rgba")
+                sink: _Sink = _FFmpegSink(tmp, size, rate, crf=int(crf), preset=preset,
+                                          pixel_format="nv12" if nv12 else "rgba")
             elif fmt == "gif":
                 sink = _GifSink(tmp, size, rate, scale=gif_scale)
             else:
@@ -760,13 +782,15 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         if motion_blur > 1:
             grab = _blurred(world, target, interpolate, motion_blur, steps_per_frame)
         converter = None
-        if use_yuv:
+        if fmt == "mp4" and yuv == "gpu":
             try:
                 converter = _YuvConverter(target)
             except BaseException:
                 sink.abort()
                 raise
             rgba, grab = grab, (converter.convert if motion_blur == 1 else lambda: converter.convert(rgba()))
+        elif nv12:
+            grab = _cpu_nv12(grab, size, _Writer.DEPTH)
 
         t0 = time.perf_counter()
         done = 0
@@ -834,6 +858,29 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         print(f"recording interrupted after {done} of {frames} frames ({_signal_name(stopped_by)}): {where}",
               file=sys.stderr)
     return RecordResult(final, fmt, done, frames, seconds, stopped_by is not None, sink.out_size, stopped_by)
+
+
+def _cpu_nv12(grab, size, depth: int):
+    """A ``grab()`` that returns the frame as NV12 (:func:`framework.yuv.rgba_to_nv12`), on this thread.
+
+    The frame is converted right after it is read back, while it is still in
+    this core's cache (converting on the writer's thread, on the other core,
+    measured slower). It writes into ``depth + 2`` buffers in turn: the
+    writer holds at most ``depth`` queued frames and the one it is writing,
+    so a buffer is reused only after its frame has reached ffmpeg.
+    """
+    from driftframe.framework.yuv import nv12_size, rgba_to_nv12
+
+    w, h = size
+    ring = [np.empty(nv12_size(w, h), np.uint8) for _ in range(depth + 2)]
+    turn = [0]
+
+    def converted():
+        out = ring[turn[0] % len(ring)]
+        turn[0] += 1
+        return rgba_to_nv12(grab(), w, h, out)
+
+    return converted
 
 
 def _blurred(world, target, poses, n: int, steps_per_frame: int):

@@ -415,8 +415,8 @@ def test_motion_blur_needs_a_pose_source_and_a_sane_count(scene, tmp_path):
     assert w.step_count == 0 and listing(tmp_path) == []
 
 
-@pytest.mark.parametrize("gpu_yuv", [True, False])
-def test_mp4_colours_survive_the_yuv_conversion(ctx, tmp_path, gpu_yuv):
+@pytest.mark.parametrize("yuv", ["cpu", "gpu", "ffmpeg"])
+def test_mp4_colours_survive_the_yuv_conversion(ctx, tmp_path, yuv):
     # a frame of one flat colour: decoding the video must give it back (BT.709, tagged, limited range)
     w = World()
     try:
@@ -424,7 +424,7 @@ def test_mp4_colours_survive_the_yuv_conversion(ctx, tmp_path, gpu_yuv):
         w.create_entity(Camera(target=eye, mode="cockpit"))
         attach(w, ctx, (64, 48), skybox=False, clear_colour=(0.2, 0.5, 0.8))
         out = tmp_path / "flat.mp4"
-        record(w, out, frames=2, progress=False, gpu_yuv=gpu_yuv)
+        record(w, out, frames=2, progress=False, yuv=yuv)
     finally:
         w.close()
     _, frames = mp4_frames(out)
@@ -434,11 +434,80 @@ def test_mp4_colours_survive_the_yuv_conversion(ctx, tmp_path, gpu_yuv):
 
 
 def test_gpu_yuv_is_refused_where_it_cannot_work(scene, tmp_path):
-    with pytest.raises(ValueError, match="gpu_yuv needs an MP4 output .* width is a multiple of 4, got gif"):
-        record(scene(), tmp_path / "x.gif", frames=2, gpu_yuv=True)
+    with pytest.raises(ValueError, match="yuv='gpu' needs an MP4 output .* width is a multiple of 4, got gif"):
+        record(scene(), tmp_path / "x.gif", frames=2, yuv="gpu")
     with pytest.raises(ValueError, match="got mp4 at 98x64"):
-        record(scene(size=(98, 64)), tmp_path / "x.mp4", frames=2, gpu_yuv=True)
+        record(scene(size=(98, 64)), tmp_path / "x.mp4", frames=2, yuv="gpu")
+    with pytest.raises(ValueError, match="yuv must be one of 'cpu', 'gpu', 'ffmpeg', got 'CPU'"):
+        record(scene(), tmp_path / "x.mp4", frames=2, yuv="CPU")
     assert listing(tmp_path) == []
+
+
+def test_the_three_yuv_paths_give_the_same_pictures_in_the_same_order(scene, tmp_path):
+    # a moving scene, more frames than the CPU path has buffers: a buffer reused before its frame reached
+    # ffmpeg would show up as a frame out of place, far more than the paths' rounding differences
+    decoded = {}
+    for yuv in ("cpu", "gpu", "ffmpeg"):
+        out = tmp_path / f"{yuv}.mp4"
+        record(scene(), out, frames=16, progress=False, yuv=yuv, crf=0)       # crf 0: lossless x264
+        decoded[yuv] = np.stack(mp4_frames(out)[1]).astype(np.int16)
+    cpu = decoded["cpu"]
+    assert len(cpu) == 16
+    for other in ("gpu", "ffmpeg"):
+        assert len(decoded[other]) == 16
+        # mean difference of every frame of one path against every frame of the other
+        d = np.abs(cpu[:, None] - decoded[other][None]).mean(axis=(2, 3, 4))
+        assert (d.argmin(axis=1) == np.arange(16)).all(), (other, d.argmin(axis=1))    # frame k is frame k
+        assert np.diag(d).max() < 1.0, (other, np.diag(d))
+
+
+def test_a_converted_frame_keeps_its_buffer_until_the_writer_is_done_with_it():
+    # a slow sink: the queue fills and the caller converts as fast as it can. A buffer reused while the
+    # writer still holds it would change under the sink's feet (it copies only after a pause)
+    import time
+
+    from driftframe.framework import recorder
+    from driftframe.framework.yuv import rgba_to_nv12
+
+    w, h, n = 8, 4, 24
+    frames = [np.full(w * h * 4, k, np.uint8).tobytes() for k in range(n)]
+    source = iter(frames)
+    grab = recorder._cpu_nv12(lambda: next(source), (w, h), recorder._Writer.DEPTH)
+
+    class Slow(recorder._Sink):
+        got = []
+
+        def write(self, raw):
+            time.sleep(0.002)
+            self.got.append(bytes(raw))
+            self.count += 1
+
+    sink = Slow(None, (w, h), 60)
+    writer = recorder._Writer(sink)
+    for _ in range(n):
+        writer.put(grab())
+    writer.close()
+    assert sink.got == [rgba_to_nv12(f, w, h).tobytes() for f in frames]
+
+
+def test_mp4_defaults_are_the_measured_preset_and_its_crf(scene, tmp_path, monkeypatch):
+    from driftframe.framework import recorder
+
+    seen = {}
+    real = recorder._FFmpegSink
+
+    def spy(tmp, size, fps, **kw):
+        seen.update(kw)
+        return real(tmp, size, fps, **kw)
+
+    monkeypatch.setattr(recorder, "_FFmpegSink", spy)
+    record(scene(), tmp_path / "a.mp4", frames=2, progress=False)
+    assert seen == {"crf": recorder.X264_CRF[recorder.X264_PRESET], "preset": recorder.X264_PRESET,
+                    "pixel_format": "nv12"}
+    record(scene(), tmp_path / "b.mp4", frames=2, progress=False, preset="veryfast")
+    assert seen["crf"] == recorder.X264_DEFAULT_CRF            # a preset without its own crf gets 20
+    record(scene(), tmp_path / "c.mp4", frames=2, progress=False, preset="ultrafast", crf=np.int64(30))
+    assert seen["crf"] == 30 and type(seen["crf"]) is int
 
 
 def test_a_stop_signal_ends_the_recording_between_frames(scene, tmp_path, capsys):
