@@ -55,16 +55,50 @@ def cpu_seconds() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def timed(specs, jobs):
+class Timed:
+    """What one batch gave, measured in its own process (see :func:`timed`)."""
+
+    def __init__(self, took, cpu_seconds, walls, hashes):
+        self.took, self.cpu_seconds, self.walls, self.hashes = took, cpu_seconds, walls, hashes
+
+
+def _child(kind: str, folder: str, count: int, seconds: float, jobs: int, spheres: int) -> None:
+    """Run one batch in this (fresh) process and print what it took as JSON on the last line."""
+    import json
+
+    specs = recordings(Path(folder), count, seconds) if kind == "recordings" else headless(count, seconds, spheres)
     c0 = cpu_seconds()
     t0 = time.perf_counter()
     out = batch.run_all(specs, jobs=jobs, progress=False)
     took = time.perf_counter() - t0
-    out.cpu_seconds = cpu_seconds() - c0
     bad = [r for r in out.results if not isinstance(r, batch.Result)]
     if bad:
         raise SystemExit(f"{len(bad)} runs failed; first: {getattr(bad[0], 'traceback', bad[0])}")
-    return took, out
+    print(json.dumps({"took": took, "cpu": cpu_seconds() - c0, "walls": [r.wall_seconds for r in out.results],
+                      "hashes": [r.state_hash for r in out.results]}))
+
+
+def timed(kind: str, folder: Path, count: int, seconds: float, jobs: int, spheres: int = 500) -> Timed:
+    """One batch through :func:`driftframe.batch.run_all`, timed end to end, in a fresh Python process.
+
+    A fresh process for each, as ``driftframe batch`` runs: Mesa reads
+    ``LP_NUM_THREADS`` once a process, when it makes its first GL context,
+    so the rasteriser threads a batch plans for its own process hold only
+    there. The clock starts after the imports, as in the batch itself.
+    """
+    import json
+    import subprocess
+    import sys
+
+    code = (f"from benchmarks.batch_scaling import _child; "
+            f"_child({kind!r}, {str(folder)!r}, {count}, {seconds}, {jobs}, {spheres})")
+    env = {k: v for k, v in os.environ.items() if k != "LP_NUM_THREADS"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                          cwd=Path(__file__).resolve().parent.parent)
+    if done.returncode != 0:
+        raise SystemExit(f"{kind} batch with jobs={jobs} failed:\n{done.stderr[-3000:]}")
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    return Timed(got["took"], got["cpu"], got["walls"], got["hashes"])
 
 
 def main(argv=None) -> int:
@@ -89,21 +123,21 @@ def main(argv=None) -> int:
         for k in range(rounds):
             # order alternates each round: neither side always runs first (warm caches, a quiet spell)
             for jobs in ((1, 2) if k % 2 == 0 else (2, 1)):
-                took, out = timed(recordings(tmp / f"r{k}j{jobs}", n_rec, rec_s), jobs)
-                samples["recordings"][jobs].append(took)
+                out = timed("recordings", tmp / f"r{k}j{jobs}", n_rec, rec_s, jobs)
+                samples["recordings"][jobs].append(out.took)
                 cpu["recordings"][jobs].append(out.cpu_seconds)
-                worst_run["recordings"] = max(worst_run["recordings"], *(r.wall_seconds for r in out.results))
-                print(f"[{NAME}] round {k}: {n_rec} recordings, jobs={jobs}: {took:.2f} s", flush=True)
+                worst_run["recordings"] = max(worst_run["recordings"], *out.walls)
+                print(f"[{NAME}] round {k}: {n_rec} recordings, jobs={jobs}: {out.took:.2f} s", flush=True)
             for jobs in ((2, 1) if k % 2 == 0 else (1, 2)):
-                took, out = timed(headless(n_head, head_s, spheres), jobs)
-                samples["headless"][jobs].append(took)
+                out = timed("headless", tmp, n_head, head_s, jobs, spheres)
+                samples["headless"][jobs].append(out.took)
                 cpu["headless"][jobs].append(out.cpu_seconds)
-                worst_run["headless"] = max(worst_run["headless"], *(r.wall_seconds for r in out.results))
+                worst_run["headless"] = max(worst_run["headless"], *out.walls)
                 if jobs == 1:
-                    serial_hashes = [r.state_hash for r in out.results]
+                    serial_hashes = out.hashes
                 else:
-                    pool_hashes = [r.state_hash for r in out.results]
-                print(f"[{NAME}] round {k}: {n_head} headless runs, jobs={jobs}: {took:.2f} s", flush=True)
+                    pool_hashes = out.hashes
+                print(f"[{NAME}] round {k}: {n_head} headless runs, jobs={jobs}: {out.took:.2f} s", flush=True)
             loads.append(os.getloadavg()[0])
             hashes_equal &= serial_hashes == pool_hashes
             for s in range(n_rec):
@@ -113,6 +147,7 @@ def main(argv=None) -> int:
                 identical &= a == b == first
 
     rows = []
+    busy = {}
     for label, per in samples.items():
         ser, par = statistics.median(per[1]), statistics.median(per[2])
         # paired: each round's -j 2 time against the serial time of the same round (same load, same minute)
@@ -124,8 +159,10 @@ def main(argv=None) -> int:
         speedup = statistics.median(paired)
         cpu_ser, cpu_par = statistics.median(cpu[label][1]), statistics.median(cpu[label][2])
         # a projection, not a measurement: on idle cores the serial batch takes cpu_ser / cores_per_run
-        # (one run keeps cores_per_run busy) and the pool at least cpu_par / cores
-        per_run = batch.RECORDING_CORES if label == "recordings" else 1.0
+        # (one run keeps cores_per_run busy: measured, serial CPU over serial wall) and the pool at least
+        # cpu_par / cores
+        per_run = max(1.0, cpu_ser / ser)
+        busy[label] = per_run
         ncores = min(2, batch.cores())
         projected = (cpu_ser / per_run) / (cpu_par / ncores)
         rows.append([what, ser, par, cpu_ser, cpu_par, speedup, min(paired), max(paired), projected,
@@ -168,12 +205,16 @@ def main(argv=None) -> int:
         table(["batch", "serial s", "-j 2 s", "serial CPU s", "-j 2 CPU s", "speed-up",
                "worst round", "best round", "idle-core projection", "bar", ""], rows),
         "",
-        f"- Ceiling for the recordings: alone, one recording keeps about {batch.RECORDING_CORES:g} cores busy "
-        f"(x264 encodes beside the run in ffmpeg's process; `driftframe.batch.RECORDING_CORES`), so "
-        f"{batch.cores()} cores give at most {batch.cores()} / {batch.RECORDING_CORES:g} = "
-        f"{batch.cores() / batch.RECORDING_CORES:.2f}x, before the pool's own start-up (two interpreters "
-        "importing driftframe, numpy and moderngl and making their first GL context: most of the CPU "
-        "difference above). Headless runs keep one core busy each: the ceiling is the core count.",
+        f"- Ceiling for the recordings: one recording alone keeps {busy['recordings']:.2f} cores busy (serial "
+        f"CPU s / serial s: x264 encodes beside the run in ffmpeg's process), so {batch.cores()} cores give at "
+        f"most {batch.cores()} / {busy['recordings']:.2f} = {batch.cores() / busy['recordings']:.2f}x, before "
+        "the pool's own start-up (an interpreter importing driftframe, numpy and moderngl and making its "
+        "first GL context: most of the CPU difference above). Headless runs keep one core busy each: the "
+        "ceiling is the core count.",
+        f"- Each batch runs in a fresh Python process, as `driftframe batch` does (Mesa reads `LP_NUM_THREADS` "
+        "once a process, at its first GL context, so only a fresh process gets the rasteriser threads the "
+        "batch plans: none for `-j 2` on 2 cores, llvmpipe's default for `-j 1`); the clock starts after "
+        "the imports.",
         "- *Idle-core projection* is computed, not measured: what the CPU times give if the two cores were "
         "ours alone, (serial CPU s / cores one run keeps busy) / (`-j 2` CPU s / 2): the load-independent "
         "upper bound of the speed-up, after the pool's own costs.",

@@ -33,8 +33,9 @@ recording adds ffmpeg's x264 encoder beside it (its threads pinned at
 ``recorder.X264_THREADS`` because the bytes depend on it, so its load is
 counted: :data:`RECORDING_CORES`). Mesa starts ``LP_NUM_THREADS``
 rasteriser threads in every process (by default one per core): with several
-workers each gets ``LP_NUM_THREADS = max(1, cores // jobs)`` unless you set
-it yourself. Give ``jobs`` to override.
+workers each gets ``LP_NUM_THREADS = cores // jobs``, or 0 (rasterise on the
+run's own thread) where that is 1, unless you set it yourself. Give ``jobs``
+to override.
 
 Failures: a run that raises becomes a :class:`Failure` (its spec, the error,
 the traceback) and the others go on. Ctrl-C: the first one stops the batch
@@ -524,10 +525,11 @@ def cores() -> int:
 
 
 #: Cores one MP4 recording keeps busy, measured alone (CPU time of the process and of its ffmpeg over
-#: wall time, asteroids demo, 3 s): 1.2-1.27 at 640x360 and at 1280x720. The run's own thread is the
-#: critical path; x264 (its thread count pinned at ``recorder.X264_THREADS``: the bytes depend on it)
-#: runs beside it in ffmpeg's process, 0.4x-1.2x the run's own CPU time from 320x180 to 1280x720.
-RECORDING_CORES = 1.25
+#: wall time, asteroids demo, 3 s at 640x360, rasterising on the run's thread): 1.27-1.35. The run's own
+#: thread is the critical path; x264 (its thread count pinned at ``recorder.X264_THREADS``: the bytes
+#: depend on it) runs beside it in ffmpeg's process, a quarter to a half of the run's own CPU time from
+#: 640x360 to 1280x720.
+RECORDING_CORES = 1.3
 
 
 def plan_jobs(specs, jobs: int | None = None, *, ncores: int | None = None) -> tuple[int, int | None]:
@@ -542,9 +544,11 @@ def plan_jobs(specs, jobs: int | None = None, *, ncores: int | None = None) -> t
     load is counted rather than capped. Rounding, not flooring: a slightly
     oversubscribed core costs less than an idle one. Mesa's rasteriser
     starts ``LP_NUM_THREADS`` threads in every process (default: one per
-    core): with several workers each gets ``max(1, cores // jobs)`` unless
-    ``LP_NUM_THREADS`` is set already, which is left alone. The pictures do
-    not depend on it.
+    core): with several workers each gets ``cores // jobs``, and 0 where
+    that is 1 (llvmpipe then rasterises on the calling thread: one
+    rasteriser thread only adds a hand-off; a recording at 1280x720 made 85
+    frames/s with it and 115 without), unless ``LP_NUM_THREADS`` is set
+    already, which is left alone. The pictures do not depend on it.
     """
     ncores = ncores or cores()
     specs = list(specs)
@@ -557,7 +561,8 @@ def plan_jobs(specs, jobs: int | None = None, *, ncores: int | None = None) -> t
     jobs = max(1, min(jobs, len(specs) or 1))
     lp = None
     if jobs > 1 and "LP_NUM_THREADS" not in os.environ:
-        lp = max(1, ncores // jobs)
+        lp = ncores // jobs
+        lp = lp if lp > 1 else 0            # one core a process: rasterise on the run's thread
     return jobs, lp
 
 
@@ -577,8 +582,11 @@ def _worker_init(stop_event, lp_threads) -> None:
 
 @contextlib.contextmanager
 def _rasteriser_threads(lp_threads):
-    """``LP_NUM_THREADS`` as planned while this process runs a spec of a pool's batch (Mesa reads it
-    when a run makes its GL context), then as it was; a value the user set is left alone."""
+    """``LP_NUM_THREADS`` as planned while this process runs a spec of a pool's batch, then as it was; a
+    value the user set is left alone. Mesa reads it once a process, when the first GL context is made:
+    it holds for this process only if no context was made here before the batch (as in ``driftframe
+    batch``; a program that rendered before keeps the threads it started with: the pictures are the
+    same, only the speed differs)."""
     if lp_threads is None or "LP_NUM_THREADS" in os.environ:
         yield
         return

@@ -386,12 +386,13 @@ def test_the_grid_is_every_combination_with_inclusive_ranges(tmp_path):
 def test_the_worker_plan_follows_the_cores_and_the_frame_size(monkeypatch):
     monkeypatch.delenv("LP_NUM_THREADS", raising=False)
     runs = [Spec(demo="cradle")] * 10
-    assert batch.plan_jobs(runs, ncores=8) == (8, 1)
+    assert batch.plan_jobs(runs, ncores=8) == (8, 0)              # a core each: no rasteriser thread
     assert batch.plan_jobs(runs[:3], ncores=8) == (3, 2)          # never more workers than runs
     assert batch.plan_jobs(runs, 1, ncores=8) == (1, None)        # serial: llvmpipe keeps every core
-    videos = [Spec(demo="cradle", output="a.mp4", size=(640, 360))] * 10
-    assert batch.plan_jobs(videos, ncores=8) == (6, 1)            # 1.25 cores a recording: the encoder
-    assert batch.plan_jobs(videos, ncores=2) == (2, 1)            # 1.6 rounds up: an idle core costs more
+    videos = [Spec(demo="cradle", output="a.mp4", size=(640, 360))] * 20
+    assert batch.plan_jobs(videos, ncores=8) == (6, 0)            # 1.3 cores a recording: the encoder
+    assert batch.plan_jobs(videos, ncores=16) == (12, 0)
+    assert batch.plan_jobs(videos, ncores=2) == (2, 0)            # 1.54 rounds up: an idle core costs more
     monkeypatch.setenv("LP_NUM_THREADS", "3")
     assert batch.plan_jobs(runs, ncores=8) == (8, None)           # the user's setting is left alone
     with pytest.raises(SpecError, match="jobs must be an integer >= 1, got 0"):
