@@ -18,8 +18,8 @@ Formats, from the path (or ``format=``):
   ``imageio-ffmpeg`` wheel ships: x264 preset ``ultrafast`` with CABAC and
   the deblocking filter back on, crf 26 by default (:data:`X264_PRESET`,
   :data:`X264_TUNING`, :data:`X264_CRF`). On the demos that is at least the
-  quality (luma PSNR) of ``veryfast`` at crf 20 for 0.45-0.75 of its
-  encoder CPU and files 1.7-2.6 times as large
+  quality (luma PSNR) of ``veryfast`` at crf 20 for 0.5-0.6 of its
+  encoder CPU and files 1.7-3.3 times as large
   (``benchmarks/record_throughput.py``): on a 2-core machine shared with a
   software renderer, encoder CPU is recording speed. Frames are converted to
   NV12 (BT.709, limited range; the video is tagged so) by
@@ -95,12 +95,14 @@ _SUFFIXES = {".mp4": "mp4", ".gif": "gif"}
 _PNG_NAME = "frame_{:06d}.png"
 X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow")
 #: The default x264 preset. Measured on the demos at 1280x720 (``benchmarks/record_throughput.py``):
-#: ultrafast (with :data:`X264_TUNING`) at crf 26 matched or beat veryfast at crf 20 in luma PSNR on every
-#: demo for 0.45-0.75 of its encoder CPU; the price is files 1.7-2.6 times as large (asteroids: 3.7 against
-#: 1.4 KiB a frame, about 1.8 Mbit/s at 720p60).
+#: ultrafast (with :data:`X264_TUNING`) at crf 26 matched or beat veryfast + subme 1 at crf 20 (the
+#: previous default) in luma PSNR on every demo for 0.5-0.6 of its encoder CPU; the price is files 1.7-3.3
+#: times as large (asteroids: 3.6 against 1.4 KiB a frame, about 1.8 Mbit/s at 720p60).
 X264_PRESET = "ultrafast"
-#: x264 threads, pinned: the encoded bytes depend on it, so it must not follow the machine's cores.
-X264_THREADS = 2
+#: x264 threads, pinned: the encoded bytes depend on it, so it must not follow the machine's cores. One:
+#: x264 then runs in ffmpeg's encoder thread, beside the render, and at ultrafast one thread keeps up; on
+#: 2 cores two threads only competed with the renderer (1280x720: 0.67 of bare with 2, 0.73 with 1).
+X264_THREADS = 1
 #: Per-preset x264 settings beyond the preset. ultrafast turns off CABAC and the deblocking filter; at
 #: these bit rates both cost little CPU (3.0 against 2.9 ms a 720p frame) and are worth having: CABAC
 #: saves 13 % of the bits at the same quality, the deblocking filter another 2 % and 0.7 dB.

@@ -16,7 +16,7 @@ and the pipe carried 2.7x the bytes.
 The numbers are BT.709, limited ("TV") range, as the video is tagged:
 ``Y' = 16 + 219 (Kr R + Kg G + Kb B) / 255`` per pixel, and ``Cb``, ``Cr``
 (``128 +/- 112``) of the mean of each 2x2 block, the same matrix and the
-same box average as the shader path (``gpu_yuv``). Coefficients are 16-bit
+same box average as the shader path (``yuv="gpu"``). Coefficients are 16-bit
 fixed point and every sum is rounded once, so a value is never more than
 one step from the exact one, and integer arithmetic makes it the same on
 every machine. The input is GL order (bottom row first): the flip is free,
