@@ -188,15 +188,31 @@ def main(argv=None) -> None:
             rows.append([label, fps, spread, share, ms, f"{per_frame / 1024:.2f} KiB"])
         print(f"{label:>60}: {fps:6.1f} frames/s  ({share} of bare, {ms} ms CPU a frame)")
 
-    fig, ax = figure(figsize=(8, 3.8))
+    qrows, points = encoder_quality(ctx, 30 if args.quick else 120)
+    fig, (ax, bx) = figure(1, 2, figsize=(13, 4.6), gridspec_kw={"width_ratios": [1.25, 1]})
     labels = list(fps_of)
     ax.barh(range(len(labels)), [fps_of[k] for k in labels], color=["grey"] + ["C0"] * (len(labels) - 1))
-    ax.set_yticks(range(len(labels)), labels, fontsize=8)
+    ax.set_yticks(range(len(labels)), [k.replace(": ", ":\n", 1) if len(k) > 50 else k for k in labels],
+                  fontsize=7)
     ax.invert_yaxis()
     ax.set_xlabel(f"frames per second written (median of {repeats} x {frames} frames)")
-    ax.set_title(f"Recording the asteroids demo at {SIZE[0]}x{SIZE[1]}, {renderer(ctx).split(' (')[0]}")
+    ax.set_title(f"Recording asteroids at {SIZE[0]}x{SIZE[1]} ({renderer(ctx).split(' (')[0]})", fontsize=10)
     for i, k in enumerate(labels):
-        ax.text(fps_of[k], i, f" {fps_of[k]:.1f}", va="center", fontsize=8)
+        ax.text(fps_of[k], i, f" {fps_of[k]:.1f}", va="center", fontsize=7)
+    ax.set_xlim(0, 1.12 * max(fps_of.values()))
+    # the encoder's trade: CPU against quality, one line per demo through its settings
+    marks = dict(zip([s[0] for s in SETTINGS], "os^vDP"))
+    for c, demo in enumerate(dict.fromkeys(p[0] for p in points)):
+        mine = [p for p in points if p[0] == demo]
+        for _, label, cpu_ms, psnr, _ in mine:
+            big = "(default)" in label
+            bx.plot(cpu_ms, psnr, marks[label], color=f"C{c}", ms=9 if big else 5,
+                    mfc=f"C{c}" if big else "none", label=label if c == 0 else None)
+        bx.text(mine[0][2], mine[0][3], f"  {demo}", color=f"C{c}", fontsize=8, va="center")
+    bx.set_xlabel("x264 CPU a frame, ms (1280x720)")
+    bx.set_ylabel("luma PSNR, dB (mean over frames)")
+    bx.set_title("Encoder settings: CPU against quality (filled: the default)", fontsize=10)
+    bx.legend(fontsize=6.5, loc="upper right")
     save_chart(fig, NAME)
     body = "\n".join([
         f"{frames} frames (the first {frames / 60:g} s of the demo) per run, median of {repeats} interleaved "
@@ -212,7 +228,6 @@ def main(argv=None) -> None:
         "",
         table(["output", "frames/s", "range", "share of bare", "CPU a frame, ms", "size per frame"], rows),
     ])
-    qrows = encoder_quality(ctx, 30 if args.quick else 120)
     body += "\n".join([
         "", "",
         "**Encoder settings against each other.** Each demo's first frames at "
@@ -295,8 +310,9 @@ def _luma_psnr(nv12: list[np.ndarray], path: Path) -> tuple[float, float]:
     return float(psnr.mean()), float(psnr.min())
 
 
-def encoder_quality(ctx, frames: int) -> list[list]:
-    rows = []
+def encoder_quality(ctx, frames: int) -> tuple[list[list], list[tuple]]:
+    """Table rows, and (demo, setting, x264 ms a frame, mean PSNR, bytes a frame) for the chart."""
+    rows, points = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for demo in ("asteroids", "swarm", "billiards"):
             nv12 = _nv12_frames(ctx, demo, frames)
@@ -310,9 +326,10 @@ def encoder_quality(ctx, frames: int) -> list[list]:
                 base = base or (cpu, size)
                 rows.append([demo, label, f"{cpu * 1e3:.2f}", f"{cpu / base[0]:.2f}", f"{size / 1024:.2f} KiB",
                              f"{size / base[1]:.2f}", f"{mean:.1f} ({worst:.1f})"])
+                points.append((demo, label, cpu * 1e3, mean, size))
                 print(f"{demo:>10} {label:>48}: x264 {cpu * 1e3:5.2f} ms a frame, {size / 1024:6.2f} KiB, "
                       f"PSNR {mean:.1f} ({worst:.1f}) dB")
-    return rows
+    return rows, points
 
 
 if __name__ == "__main__":
