@@ -234,8 +234,8 @@ def main(argv=None) -> None:
         f"{SIZE[0]}x{SIZE[1]}, converted to NV12 once; each setting encodes the same frames through the "
         "recorder's own ffmpeg command. *x264 CPU a frame* is ffmpeg's processor time (it depends little on "
         "other work); *PSNR* is of the luma of the decoded video against the NV12 it was given, mean over "
-        "frames (worst frame in brackets). The default is the cheapest setting in this table that gives every demo at least "
-        "the PSNR of the recorder's previous default (veryfast + subme 1, crf 20).",
+        "frames (worst frame in brackets). The default is the cheapest setting in this table that gives every "
+        "demo at least the PSNR of the recorder's previous default (veryfast + subme 1, crf 20).",
         "",
         table(["demo", "x264 setting", "x264 CPU a frame, ms", "x CPU of before", "size per frame",
                "x size of before", "luma PSNR, dB"], qrows),
