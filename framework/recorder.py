@@ -700,10 +700,11 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     (:mod:`framework.warp`), read frame by frame.
     ``before_step(world, step_index)``: called before every step (scripted
     input). ``progress``: a tqdm bar on stderr. ``gif_scale``: GIF size
-    factor. ``crf``/``preset``: x264 quality (0..51, lower is better) and
-    speed (``"veryfast"`` recorded the asteroids demo 1.2-1.6x faster than
-    ``"medium"`` on 2 cores, for files of about the same size at the same
-    crf; see ``benchmarks/record_throughput.py``). ``overwrite``: replace an
+    factor. ``crf``/``preset``: x264 quality (0..51, lower is better; None:
+    the preset's own default, :data:`X264_CRF`) and speed (default
+    :data:`X264_PRESET`; ``preset="veryfast", crf=20`` gives files about a
+    third the size for about twice the encoder CPU; the trade for each demo
+    is in ``benchmarks/record_throughput.py``). ``overwrite``: replace an
     existing output (refused otherwise). ``format``: ``"mp4"``, ``"gif"`` or
     ``"png"`` instead of guessing from the path (a ``Path`` cannot end in
     ``/``). ``motion_blur``: sub-frames averaged per frame (1: none), posed by
