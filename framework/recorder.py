@@ -702,9 +702,9 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     input). ``progress``: a tqdm bar on stderr. ``gif_scale``: GIF size
     factor. ``crf``/``preset``: x264 quality (0..51, lower is better; None:
     the preset's own default, :data:`X264_CRF`) and speed (default
-    :data:`X264_PRESET`; ``preset="veryfast", crf=20`` gives files about a
-    third the size for about twice the encoder CPU; the trade for each demo
-    is in ``benchmarks/record_throughput.py``). ``overwrite``: replace an
+    :data:`X264_PRESET`; ``preset="veryfast", crf=20`` gives files a third
+    to a half the size for 1.9-2.6 times the encoder CPU; the trade for each
+    demo is in ``benchmarks/record_throughput.py``). ``overwrite``: replace an
     existing output (refused otherwise). ``format``: ``"mp4"``, ``"gif"`` or
     ``"png"`` instead of guessing from the path (a ``Path`` cannot end in
     ``/``). ``motion_blur``: sub-frames averaged per frame (1: none), posed by
