@@ -235,9 +235,9 @@ def main(argv=None) -> None:
         f"Bar: the default MP4 at least {MP4_BAR:g} of bare (median share over rounds): "
         f"**{'met' if shares[default_label][0] >= MP4_BAR else 'not met'}** ({shares[default_label][0]:.2f}; "
         f"worst round {shares[default_label][1]:.2f}; the recorder before this change "
-        f"{shares[before_label][0]:.2f} in the same run). The share moves with other work on the machine: a "
-        "recording needs more of the second core than the bare loop does, so it loses more when that core "
-        "is taken.",
+        f"{shares[before_label][0]:.2f} in the same run). The share moves from run to run with other work "
+        "on the machine, both ways: load slows the recording's extra threads, and a quiet machine makes the "
+        "bare loop fastest, leaving the least idle CPU beside it.",
     ])
     body += "\n".join([
         "", "",
