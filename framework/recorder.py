@@ -18,7 +18,7 @@ Formats, from the path (or ``format=``):
   ``imageio-ffmpeg`` wheel ships: x264 preset ``ultrafast`` with CABAC and
   the deblocking filter back on, crf 26 by default (:data:`X264_PRESET`,
   :data:`X264_TUNING`, :data:`X264_CRF`). On the demos that is at least the
-  quality (luma PSNR) of ``veryfast`` at crf 20 for 0.5-0.6 of its
+  quality (luma PSNR) of ``veryfast`` at crf 20 for 0.5-0.7 of its
   encoder CPU and files 1.7-3.3 times as large
   (``benchmarks/record_throughput.py``): on a 2-core machine shared with a
   software renderer, encoder CPU is recording speed. Frames are converted to
@@ -96,7 +96,7 @@ _PNG_NAME = "frame_{:06d}.png"
 X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow")
 #: The default x264 preset. Measured on the demos at 1280x720 (``benchmarks/record_throughput.py``):
 #: ultrafast (with :data:`X264_TUNING`) at crf 26 matched or beat veryfast + subme 1 at crf 20 (the
-#: previous default) in luma PSNR on every demo for 0.5-0.6 of its encoder CPU; the price is files 1.7-3.3
+#: previous default) in luma PSNR on every demo for 0.5-0.7 of its encoder CPU; the price is files 1.7-3.3
 #: times as large (asteroids: 3.6 against 1.4 KiB a frame, about 1.8 Mbit/s at 720p60).
 X264_PRESET = "ultrafast"
 #: x264 threads, pinned: the encoded bytes depend on it, so it must not follow the machine's cores. One:
