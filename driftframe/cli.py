@@ -73,6 +73,16 @@ def _blur(text):
     return v
 
 
+def _crf(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"crf must be a whole number from 0 (lossless) to 51, got {text!r}") from None
+    if not 0 <= v <= 51:
+        raise argparse.ArgumentTypeError(f"crf must be a whole number from 0 (lossless) to 51, got {text!r}")
+    return v
+
+
 def _size(text):
     from driftframe.app import parse_size
     try:
@@ -151,6 +161,15 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--motion-blur", type=_blur, default=1, metavar="N",
                      help="average N sub-frames, posed between the fixed steps, into each frame "
                           "(default 1: none); a fast spin then blurs instead of strobing")
+    from driftframe.framework.recorder import X264_CRF, X264_DEFAULT_CRF, X264_PRESET, X264_PRESETS
+    rec.add_argument("--preset", choices=X264_PRESETS, default=None, metavar="NAME",
+                     help=f"MP4: x264's speed against file size, one of {', '.join(X264_PRESETS)} (default "
+                          f"{X264_PRESET}: fastest; veryfast makes files a third to half the size for about twice "
+                          "the encoder's CPU)")
+    rec.add_argument("--crf", type=_crf, default=None, metavar="Q",
+                     help=f"MP4: quality, 0 (lossless) to 51, lower is better (default: the preset's own, "
+                          f"{X264_CRF.get(X264_PRESET, X264_DEFAULT_CRF)} for {X264_PRESET} and "
+                          f"{X264_DEFAULT_CRF} for the others, about the same picture)")
     rec.add_argument("--quiet", action="store_true", help="no progress bar")
     rec.add_argument("--track", default=None, metavar="FILE",
                      help="fly the track FILE (from `play --save-track`) instead of the demo's script; its "
@@ -291,7 +310,7 @@ def frame_count(seconds: float, fps: float, steps: int) -> int:
 
 def cmd_record(args) -> int:
     from driftframe.app import attach_rendering, make_world
-    from driftframe.framework.recorder import OutputExistsError, output_format, record
+    from driftframe.framework.recorder import X264_PRESET, OutputExistsError, output_format, record
 
     demo = _load_demo(args.demo)
     track = _apply_track(args, demo)
@@ -302,6 +321,9 @@ def cmd_record(args) -> int:
         output_format(out)
     except ValueError as e:
         raise UsageError(str(e)) from None
+    fmt = output_format(out)
+    if fmt != "mp4" and (args.crf is not None or args.preset is not None):
+        raise UsageError(f"--preset and --crf are for MP4 output, not {fmt.upper()} ({out!r})")
     k = steps_per_frame(args.fps, demo_dt(demo))
     frames = frame_count(seconds, args.fps, k)
     if args.output is None:
@@ -322,7 +344,8 @@ def cmd_record(args) -> int:
             from driftframe.framework.hashlog import attach_hash_log
             attach_hash_log(world, args.hash_log)
         result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet,
-                        overwrite=args.overwrite, motion_blur=args.motion_blur, interpolate=poses)
+                        overwrite=args.overwrite, motion_blur=args.motion_blur, interpolate=poses,
+                        preset=args.preset or X264_PRESET, crf=args.crf)
     except OutputExistsError as e:
         raise UsageError(f"{e} (or choose another -o)") from None
     finally:

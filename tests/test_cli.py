@@ -49,6 +49,30 @@ def test_record_mp4_end_to_end(tmp_path):
 
 
 @pytest.mark.gl
+def test_preset_and_crf_choose_the_encoder(tmp_path):
+    # the default (ultrafast at its own crf), veryfast at crf 20, and a near-lossless crf: three different
+    # files of the same frames; the near-lossless one is the largest, and the others decode to within the
+    # encoder's loss of it
+    import imageio_ffmpeg
+
+    outs = {}
+    for name, extra in (("default", []), ("veryfast", ["--preset", "veryfast", "--crf", "20"]),
+                        ("fine", ["--crf", "4"])):
+        out = tmp_path / f"{name}.mp4"
+        res = run("record", "asteroids", "--seconds", "0.5", "--size", "320x180", "--quiet", "-o", str(out), *extra)
+        assert res.returncode == 0, res.stderr
+        outs[name] = out
+    sizes = {k: v.stat().st_size for k, v in outs.items()}
+    assert len(set(sizes.values())) == 3, sizes
+    assert sizes["fine"] > sizes["default"] > sizes["veryfast"], sizes     # veryfast packs tighter
+    frames = {k: np.stack([np.frombuffer(f, np.uint8) for f in list(imageio_ffmpeg.read_frames(str(v)))[1:]])
+              for k, v in outs.items()}
+    assert {len(f) for f in frames.values()} == {30}
+    for k in ("default", "veryfast"):                  # the same picture, within the encoder's loss
+        assert np.abs(frames[k].astype(int) - frames["fine"]).mean() < 2.0, k
+
+
+@pytest.mark.gl
 def test_record_gif_and_png_frames_at_30_fps(tmp_path):
     from PIL import Image
 
@@ -96,6 +120,11 @@ def test_two_recordings_are_byte_identical(tmp_path):
     (["record", "cradle", "--motion-blur", "0"], "motion blur must be between 1 and 64"),
     (["record", "cradle", "--fps", "1e-300"], "about 1 frames (6e+301 fixed steps)"),
     (["record", "cradle", "-o", "/proc/x.mp4"], "'/proc' is not writable (it is on a proc file system"),
+    (["record", "cradle", "--preset", "fastest"], "invalid choice: 'fastest' (choose from 'ultrafast'"),
+    (["record", "cradle", "--crf", "52"], "crf must be a whole number from 0 (lossless) to 51, got '52'"),
+    (["record", "cradle", "--crf", "2.5"], "crf must be a whole number from 0 (lossless) to 51, got '2.5'"),
+    (["record", "cradle", "--crf", "20", "-o", "c.gif"], "--preset and --crf are for MP4 output, not GIF ('c.gif')"),
+    (["record", "cradle", "--preset", "veryfast", "-o", "frames/"], "--preset and --crf are for MP4 output, not PNG"),
     (["play", "pong"], "unknown demo 'pong'"),
 ])
 def test_bad_input_is_one_clear_line_and_exit_2(args, message, tmp_path):
