@@ -21,6 +21,7 @@ import statistics
 import tempfile
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 from benchmarks.common import figure, parser, save_chart, table, write_section
 from driftframe import batch
@@ -55,11 +56,13 @@ def cpu_seconds() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-class Timed:
+class Timed(NamedTuple):
     """What one batch gave, measured in its own process (see :func:`timed`)."""
 
-    def __init__(self, took, cpu_seconds, walls, hashes):
-        self.took, self.cpu_seconds, self.walls, self.hashes = took, cpu_seconds, walls, hashes
+    took: float
+    cpu_seconds: float
+    walls: list
+    hashes: list
 
 
 def _child(kind: str, folder: str, count: int, seconds: float, jobs: int, spheres: int) -> None:

@@ -25,6 +25,7 @@ against its input. That is what chose the default preset and crf.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import resource
 import statistics
@@ -111,13 +112,26 @@ def bare(ctx, frames: int) -> float:
     return fps
 
 
+@contextlib.contextmanager
+def _x264_tuning(tuning):
+    """The recorder's per-preset x264 settings replaced by ``tuning`` for a while (None: left as they are)."""
+    from driftframe.framework import recorder
+
+    saved = recorder.X264_TUNING
+    if tuning is not None:
+        recorder.X264_TUNING = tuning
+    try:
+        yield
+    finally:
+        recorder.X264_TUNING = saved
+
+
 def recorded(ctx, frames: int, path, **kw) -> tuple[float, int]:
     """Frames per second of a whole recording, and the bytes written.
 
     ``_tuning``: x264 settings beyond the preset to use instead of the
     recorder's (``{}``: the preset alone, as before they were added).
     """
-    from driftframe.framework import recorder
     from driftframe.systems.motion_blur import SubframePoses
 
     tuning = kw.pop("_tuning", None)
@@ -126,13 +140,10 @@ def recorded(ctx, frames: int, path, **kw) -> tuple[float, int]:
     w = build(ctx)
     w.step()
     w.render()                                      # warm-up, as for the baseline
-    saved = recorder.X264_TUNING
-    if tuning is not None:
-        recorder.X264_TUNING = tuning
     try:
-        res = record(w, path, frames=frames, progress=False, **kw)
+        with _x264_tuning(tuning):
+            res = record(w, path, frames=frames, progress=False, **kw)
     finally:
-        recorder.X264_TUNING = saved
         w.close()
     path = Path(path)
     size = sum(f.stat().st_size for f in path.iterdir()) if path.is_dir() else path.stat().st_size
@@ -288,18 +299,13 @@ def _encode(nv12: list[np.ndarray], path: Path, preset: str, crf: int, tuning) -
     """x264 CPU seconds a frame and bytes, through the recorder's own ffmpeg command."""
     from driftframe.framework import recorder
 
-    saved = recorder.X264_TUNING
-    if tuning is not None:
-        recorder.X264_TUNING = tuning
-    try:
+    with _x264_tuning(tuning):
         c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         sink = recorder._FFmpegSink(path, SIZE, 60, crf=crf, preset=preset, pixel_format="nv12")
         for f in nv12:
             sink.write(f)
         sink.finish()
         c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    finally:
-        recorder.X264_TUNING = saved
     cpu = (c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime) / len(nv12)
     return cpu, path.stat().st_size
 

@@ -318,10 +318,9 @@ def cmd_record(args) -> int:
     seconds = args.seconds if args.seconds is not None else demo.SECONDS
     out = args.output or os.path.join("out", f"{args.demo}.mp4")
     try:
-        output_format(out)
+        fmt = output_format(out)
     except ValueError as e:
         raise UsageError(str(e)) from None
-    fmt = output_format(out)
     if fmt != "mp4" and (args.crf is not None or args.preset is not None):
         raise UsageError(f"--preset and --crf are for MP4 output, not {fmt.upper()} ({out!r})")
     k = steps_per_frame(args.fps, demo_dt(demo))

@@ -70,6 +70,7 @@ from __future__ import annotations
 
 import errno
 import io
+import itertools
 import math
 import os
 import queue
@@ -875,13 +876,10 @@ def _cpu_nv12(grab, size, depth: int):
     from driftframe.framework.yuv import nv12_size, rgba_to_nv12
 
     w, h = size
-    ring = [np.empty(nv12_size(w, h), np.uint8) for _ in range(depth + 2)]
-    turn = [0]
+    ring = itertools.cycle([np.empty(nv12_size(w, h), np.uint8) for _ in range(depth + 2)])
 
     def converted():
-        out = ring[turn[0] % len(ring)]
-        turn[0] += 1
-        return rgba_to_nv12(grab(), w, h, out)
+        return rgba_to_nv12(grab(), w, h, next(ring))
 
     return converted
 

@@ -20,6 +20,7 @@ from driftframe.components.collision import CollisionEvent
 from driftframe.components.gravity import GravityWell, NBody, SurfaceContact
 from driftframe.framework import kepler
 from driftframe.systems.gravity import GravitySystem
+from test_gravity_contacts import bisect as contacts_bisect, collisions, states   # the same references
 
 MU = 3.986004418e14
 R_EARTH = 6.371e6
@@ -70,14 +71,6 @@ def obstacle(w, q0, qv, radius):
     return w.create_entity(Transform(q0), Velocity(qv), Mass(math.inf), SphereCollider(radius=radius))
 
 
-def collisions(w):
-    return [e for e in w.seen if isinstance(e, CollisionEvent)]
-
-
-def states(w, ents):
-    return w.columns(Transform, ents).position.copy(), w.columns(Velocity, ents).linear.copy()
-
-
 def check_event(ev, dt, method):
     """What every CollisionEvent holds: a < b, the method, a unit normal, the step and the time in it."""
     assert ev.a < ev.b and ev.method == method
@@ -111,17 +104,9 @@ def about_moon(rel0, t):
 
 
 def bisect(gap, lo, hi):
-    """The time in (lo, hi] where ``gap`` (positive at lo, <= 0 at hi) reaches 0."""
+    """The time in (lo, hi] where ``gap`` (positive at lo, <= 0 at hi) reaches 0; the bracket is checked."""
     assert gap(lo) > 0 >= gap(hi)
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if gap(mid) > 0:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo < 1e-13 * hi:
-            break
-    return 0.5 * (lo + hi)
+    return contacts_bisect(gap, lo, hi)
 
 
 def first_touch(gap, t_end, samples=300_000):
@@ -486,6 +471,22 @@ def test_a_body_on_rails_about_the_moon_meets_an_obstacle(dt, moving):
         w.close()
 
 
+def check_obstacle_contact(ev, p, u, radius, kg, q0, qv, moving, t_now, xo, vo):
+    """A body of ``radius`` and ``kg`` at ``p`` with velocity ``u`` at the contact, against an obstacle on
+    ``q0 + qv t`` (``qv`` zero when it is fixed): the event's normal, point and elastic impulse (the
+    obstacle's inverse mass is 0), and the obstacle's own state at ``t_now``, untouched. Returns the normal."""
+    n = unit(q0 + qv * ev.time - p)
+    np.testing.assert_allclose(ev.normal, n, atol=1e-8)
+    np.testing.assert_allclose(ev.point, p + radius * n, rtol=0, atol=1e-3)
+    assert ev.impulse == pytest.approx(2.0 * kg * float((u - qv) @ n), rel=1e-9)
+    if moving:
+        np.testing.assert_array_equal(vo, qv)
+        np.testing.assert_allclose(xo, q0 + qv * t_now, rtol=1e-13)
+    else:
+        np.testing.assert_array_equal(xo, q0)
+    return n
+
+
 def verify3(dt, moving, ev, a, o, t_now, x, v, xm, vm, xo, vo):
     """Test 3's checks of the event and of the end-of-run states (body x, v; moon; obstacle)."""
     (x0, u0), rel0, q0, qv, t_ref, _ = scene3(moving)
@@ -493,15 +494,7 @@ def verify3(dt, moving, ev, a, o, t_now, x, v, xm, vm, xo, vo):
     assert (ev.a, ev.b) == (a, o)
     assert abs(ev.time - t_ref) <= 1e-9 * t_ref
     pb, vb = (q[0] for q in about_moon(rel0, ev.time))
-    n = unit(q0 + qv * ev.time - pb)
-    np.testing.assert_allclose(ev.normal, n, atol=1e-8)
-    np.testing.assert_allclose(ev.point, pb + R3_BODY * n, rtol=0, atol=1e-3)
-    assert ev.impulse == pytest.approx(2.0 * KG3 * float((vb - qv) @ n), rel=1e-9)
-    if moving:
-        np.testing.assert_array_equal(vo, qv)
-        np.testing.assert_allclose(xo, q0 + qv * t_now, rtol=1e-13)
-    else:
-        np.testing.assert_array_equal(xo, q0)
+    n = check_obstacle_contact(ev, pb, vb, R3_BODY, KG3, q0, qv, moving, t_now, xo, vo)
     # the body after it, back on its conic about the moon to the contact, in the world frame
     assert np.linalg.norm(x - xm) < SOI
     r_back, v_back = (q[0] for q in conic(x - xm, v - vm, MU_MOON, ev.time - t_now))
@@ -546,15 +539,7 @@ def verify4(dt, moving, ev, nb, o, t_now, x, v, xo, vo):
     assert (ev.a, ev.b) == (nb, o)
     assert abs(ev.time - t_ref) <= 1e-9 * t_ref
     pn, un = P[j] + U[j] * (ev.time - j * dt), U[j]
-    n = unit(q0 + qv * ev.time - pn)
-    np.testing.assert_allclose(ev.normal, n, atol=1e-8)
-    np.testing.assert_allclose(ev.point, pn + R4_NB * n, rtol=0, atol=1e-3)
-    assert ev.impulse == pytest.approx(2.0 * KG4 * float((un - qv) @ n), rel=1e-9)
-    if moving:
-        np.testing.assert_array_equal(vo, qv)
-        np.testing.assert_allclose(xo, q0 + qv * t_now, rtol=1e-13)
-    else:
-        np.testing.assert_array_equal(xo, q0)
+    n = check_obstacle_contact(ev, pn, un, R4_NB, KG4, q0, qv, moving, t_now, xo, vo)
     # the drift after the contact: the end-of-step velocity less the closing half kick; straight on
     # from the contact point to the step's end
     u_post = v - 0.5 * dt * acc_planet(x)

@@ -475,14 +475,13 @@ def test_a_converted_frame_keeps_its_buffer_until_the_writer_is_done_with_it():
     grab = recorder._cpu_nv12(lambda: next(source), (w, h), recorder._Writer.DEPTH)
 
     class Slow(recorder._Sink):
-        got = []
-
         def write(self, raw):
             time.sleep(0.002)
             self.got.append(bytes(raw))
             self.count += 1
 
     sink = Slow(None, (w, h), 60)
+    sink.got = []
     writer = recorder._Writer(sink)
     for _ in range(n):
         writer.put(grab())
