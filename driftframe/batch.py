@@ -794,6 +794,30 @@ def _on_pool(specs, jobs, lp, done) -> bool:
         return flag.event.is_set()
 
 
+#: Scheduler task states of a run that has not started on any worker.
+_UNSTARTED = frozenset({"released", "waiting", "queued", "no-worker"})
+
+
+def _scheduler_states(dask_scheduler, keys):
+    return {k: ts.state for k in keys if (ts := dask_scheduler.tasks.get(k)) is not None}
+
+
+def _cancel_unstarted(client, futures) -> list:
+    """Cancel the runs of ``futures`` that no worker has started; the futures cancelled.
+
+    Decided by the scheduler's own task states, not the client's copy (which lags:
+    a run that has just finished can still read "pending" here, and cancelling it
+    would drop a whole output from the results). A run that starts between this
+    query and the cancel finds the batch's stop flag set and returns at once.
+    """
+    futures = list(futures)
+    states = client.run_on_scheduler(_scheduler_states, keys=[f.key for f in futures])
+    queued = [f for f in futures if states.get(f.key) in _UNSTARTED]
+    if queued:
+        client.cancel(queued)
+    return queued
+
+
 def _on_cluster(client, specs, done) -> bool:
     import uuid
 
@@ -820,8 +844,7 @@ def _on_cluster(client, specs, done) -> bool:
             if flag.event.is_set() and stopped_at is None:
                 stopped_at = time.monotonic()
                 stop.set()              # running tasks stop within half a second and delete their output
-                running = {k for keys in client.processing().values() for k in keys}
-                client.cancel([f for f in pending if f.key not in running])     # queued: never start
+                _cancel_unstarted(client, pending)
             if stopped_at is not None and time.monotonic() - stopped_at > 60:
                 break                   # a worker that does not answer: stop waiting for it
             if pending:

@@ -264,6 +264,44 @@ def test_ctrl_c_stops_a_batch_on_the_cluster_cleanly(tmp_path, cluster):
     assert _whole(tmp_path, 240) == sorted(Path(r.output).name for r in out.done)
 
 
+def _wait_on(name):
+    from distributed import Event
+    Event(name).wait(30)
+    return name
+
+
+def test_a_stop_cancels_only_the_runs_no_worker_has_started(cluster):
+    # The client's copy of a task's state lags the scheduler's: a run that has just finished
+    # can still read "pending" on the client. The stop must not cancel it (its output is whole
+    # and must be in the results), nor the runs going on; only those still queued.
+    from distributed import Event
+
+    gate = Event("gate-" + str(time.monotonic_ns()), client=cluster)
+    finished = cluster.submit(sum, [1, 2], pure=False)
+    deadline = time.monotonic() + 30
+    while cluster.run_on_scheduler(batch._scheduler_states, keys=[finished.key]).get(finished.key) != "memory":
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    running = [cluster.submit(_wait_on, gate.name, pure=False) for _ in range(2)]     # both workers busy
+    while set(cluster.run_on_scheduler(batch._scheduler_states, keys=[f.key for f in running]).values()) != {"processing"}:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    later = [cluster.submit(sum, [i], pure=False) for i in range(8)]
+    while len(states := cluster.run_on_scheduler(batch._scheduler_states, keys=[f.key for f in later])) < 8:
+        assert time.monotonic() < deadline            # submit is asynchronous: wait until the scheduler has them
+        time.sleep(0.01)
+    # the scheduler hands each worker a task or two beyond its threads ("processing", not started
+    # yet: they will find the stop flag set and return at once); the rest wait on the scheduler
+    queued = sorted(k for k, state in states.items() if state == "queued")
+    assert queued
+    cancelled = batch._cancel_unstarted(cluster, [finished, *running, *later])
+    gate.set()
+    assert sorted(f.key for f in cancelled) == queued
+    assert finished.result(timeout=10) == 3
+    assert [f.result(timeout=30) for f in running] == [gate.name, gate.name]
+    assert [f.cancelled() for f in later] == [f.key in queued for f in later]
+
+
 def test_a_stopped_run_deletes_what_it_had_written(tmp_path):
     calls = []
 
