@@ -808,10 +808,15 @@ def _cancel_unstarted(client, futures) -> list:
     Decided by the scheduler's own task states, not the client's copy (which lags:
     a run that has just finished can still read "pending" here, and cancelling it
     would drop a whole output from the results). A run that starts between this
-    query and the cancel finds the batch's stop flag set and returns at once.
+    query and the cancel finds the batch's stop flag set and returns at once,
+    and so does every queued run where the scheduler refuses the query (one
+    that does not run client code): nothing is cancelled then.
     """
     futures = list(futures)
-    states = client.run_on_scheduler(_scheduler_states, keys=[f.key for f in futures])
+    try:
+        states = client.run_on_scheduler(_scheduler_states, keys=[f.key for f in futures])
+    except Exception:   # noqa: BLE001 - a scheduler that refuses it: the stop flag alone stops every run
+        return []
     queued = [f for f in futures if states.get(f.key) in _UNSTARTED]
     if queued:
         client.cancel(queued)

@@ -451,6 +451,58 @@ def cmd_batch(args) -> int:
     return 1 if outcome.failures else 0
 
 
+class _CompileNotice:
+    """Says so when numba compiles kernels (a machine's first run: its cache is empty), and how long it took.
+
+    numba reports a compile only when its cache misses, so a warm run prints
+    nothing. Without this, a first ``record`` sits at frame 0 for most of a
+    minute with no word why. The line goes through ``tqdm.write``, which keeps
+    a progress bar on screen intact.
+    """
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.depth = 0
+        self.t0 = 0.0
+        self.seconds = 0.0
+        self.count = 0
+
+    def on_start(self, event) -> None:
+        import time
+        if self.depth == 0:
+            self.t0 = time.perf_counter()
+            if self.count == 0:
+                self._say("compiling the physics kernels for this machine, up to a minute: "
+                          "the first run only (numba caches them)")
+            self.count += 1
+        self.depth += 1
+
+    def on_end(self, event) -> None:
+        import time
+        self.depth -= 1
+        if self.depth == 0:
+            self.seconds += time.perf_counter() - self.t0
+
+    def _say(self, line: str) -> None:
+        from tqdm import tqdm
+        tqdm.write(f"driftframe: {line}", file=sys.stderr)
+
+    def __enter__(self):
+        if self.enabled:
+            from numba.core import event
+            self._listener = type("_Listener", (event.Listener,), {
+                "on_start": lambda _, ev: self.on_start(ev), "on_end": lambda _, ev: self.on_end(ev)})()
+            event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, *exc):
+        if self.enabled:
+            from numba.core import event
+            event.unregister("numba:compile", self._listener)
+            if self.count:
+                self._say(f"compiled the kernels in {self.seconds:.0f} s; later runs load them from the cache")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -463,7 +515,8 @@ def main(argv: list[str] | None = None) -> int:
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
                 "diverge": cmd_diverge, "batch": cmd_batch}
     try:
-        return handlers[args.command](args)
+        with _CompileNotice(args.command in ("record", "play", "batch") and not getattr(args, "quiet", False)):
+            return handlers[args.command](args)
     except UsageError as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2

@@ -111,6 +111,12 @@ F_LIMIT = 16
 
 _INF = math.inf
 
+# _NOT_LITERAL: a constant passed from one kernel to another (``f(0)``, or ``k = 0`` then ``f(k)``)
+# is typed Literal[int](0) at first, and numba compiles the callee for it and again for int64
+# once ``k`` widens (True and False each get their own, too). Constants that reach a callee are
+# written np.int64(0) / np.bool_(True): one compile each. solve_all_pairs passing False and 0 had
+# solve_step, the largest kernel, compiled twice on a machine's first run (about 15 s more).
+
 
 @njit(cache=True, error_model="numpy")
 def _grow_f(a, n):
@@ -222,7 +228,7 @@ def _pop(H, n):
     """Remove the root of a heap of ``n + 1`` rows (already read): the last row to the root, sifted down."""
     if n > 0:
         H[0, 0], H[0, 1], H[0, 2], H[0, 3] = H[n, 0], H[n, 1], H[n, 2], H[n, 3]
-        _sift_down(H, 0, n)
+        _sift_down(H, np.int64(0), n)     # np.int64: see _NOT_LITERAL
 
 
 @njit(cache=True, error_model="numpy")
@@ -309,7 +315,7 @@ def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
         act[a] = True
         lam[cs[a]] = 0.0
     while True:
-        m = 0
+        m = np.int64(0)                      # see _NOT_LITERAL
         for a in range(K):
             if act[a]:
                 sub[m] = a
@@ -501,7 +507,7 @@ def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
         for k in range(n):
             if swept[k] and live[k]:
                 P, PI, PJ, nxt, ver, mark = _sweep(k, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
-                                                   centre, reach, order, lo_x, width, True)
+                                                   centre, reach, order, lo_x, width, np.bool_(True))
         stats[3] = n_swept
 
     # -- heap of pending contacts --
@@ -530,7 +536,7 @@ def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
     # wave scratch, per wave (a wave holds at most one valid entry per pair and per heap entry: it is
     # made large enough before each wave, never inside the loops that fill it, where an array that
     # may be replaced is reference-counted on every pass)
-    wcap = 64
+    wcap = np.int64(64)                  # see _NOT_LITERAL
     wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = _wave_scratch(wcap)
     A = np.empty((DENSE_MAX, DENSE_MAX))
     y = np.empty(DENSE_MAX)
@@ -681,7 +687,7 @@ def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
             ordk = one                                     # a lone contact (most waves): nothing to sort
         else:
             ordk = np.argsort(wroot[:K], kind="mergesort")   # islands together, wave order inside
-        nm = 0
+        nm = np.int64(0)                 # see _NOT_LITERAL
         s = 0
         while s < K:
             root = wroot[ordk[s]]
@@ -805,7 +811,7 @@ def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
                     bhi[b, d] = newhi[q, d]
                 stats[3] += 1
                 P, PI, PJ, nxt, ver, mark = _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
-                                                   centre, reach, order, lo_x, width, False)
+                                                   centre, reach, order, lo_x, width, np.bool_(False))
         # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
         if hn + P > H.shape[0]:
             H = _grow_f(H, hn + P)
@@ -974,7 +980,8 @@ def solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
     t3 = np.empty((3, 0))
     f = np.empty(0)
     return solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                      False, nob, n3, n3.copy(), t3, f, f.copy(), np.empty(0, np.int64), f.copy(), 0.0, 0)
+                      np.bool_(False), nob, n3, n3.copy(), t3, f, f.copy(), np.empty(0, np.int64), f.copy(), 0.0,
+                      np.int64(0))                                    # see _NOT_LITERAL
 
 
 @njit(cache=True, error_model="numpy")

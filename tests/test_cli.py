@@ -264,3 +264,19 @@ def test_record_with_motion_blur(tmp_path):
         res = run("record", "asteroids", "--seconds", "0.2", "--size", "64x36", "--quiet", "-o", str(out), *extra)
         assert res.returncode == 0, res.stderr
     assert sharp.read_bytes() != blur.read_bytes()
+
+
+def test_a_first_run_says_it_is_compiling_the_kernels_and_a_warm_run_says_nothing(tmp_path):
+    # an empty numba cache is a machine's first run: the line comes before the wait, the time after
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    args = ("record", "spin", "-o", str(tmp_path / "s.mp4"), "--overwrite", "--seconds", "0.1", "--size", "64x64")
+    cold = run(*args, env=env)
+    assert cold.returncode == 0, cold.stderr
+    notice = [ln for ln in cold.stderr.splitlines() if ln.startswith("driftframe: compil")]
+    assert len(notice) == 2 and "the first run only" in notice[0], cold.stderr
+    assert notice[1].startswith("driftframe: compiled the kernels in ") and notice[1].endswith("from the cache")
+    assert list((tmp_path / "numba").rglob("*.nbi"))                 # numba did write its cache there
+    warm = run(*args, env=env)
+    assert warm.returncode == 0 and "compil" not in warm.stderr, warm.stderr
+    quiet = run(*args, "--quiet", env={"NUMBA_CACHE_DIR": str(tmp_path / "numba2")})
+    assert quiet.returncode == 0 and "compil" not in quiet.stderr, quiet.stderr
