@@ -21,7 +21,10 @@ _GL_TYPES = (moderngl.Buffer, moderngl.Program, moderngl.Texture, moderngl.Verte
 
 def _live_gl_objects() -> list:
     gc.collect()
-    return [o for o in gc.get_objects() if isinstance(o, _GL_TYPES) and not isinstance(o.mglo, moderngl.InvalidObject)]
+    # type(), not isinstance(): the heap can hold a weakref.proxy whose target is gone (numba keeps
+    # some), and isinstance() on one raises ReferenceError
+    return [o for o in gc.get_objects()
+            if issubclass(type(o), _GL_TYPES) and not isinstance(o.mglo, moderngl.InvalidObject)]
 
 
 def test_close_releases_every_gl_object_any_system_made(ctx):
