@@ -14,6 +14,7 @@ import math
 import os
 import signal
 import sys
+import time
 from decimal import Decimal
 
 from driftframe.framework import __version__
@@ -468,7 +469,6 @@ class _CompileNotice:
         self.count = 0
 
     def on_start(self, event) -> None:
-        import time
         if self.depth == 0:
             self.t0 = time.perf_counter()
             if self.count == 0:
@@ -478,7 +478,6 @@ class _CompileNotice:
         self.depth += 1
 
     def on_end(self, event) -> None:
-        import time
         self.depth -= 1
         if self.depth == 0:
             self.seconds += time.perf_counter() - self.t0
@@ -490,8 +489,16 @@ class _CompileNotice:
     def __enter__(self):
         if self.enabled:
             from numba.core import event
-            self._listener = type("_Listener", (event.Listener,), {
-                "on_start": lambda _, ev: self.on_start(ev), "on_end": lambda _, ev: self.on_end(ev)})()
+            notice = self
+
+            class _Listener(event.Listener):         # numba's event API: start and end of each compile
+                def on_start(self, ev):
+                    notice.on_start(ev)
+
+                def on_end(self, ev):
+                    notice.on_end(ev)
+
+            self._listener = _Listener()
             event.register("numba:compile", self._listener)
         return self
 
