@@ -65,6 +65,24 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
     return world, demo
 
 
+def load_kernels(name: str, *, seed: int = 0) -> None:
+    """Load (or, on a machine's first run, compile) the numba kernels demo ``name`` steps with.
+
+    A scratch world of the demo is built, stepped once and closed: numba
+    compiles a kernel at its first call, so on an empty cache the first step
+    takes tens of seconds. ``driftframe play`` and ``record`` call this before
+    they open the window or start the progress bar, so that wait comes first
+    (the command line says why) instead of a frozen window or a bar stuck at
+    frame 0. With the kernels cached it costs what the first step would pay
+    anyway (the cache load), plus the scratch world: 2-40 ms for the demos.
+    """
+    world, _ = make_world(name, seed=seed)
+    try:
+        world.step()
+    finally:
+        world.close()
+
+
 def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = None, hud: bool = True,
                      sky: str = "lines", **options):
     """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.

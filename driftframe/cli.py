@@ -310,7 +310,7 @@ def frame_count(seconds: float, fps: float, steps: int) -> int:
 
 
 def cmd_record(args) -> int:
-    from driftframe.app import attach_rendering, make_world
+    from driftframe.app import attach_rendering, load_kernels, make_world
     from driftframe.framework.recorder import X264_PRESET, OutputExistsError, output_format, record
 
     demo = _load_demo(args.demo)
@@ -337,6 +337,7 @@ def cmd_record(args) -> int:
         poses = SubframePoses()
     else:
         poses = None
+    load_kernels(args.demo, seed=args.seed)         # a first run's compiling, before the progress bar
     world, demo = make_world(args.demo, seed=args.seed, track=track)
     try:
         attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
@@ -366,6 +367,7 @@ def demo_dt(demo) -> float:
 
 
 def cmd_play(args) -> int:
+    from driftframe.app import load_kernels
     from driftframe.framework.bindings import load_bindings
     from driftframe.window import PlayError, play
     _load_demo(args.demo)
@@ -374,6 +376,7 @@ def cmd_play(args) -> int:
     for option in ("state_out", "save_track", "hash_log"):     # fail now, not when the session ends
         _output_file("--" + option.replace("_", "-"), getattr(args, option))
     bindings = load_bindings(args.bindings) if args.bindings else None
+    load_kernels(args.demo, seed=args.seed)         # a first run's compiling, before the window opens
     try:
         return play(args.demo, size=args.size, seed=args.seed, camera=args.camera, state_out=args.state_out,
                     screenshot_dir=args.screenshots, sky=args.sky, bindings=bindings,

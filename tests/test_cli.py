@@ -275,6 +275,8 @@ def test_a_first_run_says_it_is_compiling_the_kernels_and_a_warm_run_says_nothin
     notice = [ln for ln in cold.stderr.splitlines() if ln.startswith("driftframe: compil")]
     assert len(notice) == 2 and "the first run only" in notice[0], cold.stderr
     assert notice[1].startswith("driftframe: compiled the kernels in ") and notice[1].endswith("from the cache")
+    # the wait comes before the progress bar starts (a scratch world's first step), not at its frame 0
+    assert cold.stderr.index("driftframe: compiling") < cold.stderr.index("recording s.mp4")
     assert list((tmp_path / "numba").rglob("*.nbi"))                 # numba did write its cache there
     warm = run(*args, env=env)
     assert warm.returncode == 0 and "compil" not in warm.stderr, warm.stderr
