@@ -311,7 +311,7 @@ def frame_count(seconds: float, fps: float, steps: int) -> int:
 
 def cmd_record(args) -> int:
     from driftframe.app import attach_rendering, load_kernels, make_world
-    from driftframe.framework.recorder import X264_PRESET, OutputExistsError, output_format, record
+    from driftframe.framework.recorder import X264_PRESET, OutputExistsError, check_output, output_format, record
 
     demo = _load_demo(args.demo)
     track = _apply_track(args, demo)
@@ -337,6 +337,10 @@ def cmd_record(args) -> int:
         poses = SubframePoses()
     else:
         poses = None
+    try:
+        check_output(out, overwrite=args.overwrite, format=fmt)    # before the costly part: build, compile
+    except OutputExistsError as e:
+        raise UsageError(f"{e} (or choose another -o)") from None
     load_kernels(args.demo, seed=args.seed)         # a first run's compiling, before the progress bar
     world, demo = make_world(args.demo, seed=args.seed, track=track)
     try:

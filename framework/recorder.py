@@ -573,8 +573,18 @@ class OutputExistsError(FileExistsError):
     """The output exists and ``overwrite`` was not given."""
 
 
-def _prepare_path(path: Path, fmt: str, overwrite: bool) -> Path:
-    """Check the target and create the temporary output beside it (proving it is writable)."""
+def check_output(path, *, overwrite: bool = False, format: str | None = None) -> None:
+    """Raise what :func:`record` would raise for ``path`` before it renders anything; create nothing.
+
+    An existing output without ``overwrite``, a missing folder, a directory
+    where a file should be (and the reverse), a read-only file to replace. A
+    caller with costly work before :func:`record` (building a world, a
+    first run's compiling) checks first; :func:`record` checks again.
+    """
+    _check_target(Path(path), format or output_format(path), bool(overwrite))
+
+
+def _check_target(path: Path, fmt: str, overwrite: bool) -> None:
     parent = path.parent
     if not parent.exists():
         raise FileNotFoundError(f"cannot write {str(path)!r}: directory {str(parent)!r} does not exist")
@@ -600,6 +610,12 @@ def _prepare_path(path: Path, fmt: str, overwrite: bool) -> Path:
         if not path.stat().st_mode & 0o222:
             raise PermissionError(f"cannot replace {str(path)!r}: it is read-only (make it writable or "
                                   "delete it first)")
+
+
+def _prepare_path(path: Path, fmt: str, overwrite: bool) -> Path:
+    """Check the target and create the temporary output beside it (proving it is writable)."""
+    _check_target(path, fmt, overwrite)
+    parent = path.parent
     remove_stale_parts(path)
     try:
         if fmt == "png":

@@ -282,3 +282,13 @@ def test_a_first_run_says_it_is_compiling_the_kernels_and_a_warm_run_says_nothin
     assert warm.returncode == 0 and "compil" not in warm.stderr, warm.stderr
     quiet = run(*args, "--quiet", env={"NUMBA_CACHE_DIR": str(tmp_path / "numba2")})
     assert quiet.returncode == 0 and "compil" not in quiet.stderr, quiet.stderr
+
+
+def test_an_existing_output_is_refused_before_the_kernels_are_compiled(tmp_path):
+    # on a machine's first run the compile takes tens of seconds: the refusal must not wait for it
+    (tmp_path / "s.mp4").write_bytes(b"mine")
+    res = run("record", "spin", "-o", str(tmp_path / "s.mp4"), "--seconds", "0.1",
+              env={"NUMBA_CACHE_DIR": str(tmp_path / "numba")})
+    assert res.returncode == 2 and "exists; pass overwrite=True (--overwrite)" in res.stderr, res.stderr
+    assert "compil" not in res.stderr and not list((tmp_path / "numba").rglob("*.nbi"))
+    assert (tmp_path / "s.mp4").read_bytes() == b"mine"

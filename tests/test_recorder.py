@@ -312,6 +312,25 @@ def test_an_existing_output_is_refused_unless_overwrite(scene, tmp_path):
     assert len(mp4_frames(out)[1]) == 2 and listing(tmp_path) == ["x.mp4"]
 
 
+def test_check_output_raises_what_record_would_and_creates_nothing(tmp_path):
+    from driftframe.framework.recorder import OutputExistsError, check_output
+
+    check_output(tmp_path / "new.mp4")
+    check_output(tmp_path / "new.gif")
+    assert listing(tmp_path) == []                   # a check, not a preparation: no part file
+    (tmp_path / "x.mp4").write_bytes(b"mine")
+    with pytest.raises(OutputExistsError, match=r"x.mp4' exists; pass overwrite=True"):
+        check_output(tmp_path / "x.mp4")
+    check_output(tmp_path / "x.mp4", overwrite=True)
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        check_output(tmp_path / "no" / "x.mp4")
+    with pytest.raises(IsADirectoryError, match="it is a directory"):
+        check_output(tmp_path, format="mp4")
+    with pytest.raises(ValueError, match="has no suffix"):
+        check_output(tmp_path / "noext")
+    assert listing(tmp_path) == ["x.mp4"] and (tmp_path / "x.mp4").read_bytes() == b"mine"
+
+
 def test_stale_part_files_of_dead_recordings_are_removed(scene, tmp_path):
     import subprocess
     import sys
