@@ -373,8 +373,12 @@ def demo_dt(demo) -> float:
 def cmd_play(args) -> int:
     from driftframe.app import load_kernels
     from driftframe.framework.bindings import load_bindings
-    from driftframe.window import PlayError, play
+    from driftframe.window import PlayError, check_display, play
     _load_demo(args.demo)
+    try:
+        check_display()                              # before the costly part: a first run's compiling
+    except PlayError as e:
+        raise UsageError(str(e)) from None
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
     for option in ("state_out", "save_track", "hash_log"):     # fail now, not when the session ends

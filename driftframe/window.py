@@ -46,11 +46,16 @@ def _glfw():
     return glfw
 
 
-def open_window(glfw, size, title):
-    """A visible window with a current OpenGL 3.3 core context; PlayError when there is no display."""
+def check_display() -> None:
+    """PlayError when no display is set (DISPLAY or WAYLAND_DISPLAY): cheap, so callers check first."""
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise PlayError("no display: `driftframe play` needs a window (set DISPLAY, e.g. run under Xvfb), "
                         "or record the demo off-screen with `driftframe record`")
+
+
+def open_window(glfw, size, title):
+    """A visible window with a current OpenGL 3.3 core context; PlayError when there is no display."""
+    check_display()
     errors = []
     glfw.set_error_callback(lambda code, msg: errors.append(msg.decode() if isinstance(msg, bytes) else str(msg)))
     if not glfw.init():

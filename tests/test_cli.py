@@ -135,11 +135,13 @@ def test_bad_input_is_one_clear_line_and_exit_2(args, message, tmp_path):
     assert not list(tmp_path.iterdir())             # not even the default out/ folder
 
 
-def test_play_without_a_display_says_so():
+def test_play_without_a_display_says_so_at_once(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba")   # a first run: the refusal must not wait for a compile
     res = subprocess.run(EXE + ["play", "cradle"], capture_output=True, text=True, env=env, timeout=60)
     assert res.returncode == 2
     assert "no display" in res.stderr and "Traceback" not in res.stderr
+    assert "compil" not in res.stderr and not list((tmp_path / "numba").rglob("*.nbi"))
 
 
 def test_an_unwritable_output_directory_is_refused_before_rendering(tmp_path):
