@@ -309,8 +309,46 @@ def frame_count(seconds: float, fps: float, steps: int) -> int:
     return frames
 
 
+def _load_kernels(name: str, seed: int) -> None:
+    """:func:`driftframe.app.load_kernels` on a helper thread while this, the main thread, waits.
+
+    A Ctrl-C, SIGTERM or SIGHUP during a first run's compile then stops the
+    command here, between waits, with the usual message and exit status. In
+    the main thread it would land inside numba's compiler, which calls back
+    into Python through ctypes, where an exception is printed and dropped and
+    the compile goes on. The helper is a daemon: it ends with the process.
+    """
+    import threading
+
+    from driftframe.app import load_kernels
+    from driftframe.framework.recorder import STOP_SIGNALS, Interrupted
+
+    failed: list[BaseException] = []
+
+    def run():
+        try:
+            load_kernels(name, seed=seed)
+        except BaseException as e:   # noqa: BLE001 - handed to the main thread
+            failed.append(e)
+
+    def stop(signum, frame):
+        raise Interrupted(signum)
+
+    helper = threading.Thread(target=run, name="driftframe-kernels", daemon=True)
+    old = {s: signal.signal(s, stop) for s in STOP_SIGNALS if signal.getsignal(s) is signal.SIG_DFL}
+    try:
+        helper.start()
+        while helper.is_alive():
+            helper.join(0.1)
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+    if failed:
+        raise failed[0]
+
+
 def cmd_record(args) -> int:
-    from driftframe.app import attach_rendering, load_kernels, make_world
+    from driftframe.app import attach_rendering, make_world
     from driftframe.framework.recorder import X264_PRESET, OutputExistsError, check_output, output_format, record
 
     demo = _load_demo(args.demo)
@@ -341,7 +379,7 @@ def cmd_record(args) -> int:
         check_output(out, overwrite=args.overwrite, format=fmt)    # before the costly part: build, compile
     except OutputExistsError as e:
         raise UsageError(f"{e} (or choose another -o)") from None
-    load_kernels(args.demo, seed=args.seed)         # a first run's compiling, before the progress bar
+    _load_kernels(args.demo, args.seed)             # a first run's compiling, before the progress bar
     world, demo = make_world(args.demo, seed=args.seed, track=track)
     try:
         attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
@@ -371,20 +409,19 @@ def demo_dt(demo) -> float:
 
 
 def cmd_play(args) -> int:
-    from driftframe.app import load_kernels
     from driftframe.framework.bindings import load_bindings
     from driftframe.window import PlayError, check_display, play
     _load_demo(args.demo)
-    try:
-        check_display()                              # before the costly part: a first run's compiling
-    except PlayError as e:
-        raise UsageError(str(e)) from None
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
     for option in ("state_out", "save_track", "hash_log"):     # fail now, not when the session ends
         _output_file("--" + option.replace("_", "-"), getattr(args, option))
     bindings = load_bindings(args.bindings) if args.bindings else None
-    load_kernels(args.demo, seed=args.seed)         # a first run's compiling, before the window opens
+    try:
+        check_display()                              # after the options' own checks, before the costly part
+    except PlayError as e:
+        raise UsageError(str(e)) from None
+    _load_kernels(args.demo, args.seed)             # a first run's compiling, before the window opens
     try:
         return play(args.demo, size=args.size, seed=args.seed, camera=args.camera, state_out=args.state_out,
                     screenshot_dir=args.screenshots, sky=args.sky, bindings=bindings,
@@ -513,11 +550,18 @@ class _CompileNotice:
             event.register("numba:compile", self._listener)
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type, exc, tb):
         if self.enabled:
             from numba.core import event
             event.unregister("numba:compile", self._listener)
-            if self.count:
+            if self.depth > 0:                           # stopped in the middle of a compile
+                self.seconds += time.perf_counter() - self.t0
+            if not self.count:
+                return
+            if exc_type is not None and issubclass(exc_type, KeyboardInterrupt):   # Ctrl-C, SIGTERM, SIGHUP
+                self._say(f"stopped after {self.seconds:.0f} s of compiling kernels: those finished are "
+                          "cached, the rest are compiled on the next run")
+            else:
                 self._say(f"compiled the kernels in {self.seconds:.0f} s; later runs load them from the cache")
 
 

@@ -294,3 +294,24 @@ def test_an_existing_output_is_refused_before_the_kernels_are_compiled(tmp_path)
     assert res.returncode == 2 and "exists; pass overwrite=True (--overwrite)" in res.stderr, res.stderr
     assert "compil" not in res.stderr and not list((tmp_path / "numba").rglob("*.nbi"))
     assert (tmp_path / "s.mp4").read_bytes() == b"mine"
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_kernels_compile_stops_cleanly_and_says_so(tmp_path, signame):
+    import signal
+    import time
+    signum = getattr(signal, signame)
+    out = tmp_path / "a.mp4"
+    proc = subprocess.Popen(EXE + ["record", "asteroids", "-o", str(out)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")})
+    first = proc.stderr.readline()                  # the notice: compiling has begun (it takes ~35 s cold)
+    assert first.startswith("driftframe: compiling"), first
+    time.sleep(1.0)
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signum, err
+    assert "s of compiling kernels: those finished are cached, the rest are compiled on the next run" in err
+    assert "compiled the kernels in" not in err and "Traceback" not in err
+    assert f"interrupted ({signame})" in err and not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name != "numba"]      # no output, no part file
