@@ -313,7 +313,8 @@ def _load_kernels(name: str, seed: int) -> None:
     """:func:`driftframe.app.load_kernels` on a helper thread while this, the main thread, waits.
 
     A Ctrl-C, SIGTERM or SIGHUP during a first run's compile then stops the
-    command here, between waits, with the usual message and exit status. In
+    command here, between waits, with the usual message and exit status
+    (the recorder's :class:`~framework.recorder.StopSignals` takes them). In
     the main thread it would land inside numba's compiler, which calls back
     into Python through ctypes, where an exception is printed and dropped and
     the compile goes on. The helper is a daemon: it ends with the process.
@@ -321,7 +322,7 @@ def _load_kernels(name: str, seed: int) -> None:
     import threading
 
     from driftframe.app import load_kernels
-    from driftframe.framework.recorder import STOP_SIGNALS, Interrupted
+    from driftframe.framework.recorder import Interrupted, StopSignals
 
     failed: list[BaseException] = []
 
@@ -331,18 +332,13 @@ def _load_kernels(name: str, seed: int) -> None:
         except BaseException as e:   # noqa: BLE001 - handed to the main thread
             failed.append(e)
 
-    def stop(signum, frame):
-        raise Interrupted(signum)
-
     helper = threading.Thread(target=run, name="driftframe-kernels", daemon=True)
-    old = {s: signal.signal(s, stop) for s in STOP_SIGNALS if signal.getsignal(s) is signal.SIG_DFL}
-    try:
+    with StopSignals(True) as stop:
         helper.start()
-        while helper.is_alive():
+        while helper.is_alive() and stop.requested is None:
             helper.join(0.1)
-    finally:
-        for s, handler in old.items():
-            signal.signal(s, handler)
+        if stop.requested is not None:
+            raise Interrupted(stop.requested)
     if failed:
         raise failed[0]
 
@@ -377,22 +373,20 @@ def cmd_record(args) -> int:
         poses = None
     try:
         check_output(out, overwrite=args.overwrite, format=fmt)    # before the costly part: build, compile
-    except OutputExistsError as e:
+        _load_kernels(args.demo, args.seed)         # a first run's compiling, before the progress bar
+        world, demo = make_world(args.demo, seed=args.seed, track=track)
+        try:
+            attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
+            if args.hash_log:
+                from driftframe.framework.hashlog import attach_hash_log
+                attach_hash_log(world, args.hash_log)
+            result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet,
+                            overwrite=args.overwrite, motion_blur=args.motion_blur, interpolate=poses,
+                            preset=args.preset or X264_PRESET, crf=args.crf)
+        finally:
+            world.close()
+    except OutputExistsError as e:                  # early, or at record()'s own check (made meanwhile)
         raise UsageError(f"{e} (or choose another -o)") from None
-    _load_kernels(args.demo, args.seed)             # a first run's compiling, before the progress bar
-    world, demo = make_world(args.demo, seed=args.seed, track=track)
-    try:
-        attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
-        if args.hash_log:
-            from driftframe.framework.hashlog import attach_hash_log
-            attach_hash_log(world, args.hash_log)
-        result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet,
-                        overwrite=args.overwrite, motion_blur=args.motion_blur, interpolate=poses,
-                        preset=args.preset or X264_PRESET, crf=args.crf)
-    except OutputExistsError as e:
-        raise UsageError(f"{e} (or choose another -o)") from None
-    finally:
-        world.close()
     if result.path is None:
         print("nothing written (interrupted before the first frame)", file=sys.stderr)
         return 128 + result.signal

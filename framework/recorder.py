@@ -581,10 +581,8 @@ def check_output(path, *, overwrite: bool = False, format: str | None = None) ->
     caller with costly work before :func:`record` (building a world, a
     first run's compiling) checks first; :func:`record` checks again.
     """
-    _check_target(Path(path), format or output_format(path), bool(overwrite))
-
-
-def _check_target(path: Path, fmt: str, overwrite: bool) -> None:
+    fmt = format or output_format(path)
+    path = Path(os.fspath(path))
     parent = path.parent
     if not parent.exists():
         raise FileNotFoundError(f"cannot write {str(path)!r}: directory {str(parent)!r} does not exist")
@@ -614,7 +612,7 @@ def _check_target(path: Path, fmt: str, overwrite: bool) -> None:
 
 def _prepare_path(path: Path, fmt: str, overwrite: bool) -> Path:
     """Check the target and create the temporary output beside it (proving it is writable)."""
-    _check_target(path, fmt, overwrite)
+    check_output(path, overwrite=overwrite, format=fmt)
     parent = path.parent
     remove_stale_parts(path)
     try:
@@ -662,7 +660,7 @@ def _move_into_place(tmp: Path, path: Path, fmt: str, overwrite: bool) -> None:
         os.replace(tmp, path)
 
 
-class _StopSignals:
+class StopSignals:
     """While active (main thread only), Ctrl-C, SIGTERM and SIGHUP ask the recording to stop.
 
     The first one only sets :attr:`requested`: the loop stops at the end of
@@ -670,7 +668,8 @@ class _StopSignals:
     (an exception raised at any bytecode could leave the world half-stepped).
     A second one raises :class:`Interrupted` at once, for a frame that never
     ends. Signals whose handler is not the default (ignored under ``nohup``,
-    or the application's own) are left alone.
+    or the application's own) are left alone. The command line also holds
+    one while a first run compiles its kernels (``driftframe/cli.py``).
     """
 
     def __init__(self, enabled: bool):
@@ -785,7 +784,7 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     from tqdm import tqdm
 
     # from the first file made to the last: SIGTERM / SIGHUP become an interrupt, never debris
-    with _StopSignals(handle_signals) as stop:
+    with StopSignals(handle_signals) as stop:
         tmp = _prepare_path(path, fmt, bool(overwrite))
         try:
             if fmt == "mp4":
