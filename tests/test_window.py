@@ -45,17 +45,29 @@ def _wait_for_window(display, proc, title="driftframe"):
 
 
 _STARTED: list[subprocess.Popen] = []
+#: Every key a test here presses.
+_KEYS = ("Escape", "w", "d", "x", "c", "F3", "F11", "F12")
 
 
 @pytest.fixture(autouse=True)
-def _no_window_left_open():
-    """A test that fails half-way must not leave its window on the display for the next one."""
+def _no_window_left_open(display):
+    """A test that fails half-way must not leave its window, or a key held down, for the next one."""
     yield
     while _STARTED:
         proc = _STARTED.pop()
         if proc.poll() is None:
             proc.kill()
             proc.wait(10)
+    _xdo(display, "keyup", *_KEYS)                    # XTEST, whatever window has the focus now
+
+
+def _quit(display, wid):
+    """Esc, as a user presses it. The release goes to no window in particular: play quits on the press and
+    its window is gone before the release, which ``key --window`` then never sent, so the X server kept
+    Escape down and auto-repeated it into the next test's window (which quit after one frame)."""
+    _xdo(display, "keydown", "--window", wid, "Escape")
+    time.sleep(0.05)
+    _xdo(display, "keyup", "Escape")
 
 
 def _play(display, tmp_path, *extra):
@@ -98,7 +110,7 @@ def test_keys_thrust_the_ship_and_switch_the_camera(display, tmp_path):
         time.sleep(0.5)
         _xdo(display, "key", "--window", wid, "F12")
         time.sleep(0.5)
-        _xdo(display, "key", "--window", wid, "Escape")
+        _quit(display, wid)
         proc.wait(30)
     finally:
         if proc.poll() is None:
@@ -138,7 +150,7 @@ def test_a_flight_saved_in_play_re_renders_as_the_same_flight_byte_for_byte(disp
     _xdo(display, "keyup", "--window", wid, "d")
     _xdo(display, "key", "--window", wid, "x")          # a tap shorter than a step still acts for a step
     time.sleep(0.3)
-    _xdo(display, "key", "--window", wid, "Escape")
+    _quit(display, wid)
     err = _finish(proc)
     assert f"track: {track}" in err
     doc = json.loads(track.read_text())
@@ -188,7 +200,7 @@ def test_f11_fullscreen_f3_overlay_and_a_resize_that_keeps_the_aspect_ratio(disp
     time.sleep(0.8)
     _xdo(display, "key", "--window", wid, "F12")
     time.sleep(0.5)
-    _xdo(display, "key", "--window", wid, "Escape")
+    _quit(display, wid)
     _finish(proc)
     s = json.loads((tmp_path / "state.json").read_text())
     assert s["fullscreen"] is False
