@@ -442,6 +442,21 @@ class _Writer:
     GL stays on the caller's thread (a context works only there); the thread
     only sees bytes. An error in the thread is re-raised in the caller at the
     next ``put`` or at ``close``.
+
+    When the thread runs matters more than what it costs. moderngl's
+    read-back holds the GIL while llvmpipe rasterises (both cores), so this
+    thread writes only while the caller steps and draws (one core), and x264
+    encodes then too. Measured on 2 cores, asteroids at 1280x720 (A/B runs
+    against bare in the same process, 7 rounds each): releasing the GIL for
+    that wait (glFinish through ctypes) or a shorter switch interval let the
+    writes land during rasterisation and slowed it (0.67-0.71 of bare
+    against 0.79-0.82). Converting on this thread (with a hand-off that
+    waits for it to start), vmsplice instead of write, the conversion of the
+    previous frame overlapping the flushed render, pinning ffmpeg to one
+    core, x264 without CABAC, and ``LP_NUM_THREADS`` 3 or 4 were all within
+    the noise or worse: the bare loop keeps 1.35 cores busy and the
+    recording adds about 3.3 ms of CPU a frame (x264 and ffmpeg 2.6,
+    conversion 0.5, the pipe 0.2), about what the idle core can take.
     """
 
     #: Frames queued for the thread at most (plus the one it is writing).
