@@ -441,30 +441,26 @@ def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
 
 
 @njit(cache=True, error_model="numpy")
-def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-               listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
-    """:func:`_solve_step` with ``t_last`` in absolute seconds and ``now`` the step's start: made
-    relative on the way in and absolute again on the way out, in place (the same operations as
-    ``t_last - now`` and ``+ now`` in numpy, without two numpy calls a step)."""
-    for k in range(t_last.shape[0]):
-        t_last[k] -= now
-    out = _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
-                      listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget)
-    for k in range(t_last.shape[0]):
-        t_last[k] += now
-    return out
+def _shift(t, d):
+    """``t += d`` in place, element by element (``t - now`` and ``+ now`` without two numpy calls a step)."""
+    for k in range(t.shape[0]):
+        t[k] += d
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
-                listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
+def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
+               listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
     """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
 
     ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
     per body; ``live``: bodies taking part (False: a body with non-finite
-    state, left out); ``t_last``: each body's last contact time relative to
-    the start of this step (-inf: none; negative: an earlier step), updated in
-    place (the TC model looks back across steps). ``pi``, ``pj``: candidate pairs. With ``listed`` the
+    state, left out); ``t_last``: each body's last contact time in absolute
+    seconds (-inf: none), updated in place (the TC model looks back across
+    steps); ``now``: the step's start, s. Inside, times are relative to the
+    step's start: ``t_last`` is shifted by ``-now`` on the way in and by
+    ``+now`` on the way out. (One kernel: a wrapper doing the shifts around
+    an inner kernel cost a machine's first run 2.5 s more, numba linking and
+    optimising the inner one into it again.) ``pi``, ``pj``: candidate pairs. With ``listed`` the
     candidates come from a :class:`~driftframe.framework.broadphase.NeighbourList`
     (``swept``, ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n),
     ``skin``, ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in
@@ -477,6 +473,7 @@ def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
     swept, overlaps, worst overlap pair i, j, worst distance / R, islands
     solved contact by contact]; ``flags`` (F_* bits).
     """
+    _shift(t_last, -now)
     n = x.shape[0]
     P = pi.shape[0]
     stats = np.zeros(12)
@@ -518,6 +515,7 @@ def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
     stats[5], stats[6], stats[7] = wi_, wj_, worst
     if hn == 0:                                            # no contact this step
         stats[0] = P
+        _shift(t_last, now)
         return np.zeros(n, np.bool_), np.empty((0, 4)), np.empty((0, 3)), np.empty((0, 6)), stats, flags
     if not early:
         P, PI, PJ, head, nxt, ver, mark = _pair_structures(pi, pj, n)
@@ -838,6 +836,7 @@ def _solve_step(x, u, r, inv, e, live, t_last, pi, pj, dt, t_c, cap,
     stats[0] = P
     stats[1] = ne
     stats[2] = waves
+    _shift(t_last, now)
     return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
 
 
