@@ -452,7 +452,9 @@ class _Writer:
     writes land during rasterisation and slowed it (0.67-0.71 of bare
     against 0.79-0.82). Converting on this thread (with a hand-off that
     waits for it to start), vmsplice instead of write, the conversion of the
-    previous frame overlapping the flushed render, pinning ffmpeg to one
+    previous frame overlapping the flushed render, a writer that never takes
+    the GIL (one numba loop, woken through a pipe, converting from its own
+    read-back buffers and writing to ffmpeg itself), pinning ffmpeg to one
     core, x264 without CABAC, and ``LP_NUM_THREADS`` 3 or 4 were all within
     the noise or worse: the bare loop keeps 1.35 cores busy and the
     recording adds about 3.3 ms of CPU a frame (x264 and ffmpeg 2.6,
