@@ -459,8 +459,9 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
     steps); ``now``: the step's start, s. Inside, times are relative to the
     step's start: ``t_last`` is shifted by ``-now`` on the way in and by
     ``+now`` on the way out. (One kernel: a wrapper doing the shifts around
-    an inner kernel cost a machine's first run 2.5 s more, numba linking and
-    optimising the inner one into it again.) ``pi``, ``pj``: candidate pairs. With ``listed`` the
+    an inner kernel, which numba linked and optimised into it again, cost an
+    empty cache about 1 s more: 24.5 against 23.5 s for the first steps of
+    asteroids, billiards and swarm.) ``pi``, ``pj``: candidate pairs. With ``listed`` the
     candidates come from a :class:`~driftframe.framework.broadphase.NeighbourList`
     (``swept``, ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n),
     ``skin``, ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in

@@ -64,7 +64,7 @@ def _no_window_left_open(display):
 def _quit(display, wid):
     """Esc, as a user presses it. The release goes to no window in particular: play quits on the press and
     its window is gone before the release, which ``key --window`` then never sent, so the X server kept
-    Escape down and auto-repeated it into the next test's window (which quit after one frame)."""
+    Escape down and auto-repeated it into the next test's window (which quit after one or two frames)."""
     _xdo(display, "keydown", "--window", wid, "Escape")
     time.sleep(0.05)
     _xdo(display, "keyup", "Escape")
