@@ -447,7 +447,7 @@ class _Writer:
     read-back holds the GIL while llvmpipe rasterises (both cores), so this
     thread writes only while the caller steps and draws (one core), and x264
     encodes then too. Measured on 2 cores, asteroids at 1280x720 (A/B runs
-    against bare in the same process, 7 rounds each): releasing the GIL for
+    against bare in the same process, 5-15 rounds each): releasing the GIL for
     that wait (glFinish through ctypes) or a shorter switch interval let the
     writes land during rasterisation and slowed it (0.67-0.71 of bare
     against 0.79-0.82). Converting on this thread (with a hand-off that
