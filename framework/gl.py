@@ -276,6 +276,27 @@ class RenderTarget:
             _ = self.ctx.error   # reading a window's screen leaves a pending GL_INVALID_OPERATION: clear it
         return data
 
+    def read_rows_into(self, out, first_row: int, rows: int) -> None:
+        """Rows ``first_row .. first_row + rows - 1`` (GL order, 0 at the bottom) as RGBA into ``out``.
+
+        ``out``: a writable buffer of ``rows * width * 4`` bytes. Reading a
+        frame in bands and using each at once keeps it in the CPU's cache
+        (the recorder's NV12 path); the first band waits for the frame to
+        finish drawing, as :meth:`read_raw` does.
+        """
+        w, h = self.size
+        if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1 \
+                or isinstance(first_row, bool) or not isinstance(first_row, (int, np.integer)) \
+                or not 0 <= first_row <= h - rows:
+            raise ValueError(f"rows {first_row!r} + {rows!r} must lie within the target's {h}")
+        if memoryview(out).nbytes != rows * w * 4:
+            raise ValueError(f"out must hold {rows * w * 4} bytes ({rows} rows of {w} RGBA pixels), "
+                             f"got {memoryview(out).nbytes}")
+        with current(self.ctx):
+            self.fbo.read_into(out, viewport=(0, int(first_row), w, int(rows)), components=4, alignment=1)
+        if self.is_screen:
+            _ = self.ctx.error   # as in read_raw
+
     def read_rgba(self) -> np.ndarray:
         """The frame as an ``(H, W, 4)`` uint8 array, top row first (ready for PNG / video)."""
         w, h = self.size

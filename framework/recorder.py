@@ -826,7 +826,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
                 raise
             rgba, grab = grab, (converter.convert if motion_blur == 1 else lambda: converter.convert(rgba()))
         elif nv12:
-            grab = _cpu_nv12(grab, size, _Writer.DEPTH)
+            grab = _banded_nv12(target, _Writer.DEPTH) if motion_blur == 1 else \
+                _cpu_nv12(grab, size, _Writer.DEPTH)
 
         t0 = time.perf_counter()
         done = 0
@@ -896,22 +897,50 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     return RecordResult(final, fmt, done, frames, seconds, stopped_by is not None, sink.out_size, stopped_by)
 
 
-def _cpu_nv12(grab, size, depth: int):
-    """A ``grab()`` that returns the frame as NV12 (:func:`framework.yuv.rgba_to_nv12`), on this thread.
+def _nv12_ring(size, depth: int):
+    """NV12 frame buffers to use in turn: ``depth + 2``. The writer holds at most ``depth`` queued frames
+    and the one it is writing, so a buffer is reused only after its frame has reached ffmpeg."""
+    from driftframe.framework.yuv import nv12_size
 
-    The frame is converted right after it is read back, while it is still in
-    this core's cache (converting on the writer's thread, on the other core,
-    measured slower). It writes into ``depth + 2`` buffers in turn: the
-    writer holds at most ``depth`` queued frames and the one it is writing,
-    so a buffer is reused only after its frame has reached ffmpeg.
+    return itertools.cycle([np.empty(nv12_size(*size), np.uint8) for _ in range(depth + 2)])
+
+
+def _cpu_nv12(grab, size, depth: int):
+    """A ``grab()`` that returns the RGBA frame ``grab()`` gives as NV12 (:func:`framework.yuv.rgba_to_nv12`).
+
+    For frames made in memory (motion blur's average); a frame read from the
+    target is converted as it is read (:func:`_banded_nv12`).
     """
-    from driftframe.framework.yuv import nv12_size, rgba_to_nv12
+    from driftframe.framework.yuv import rgba_to_nv12
 
     w, h = size
-    ring = itertools.cycle([np.empty(nv12_size(w, h), np.uint8) for _ in range(depth + 2)])
+    ring = _nv12_ring(size, depth)
 
     def converted():
         return rgba_to_nv12(grab(), w, h, next(ring))
+
+    return converted
+
+
+def _banded_nv12(target, depth: int, band_bytes: int | None = None):
+    """A ``grab()`` that reads the target's frame in bands of rows and converts each to NV12 at once.
+
+    A band (:class:`framework.yuv.BandedNV12`) is converted while it is
+    still in this core's cache. The bytes are the same as converting the
+    whole frame after reading it.
+    """
+    from driftframe.framework.yuv import BandedNV12
+
+    conv = BandedNV12(*target.size) if band_bytes is None else BandedNV12(*target.size, band_bytes=band_bytes)
+    ring = _nv12_ring(target.size, depth)
+    read, convert, bands = target.read_rows_into, conv.convert, conv.bands
+
+    def converted():
+        out = next(ring)
+        for y, n, band in bands:
+            read(band, y, n)
+            convert(y, out)
+        return out
 
     return converted
 

@@ -82,6 +82,30 @@ def test_read_rgba_returns_the_top_row_first(ctx):
 
 
 @pytest.mark.gl
+def test_read_rows_into_gives_the_rows_read_raw_gives(ctx):
+    target = gl.RenderTarget(ctx, (8, 6))
+    try:
+        target.use()
+        for row in range(6):                       # every row its own colour
+            ctx.scissor = (0, row, 8, 1)
+            ctx.clear(row / 5, 1 - row / 5, 0.5, 1.0)
+        ctx.scissor = None
+        raw = np.frombuffer(target.read_raw(), np.uint8).reshape(6, 8, 4)
+        for first, rows in ((0, 2), (2, 4), (5, 1), (0, 6)):
+            out = np.full(rows * 8 * 4, 7, np.uint8)
+            target.read_rows_into(out, first, rows)
+            np.testing.assert_array_equal(out.reshape(rows, 8, 4), raw[first:first + rows])
+        with pytest.raises(ValueError, match="rows 5 \\+ 2 must lie within the target's 6"):
+            target.read_rows_into(np.empty(2 * 32, np.uint8), 5, 2)
+        with pytest.raises(ValueError, match="rows -1 \\+ 1 must"):
+            target.read_rows_into(np.empty(32, np.uint8), -1, 1)
+        with pytest.raises(ValueError, match="out must hold 64 bytes \\(2 rows of 8 RGBA pixels\\), got 63"):
+            target.read_rows_into(np.empty(63, np.uint8), 0, 2)
+    finally:
+        target.release()
+
+
+@pytest.mark.gl
 def test_render_target_resizes_and_rejects_bad_sizes(ctx):
     target = gl.RenderTarget(ctx, (16, 8))
     try:

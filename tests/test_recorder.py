@@ -508,6 +508,23 @@ def test_a_converted_frame_keeps_its_buffer_until_the_writer_is_done_with_it():
     assert sink.got == [rgba_to_nv12(f, w, h).tobytes() for f in frames]
 
 
+def test_a_frame_read_in_bands_is_the_frame_read_whole(scene):
+    # the recorder reads the frame back in bands of rows and converts each at once: the same bytes as
+    # converting the whole frame, whatever the band size (here 6 rows: 11 bands, the last of 4)
+    from driftframe.framework import recorder
+    from driftframe.framework.yuv import rgba_to_nv12
+
+    w = scene()
+    target = w.resources["render_target"]
+    grab = recorder._banded_nv12(target, recorder._Writer.DEPTH, band_bytes=6 * W * 4)
+    for _ in range(3):
+        w.step()
+        w.render()
+        whole = rgba_to_nv12(target.read_raw(), W, H)
+        assert len(np.unique(whole)) > 20                      # a real picture, not a cleared screen
+        np.testing.assert_array_equal(grab(), whole)
+
+
 def test_mp4_defaults_are_the_measured_preset_and_its_crf(scene, tmp_path, monkeypatch):
     from driftframe.framework import recorder
 

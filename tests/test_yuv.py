@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from driftframe.framework.yuv import nv12_size, rgba_to_nv12
+from driftframe.framework.yuv import BandedNV12, nv12_size, rgba_to_nv12
 
 KR, KB = 0.2126, 0.0722
 KG = 1 - KR - KB
@@ -93,3 +93,26 @@ def test_wrong_lengths_are_named():
         rgba_to_nv12(b"\0" * 127, 8, 4)
     with pytest.raises(ValueError, match="out must be a contiguous uint8 array of 48 bytes, got 47"):
         rgba_to_nv12(b"\0" * 128, 8, 4, out=np.empty(47, np.uint8))
+
+
+@pytest.mark.parametrize("band_rows", [2, 4, 6, 22])
+def test_bands_give_the_bytes_of_the_whole_frame(band_rows):
+    rng = np.random.default_rng(6)
+    w, h = 38, 22                                               # 22 rows in bands of 4 or 6: a short last band
+    rgba = rng.integers(0, 256, (h, w, 4), dtype=np.uint8)
+    conv = BandedNV12(w, h, band_bytes=band_rows * w * 4)
+    assert [(y, n) for y, n, _ in conv.bands] == [(y, min(band_rows, h - y)) for y in range(0, h, band_rows)]
+    out = np.full(nv12_size(w, h), 7, np.uint8)
+    for y, n, band in reversed(conv.bands):                     # any order: each band has its own rows
+        band[:] = rgba[y:y + n].reshape(-1)
+        conv.convert(y, out)
+    np.testing.assert_array_equal(out, rgba_to_nv12(rgba, w, h))
+
+
+def test_banded_sizes_and_outputs_are_checked():
+    with pytest.raises(ValueError, match="even width and height, got 7x4"):
+        BandedNV12(7, 4)
+    conv = BandedNV12(8, 4, band_bytes=1)                       # at least two rows a band
+    assert [(y, n) for y, n, _ in conv.bands] == [(0, 2), (2, 2)]
+    with pytest.raises(ValueError, match="out must be a contiguous uint8 array of 48 bytes, got 47"):
+        conv.convert(0, np.empty(47, np.uint8))
