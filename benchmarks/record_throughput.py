@@ -32,6 +32,7 @@ import os
 import resource
 import statistics
 import tempfile
+import textwrap
 import time
 from pathlib import Path
 
@@ -227,8 +228,7 @@ def main(argv=None) -> None:
     fig, (ax, bx) = figure(1, 2, figsize=(13, 4.6), gridspec_kw={"width_ratios": [1.25, 1]})
     labels = list(fps_of)
     ax.barh(range(len(labels)), [fps_of[k] for k in labels], color=["grey"] + ["C0"] * (len(labels) - 1))
-    ax.set_yticks(range(len(labels)), [k.replace(": ", ":\n", 1) if len(k) > 50 else k for k in labels],
-                  fontsize=7)
+    ax.set_yticks(range(len(labels)), ["\n".join(textwrap.wrap(k, 44)) for k in labels], fontsize=7)
     ax.invert_yaxis()
     ax.set_xlabel(f"frames per second written (median of {repeats} x {frames} frames)")
     ax.set_title(f"Recording asteroids at {SIZE[0]}x{SIZE[1]} ({renderer(ctx).split(' (')[0]})", fontsize=10)
