@@ -24,9 +24,10 @@ Formats, from the path (or ``format=``):
   software renderer, encoder CPU is recording speed. Frames are converted to
   NV12 (BT.709, limited range; the video is tagged so) by
   :mod:`framework.yuv` on the calling thread as they are read back, in
-  bands of rows that stay in the core's cache, and piped to ffmpeg, in its own process, which only encodes, overlapping
-  rendering. ``yuv="gpu"`` converts in a shader instead, ``yuv="ffmpeg"``
-  pipes RGBA and lets ffmpeg convert; both measured slower. Flags pin
+  bands of rows that stay in the core's cache, and piped to ffmpeg, in its
+  own process, which only encodes, overlapping rendering. ``yuv="gpu"``
+  converts in a shader instead, ``yuv="ffmpeg"`` pipes RGBA and lets ffmpeg
+  convert; both measured slower. Flags pin
   everything that could vary (thread count, ``+bitexact``, no metadata):
   the same frames give the same bytes on every run. Width and height must
   be even.

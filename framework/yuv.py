@@ -107,10 +107,16 @@ def rgba_to_nv12(rgba, width: int, height: int, out: np.ndarray | None = None) -
     frame); a new one otherwise. Returns ``out``.
     """
     w, h = _even_size(width, height)
-    src = _pixels(rgba)
-    if src.size != w * h * 4:
+    src = np.frombuffer(rgba, np.uint8) if not isinstance(rgba, np.ndarray) else rgba.reshape(-1)
+    if src.dtype != np.uint8 or src.size != w * h * 4:
         raise ValueError(f"expected {w * h * 4} bytes of RGBA for {w}x{h}, got {src.size} of {src.dtype}")
-    return _convert(src, w, h, 0, out)
+    if out is None:
+        out = np.empty(nv12_size(w, h), np.uint8)
+    flat = _checked_out(out, w, h)
+    if src.ctypes.data % 8:                        # the uint64 view needs aligned memory (bytes objects are)
+        src = src.copy()
+    _nv12(src.view(np.uint32).reshape(h, w), src.view(np.uint64).reshape(h, w // 2), flat, w, h, 0)
+    return out
 
 
 #: RGBA bytes a band of :class:`BandedNV12` holds by default: inside the L2 cache of current x86 cores
@@ -156,10 +162,7 @@ class BandedNV12:
             u32, u64 = self._views[first_row]
         except (KeyError, TypeError):
             raise ValueError(f"no band starts at row {first_row!r}; they start at {list(self._views)}") from None
-        if out.dtype != np.uint8 or out.size != nv12_size(self.width, self.height) or not out.flags.c_contiguous:
-            raise ValueError(f"out must be a contiguous uint8 array of {nv12_size(self.width, self.height)} "
-                             f"bytes, got {out.size} of {out.dtype}")
-        _nv12(u32, u64, out.reshape(-1), self.width, self.height, first_row)
+        _nv12(u32, u64, _checked_out(out, self.width, self.height), self.width, self.height, first_row)
 
 
 def _even_size(width, height) -> tuple[int, int]:
@@ -169,22 +172,10 @@ def _even_size(width, height) -> tuple[int, int]:
     return w, h
 
 
-def _pixels(rgba) -> np.ndarray:
-    src = np.frombuffer(rgba, np.uint8) if not isinstance(rgba, np.ndarray) else rgba.reshape(-1)
-    if src.dtype != np.uint8:
-        raise ValueError(f"expected RGBA bytes (uint8), got {src.dtype}")
-    if src.ctypes.data % 8:                        # the uint64 view needs aligned memory (bytes objects are)
-        src = src.copy()
-    return src
-
-
-def _convert(src: np.ndarray, w: int, h: int, m0: int, out: np.ndarray | None) -> np.ndarray:
-    if out is None:
-        out = np.empty(nv12_size(w, h), np.uint8)
-    elif out.dtype != np.uint8 or out.size != nv12_size(w, h) or not out.flags.c_contiguous:
+def _checked_out(out: np.ndarray, w: int, h: int) -> np.ndarray:
+    """``out`` as the flat NV12 array of a ``w`` x ``h`` frame; a clear error if it cannot be one."""
+    if not isinstance(out, np.ndarray) or out.dtype != np.uint8 or out.size != nv12_size(w, h) \
+            or not out.flags.c_contiguous:
         raise ValueError(f"out must be a contiguous uint8 array of {nv12_size(w, h)} bytes, "
-                         f"got {out.size} of {out.dtype}")
-    rows = src.size // (w * 4)
-    _nv12(src.view(np.uint32).reshape(rows, w), src.view(np.uint64).reshape(rows, w // 2), out.reshape(-1),
-          w, h, m0)
-    return out
+                         f"got {getattr(out, 'size', out)!r} of {getattr(out, 'dtype', type(out).__name__)}")
+    return out.reshape(-1)
