@@ -937,7 +937,7 @@ def _banded_nv12(target, depth: int, band_bytes: int | None = None):
     """
     from driftframe.framework.yuv import BandedNV12
 
-    conv = BandedNV12(*target.size) if band_bytes is None else BandedNV12(*target.size, band_bytes=band_bytes)
+    conv = BandedNV12(*target.size, band_bytes=band_bytes)   # None: yuv.BAND_BYTES
     ring = _nv12_ring(target.size, depth)
     read, convert, bands = target.read_rows_into, conv.convert, conv.bands
 

@@ -116,3 +116,5 @@ def test_banded_sizes_and_outputs_are_checked():
     assert [(y, n) for y, n, _ in conv.bands] == [(0, 2), (2, 2)]
     with pytest.raises(ValueError, match="out must be a contiguous uint8 array of 48 bytes, got 47"):
         conv.convert(0, np.empty(47, np.uint8))
+    with pytest.raises(ValueError, match=r"no band starts at row 1; they start at \[0, 2\]"):
+        conv.convert(1, np.empty(48, np.uint8))
