@@ -6,22 +6,25 @@ cameras, skybox, HUD) at 1280x720. Each run builds a fresh world and records ``F
 :func:`framework.recorder.record` (one fixed step per frame); the time
 includes finishing the file (ffmpeg's last frames, the GIF's trailer). The
 baseline is the same loop with no writer: ``world.step()``,
-``world.render()``, RGBA read-back. ffmpeg encodes in its own process and a
-writer thread feeds it, so encoding overlaps rendering; on 2 cores they
-compete for the same CPUs, so what counts is the CPU each frame costs in
-all. The default MP4 path converts each frame to NV12 on the calling
-thread as it reads it back, in bands that stay in the cache
-(:mod:`framework.yuv`), and pipes it to ffmpeg, which only encodes, with
-x264 ultrafast + CABAC + deblocking at crf 26; beside it: the same with
-each frame read whole and then converted (before bands), the conversion
-in a shader (``yuv="gpu"``) or in ffmpeg (``yuv="ffmpeg"``), the recorder
-before issue 11 (RGBA piped, ffmpeg converts, x264 veryfast + subme 1 at
-crf 20), veryfast with the CPU conversion, motion blur, GIF and PNG frames.
+``world.render()``, RGBA read-back. A writer thread encodes (x264 through
+PyAV, in this process, without the GIL), so encoding overlaps rendering; on
+2 cores they compete for the same CPUs, so what counts is the CPU each
+frame costs in all. The default MP4 path converts each frame to NV12 on
+the calling thread as it reads it back, in bands that stay in the cache
+(:mod:`framework.yuv`), and x264 only encodes, ultrafast + CABAC +
+deblocking at crf 26; beside it: the same encoded in an ffmpeg process fed
+on a pipe (before in-process encoding), the same with each frame read
+whole and then converted (before bands), the conversion in a shader
+(``yuv="gpu"``) or by FFmpeg's scaler (``yuv="ffmpeg"``), the recorder
+before issue 11 (RGBA piped to ffmpeg, which converts, x264 veryfast +
+subme 1 at crf 20), veryfast with the CPU conversion, motion blur, GIF and
+PNG frames. The piped rows use the ffmpeg of the ``imageio-ffmpeg`` wheel
+(the ``bench`` extra).
 
 A second table weighs the encoder settings against each other on three
-demos, from the same NV12 frames: x264's CPU a frame (ffmpeg's, the
-recorder's exact command), the bytes, and the luma PSNR of the decoded video
-against its input. That is what chose the default preset and crf.
+demos, from the same NV12 frames: x264's CPU a frame (the recorder's own
+encoder), the bytes, and the luma PSNR of the decoded video against its
+input. That is what chose the default preset and crf.
 
     python -m benchmarks.record_throughput [--quick]
 """
@@ -43,6 +46,7 @@ from driftframe.components.body import AngularVelocity, Transform, Velocity
 from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
+from driftframe.framework import recorder
 from driftframe.framework.gl import create_context, renderer
 from driftframe.framework.recorder import record
 from driftframe.framework.world import World
@@ -93,7 +97,7 @@ def _fallback(ctx, seed: int) -> World:
 
 
 def _cpu_seconds() -> float:
-    """User + system time of this process and of its finished children (ffmpeg)."""
+    """User + system time of this process and of its finished children (ffmpeg, in the piped rows)."""
     me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
@@ -129,6 +133,60 @@ def _x264_tuning(tuning):
         recorder.X264_TUNING = saved
 
 
+class _PipedSink(recorder._Sink):
+    """The MP4 sink before in-process encoding: the same x264 settings, through the ffmpeg command of the
+    ``imageio-ffmpeg`` wheel (the ``bench`` extra), fed raw frames on a pipe widened to 1 MiB."""
+
+    def __init__(self, tmp, size, fps, *, crf: int, preset: str, pixel_format: str = "rgba"):
+        import fcntl
+        import subprocess
+
+        import imageio_ffmpeg
+
+        super().__init__(tmp, size, fps)
+        self.pixel_format = pixel_format
+        w, h = size
+        tags = [a for k, v in recorder._BT709.items() for a in (f"-{k}", v)]
+        convert = ["-vf", "vflip,scale=out_color_matrix=bt709:out_range=tv"] if pixel_format == "rgba" else []
+        tuning = [a for k, v in recorder.X264_TUNING.get(preset, {}).items() for a in (f"-{k}", v)]
+        cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-nostdin", "-loglevel", "error",
+               "-f", "rawvideo", "-pix_fmt", pixel_format, "-s", f"{w}x{h}", "-r", str(fps),
+               *(tags if pixel_format == "nv12" else []), "-i", "pipe:0", "-an", *convert,
+               "-c:v", "libx264", "-preset", preset, "-crf", str(crf), *tuning,
+               "-pix_fmt", "nv12" if pixel_format == "nv12" else "yuv420p",
+               "-threads", str(recorder.X264_THREADS), *tags,
+               "-fflags", "+bitexact", "-flags:v", "+bitexact", "-map_metadata", "-1", "-f", "mp4", str(tmp)]
+        self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, start_new_session=True)
+        with contextlib.suppress(OSError):
+            fcntl.fcntl(self._proc.stdin.fileno(), getattr(fcntl, "F_SETPIPE_SZ", 1031), 1 << 20)
+
+    def write(self, raw) -> None:
+        self._proc.stdin.write(raw)
+        self.count += 1
+
+    def finish(self) -> None:
+        self._proc.stdin.close()
+        if self._proc.wait():
+            raise SystemExit(f"ffmpeg failed: exit code {self._proc.returncode}")
+
+    def abort(self) -> None:
+        self._proc.kill()
+        self._proc.wait()
+        super().abort()
+
+
+@contextlib.contextmanager
+def _piped(on: bool):
+    """MP4 through the ffmpeg command on a pipe, as before in-process encoding (on: for a while)."""
+    saved = recorder._H264Sink
+    if on:
+        recorder._H264Sink = _PipedSink
+    try:
+        yield
+    finally:
+        recorder._H264Sink = saved
+
+
 @contextlib.contextmanager
 def _whole_frames(on: bool):
     """The NV12 path as it was before bands: read the whole frame, then convert it (on: for a while)."""
@@ -149,18 +207,20 @@ def recorded(ctx, frames: int, path, **kw) -> tuple[float, int]:
     ``_tuning``: x264 settings beyond the preset to use instead of the
     recorder's (``{}``: the preset alone, as before they were added).
     ``_whole``: read each frame whole and then convert it, as before bands.
+    ``_piped``: encode in ffmpeg's process, fed on a pipe, as before in-process encoding.
     """
     from driftframe.systems.motion_blur import SubframePoses
 
     tuning = kw.pop("_tuning", None)
     whole = kw.pop("_whole", False)
+    piped = kw.pop("_piped", False)
     if kw.get("motion_blur", 1) > 1:
         kw["interpolate"] = SubframePoses()
     w = build(ctx)
     w.step()
     w.render()                                      # warm-up, as for the baseline
     try:
-        with _x264_tuning(tuning), _whole_frames(whole):
+        with _x264_tuning(tuning), _whole_frames(whole), _piped(piped):
             res = record(w, path, frames=frames, progress=False, **kw)
     finally:
         w.close()
@@ -174,18 +234,21 @@ def main(argv=None) -> None:
     frames = 20 if args.quick else 240
     repeats = 1 if args.quick else 5
     ctx = create_context()
-    before = {"preset": "veryfast", "crf": 20, "_tuning": {"veryfast": ["-x264-params", "subme=1"]}}
-    default_label = "MP4 (default): NV12 on the CPU in bands, x264 ultrafast + CABAC + deblock, crf 26"
+    before = {"preset": "veryfast", "crf": 20, "_tuning": {"veryfast": {"x264-params": "subme=1"}}}
+    default_label = ("MP4 (default): NV12 on the CPU in bands, x264 in this process (ultrafast + CABAC + "
+                     "deblock, crf 26)")
+    piped_label = "MP4: the default, but x264 in ffmpeg's process, fed on a pipe (before in-process encoding)"
     whole_label = "MP4: the default, each frame read whole, then converted (before bands)"
-    before_label = "MP4 as before: RGBA piped, ffmpeg converts, x264 veryfast + subme 1, crf 20"
+    before_label = "MP4 as before issue 11: RGBA piped, ffmpeg converts, x264 veryfast + subme 1, crf 20"
     modes = {
         "step + render + read-back (no writer)": None,
         default_label: ("clip.mp4", {}),
+        piped_label: ("clip.mp4", {"_piped": True}),
         whole_label: ("clip.mp4", {"_whole": True}),
         "MP4: NV12 from a shader (yuv='gpu'), the same x264": ("clip.mp4", {"yuv": "gpu"}),
-        "MP4: RGBA piped, ffmpeg converts (yuv='ffmpeg'), the same x264": ("clip.mp4", {"yuv": "ffmpeg"}),
+        "MP4: RGBA, FFmpeg's scaler converts (yuv='ffmpeg'), the same x264": ("clip.mp4", {"yuv": "ffmpeg"}),
         "MP4: NV12 on the CPU, x264 veryfast + subme 1, crf 20": ("clip.mp4", dict(before)),
-        before_label: ("clip.mp4", dict(before, yuv="ffmpeg")),
+        before_label: ("clip.mp4", dict(before, yuv="ffmpeg", _piped=True)),
         "MP4, --motion-blur 4": ("clip.mp4", {"motion_blur": 4}),
         "GIF, 640x360 (streamed)": ("clip.gif", {}),
         "PNG frames (zlib level 1)": ("frames/", {}),
@@ -255,7 +318,7 @@ def main(argv=None) -> None:
         "simulation (collisions included) and draws the HUD. `share of bare` = frames/s relative to the "
         "step + render + read-back loop with no writer, measured in the same process: the median over rounds "
         "of each run's frames/s divided by the bare loop's in the same round, and the worst round. `CPU a frame` "
-        "= processor time of this process and ffmpeg together per frame (world building included), which "
+        "= processor time of this process and its ffmpeg (where one runs) together per frame (world building included), which "
         "depends less on other work than the wall time does; on 2 cores what a recording costs in all is what "
         "bounds its speed. The range column shows how much runs varied, from the slowest run to the fastest: "
         f"the 2 cores were shared with other work (load average {load_start:.1f} at the start, "
@@ -265,7 +328,8 @@ def main(argv=None) -> None:
         "",
         f"Bar: the default MP4 at least {MP4_BAR:g} of bare (median share over rounds): "
         f"**{'met' if shares[default_label][0] >= MP4_BAR else 'not met'}** ({shares[default_label][0]:.2f}; "
-        f"worst round {shares[default_label][1]:.2f}; each frame read whole, then converted: "
+        f"worst round {shares[default_label][1]:.2f}; x264 in ffmpeg's process, fed on a pipe: "
+        f"{shares[piped_label][0]:.2f}; each frame read whole, then converted: "
         f"{shares[whole_label][0]:.2f}; the recorder before issue 11: "
         f"{shares[before_label][0]:.2f}, in the same run). The share moves from run to run with other work "
         "on the machine, both ways: load slows the recording's extra threads, and a quiet machine makes the "
@@ -275,8 +339,8 @@ def main(argv=None) -> None:
         "", "",
         "**Encoder settings against each other.** Each demo's first frames at "
         f"{SIZE[0]}x{SIZE[1]}, converted to NV12 once; each setting encodes the same frames through the "
-        "recorder's own ffmpeg command. *x264 CPU a frame* is ffmpeg's processor time (it depends little on "
-        "other work); *PSNR* is of the luma of the decoded video against the NV12 it was given, mean over "
+        "recorder's own encoder (x264 through PyAV, in this process). *x264 CPU a frame* is the processor "
+        "time of those encodes (it depends little on other work); *PSNR* is of the luma of the decoded video against the NV12 it was given, mean over "
         "frames (worst frame in brackets). The default is the cheapest setting in this table that gives every "
         "demo at least the PSNR of the recorder's previous default (veryfast + subme 1, crf 20).",
         "",
@@ -289,7 +353,7 @@ def main(argv=None) -> None:
 
 #: Encoder settings weighed by :func:`encoder_quality`: (label, preset, crf, x264 tuning or None for the recorder's).
 SETTINGS = (
-    ("veryfast + subme 1, crf 20 (before)", "veryfast", 20, {"veryfast": ["-x264-params", "subme=1"]}),
+    ("veryfast + subme 1, crf 20 (before)", "veryfast", 20, {"veryfast": {"x264-params": "subme=1"}}),
     ("veryfast, crf 20", "veryfast", 20, {}),
     ("superfast, crf 24", "superfast", 24, {}),
     ("ultrafast, crf 26", "ultrafast", 26, {}),
@@ -317,33 +381,30 @@ def _nv12_frames(ctx, demo: str, frames: int) -> list[np.ndarray]:
 
 
 def _encode(nv12: list[np.ndarray], path: Path, preset: str, crf: int, tuning) -> tuple[float, int]:
-    """x264 CPU seconds a frame and bytes, through the recorder's own ffmpeg command."""
+    """x264 CPU seconds a frame and bytes, through the recorder's own encoder (in this process)."""
     from driftframe.framework import recorder
 
     with _x264_tuning(tuning):
-        c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        sink = recorder._FFmpegSink(path, SIZE, 60, crf=crf, preset=preset, pixel_format="nv12")
+        c0 = resource.getrusage(resource.RUSAGE_SELF)
+        sink = recorder._H264Sink(path, SIZE, 60, crf=crf, preset=preset, pixel_format="nv12")
         for f in nv12:
             sink.write(f)
         sink.finish()
-        c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        c1 = resource.getrusage(resource.RUSAGE_SELF)
     cpu = (c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime) / len(nv12)
     return cpu, path.stat().st_size
 
 
 def _luma_psnr(nv12: list[np.ndarray], path: Path) -> tuple[float, float]:
-    import subprocess
-
-    import imageio_ffmpeg
+    import av
 
     w, h = SIZE
-    raw = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(path), "-f", "rawvideo",
-                          "-pix_fmt", "nv12", "-"], capture_output=True, check=True).stdout
-    dec = np.frombuffer(raw, np.uint8).reshape(-1, w * h * 3 // 2)
+    with av.open(str(path)) as video:                  # FFmpeg's H.264 decoder; the luma plane as it is
+        dec = np.stack([f.to_ndarray(format="nv12")[:h] for f in video.decode(video=0)])
     if len(dec) != len(nv12):
         raise SystemExit(f"{path.name}: decoded {len(dec)} frames, encoded {len(nv12)}")
-    src = np.stack(nv12)[:, :w * h].astype(np.float32)
-    mse = ((src - dec[:, :w * h]) ** 2).mean(axis=1)
+    src = np.stack(nv12)[:, :w * h].reshape(-1, h, w).astype(np.float32)
+    mse = ((src - dec) ** 2).mean(axis=(1, 2))
     psnr = 10 * np.log10(255.0 ** 2 / np.maximum(mse, 1e-10))
     return float(psnr.mean()), float(psnr.min())
 

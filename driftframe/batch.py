@@ -29,9 +29,9 @@ to an executor that exists already.
 
 Worker count (:func:`plan_jobs`): the cores this process may use, divided
 by what one run keeps busy. A headless run is one busy thread. An MP4
-recording adds ffmpeg's x264 encoder beside it (its threads pinned at
-``recorder.X264_THREADS`` because the bytes depend on it, so its load is
-counted: :data:`RECORDING_CORES`). Mesa starts ``LP_NUM_THREADS``
+recording adds its x264 encoder beside it, on the recorder's writer
+thread (x264's threads pinned at ``recorder.X264_THREADS`` because the
+bytes depend on it, so its load is counted: :data:`RECORDING_CORES`). Mesa starts ``LP_NUM_THREADS``
 rasteriser threads in every process (by default one per core): with several
 workers each gets ``LP_NUM_THREADS = cores // jobs``, or 0 (rasterise on the
 run's own thread) where that is 1, unless you set it yourself. Give ``jobs``
@@ -524,11 +524,12 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-#: Cores one MP4 recording keeps busy, measured alone (CPU time of the process and of its ffmpeg over
-#: wall time, asteroids demo, 3 s at 640x360, rasterising on the run's thread): 1.27-1.35. The run's own
-#: thread is the critical path; x264 (its thread count pinned at ``recorder.X264_THREADS``: the bytes
-#: depend on it) runs beside it in ffmpeg's process, a quarter to a half of the run's own CPU time from
-#: 640x360 to 1280x720.
+#: Cores one MP4 recording keeps busy, measured alone (CPU time over wall time, asteroids demo, 3 s at
+#: 640x360, rasterising on the run's thread): 1.27-1.35 while x264 ran in an ffmpeg process; encoding in
+#: the process, 1.08-1.17 against 1.16-1.22 piped on a slower host (kept at 1.3: a pool of 2 cores gets 2
+#: workers either way, and more cores err towards fewer). The run's own thread is the critical path; x264
+#: (its thread count pinned at ``recorder.X264_THREADS``: the bytes depend on it) runs beside it on the
+#: recorder's writer thread, a quarter to a half of the run's own CPU time from 640x360 to 1280x720.
 RECORDING_CORES = 1.3
 
 

@@ -25,7 +25,7 @@ a program with one context sees no change.)
 
 A context works only in the thread that created it, and a process must not
 ``fork`` once a context exists (the child hangs): use the ``spawn`` start
-method for worker processes. Starting a program that ``exec``s (ffmpeg) is fine.
+method for worker processes. Starting a program that ``exec``s is fine.
 
 :class:`RenderTarget` is where a frame goes: an off-screen framebuffer
 (RGBA8 colour + 24-bit depth renderbuffers) or a window's default

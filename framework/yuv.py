@@ -7,12 +7,11 @@
 
 The recorder's default MP4 path (:mod:`framework.recorder`) reads each
 frame back in bands of rows and converts each band at once, while it is
-still in the core's cache (:class:`BandedNV12`), and hands ffmpeg 1.5 bytes
-a pixel instead of 4, so ffmpeg only encodes. Measured on the asteroids demo
+still in the core's cache (:class:`BandedNV12`), and hands x264 1.5 bytes
+a pixel instead of 4, so it only encodes. Measured on the asteroids demo
 at 1280x720 on 2 cores (``benchmarks/record_throughput.py``): reading and
-converting a frame in bands takes about 1 ms, where ffmpeg's own conversion
-(swscale, with the flip) took 3.3 ms of CPU and the pipe carried 2.7x the
-bytes.
+converting a frame in bands takes about 1 ms, where FFmpeg's own conversion
+(swscale, with the flip) took 3.3 ms of CPU and moved 2.7x the bytes.
 
 The numbers are BT.709, limited ("TV") range, as the video is tagged:
 ``Y' = 16 + 219 (Kr R + Kg G + Kb B) / 255`` per pixel, and ``Cb``, ``Cr``

@@ -5,6 +5,7 @@ import sys
 
 import numpy as np
 import pytest
+from videos import mp4_frames
 
 from driftframe import demos
 
@@ -33,16 +34,12 @@ def test_version_and_help_show_the_keys():
 
 @pytest.mark.gl
 def test_record_mp4_end_to_end(tmp_path):
-    import imageio_ffmpeg
-
     out = tmp_path / "cradle.mp4"
     res = run("record", "cradle", "--seconds", "0.5", "--size", "320x180", "--quiet", "-o", str(out))
     assert res.returncode == 0, res.stderr
     assert f"wrote {out}" in res.stdout and "30 frames" in res.stdout
-    reader = imageio_ffmpeg.read_frames(str(out))
-    meta = next(reader)
-    assert tuple(meta["size"]) == (320, 180)
-    frames = [np.frombuffer(f, np.uint8).reshape(180, 320, 3) for f in reader]
+    info, frames = mp4_frames(out)
+    assert info["size"] == (320, 180) and frames[0].shape == (180, 320, 3)
     assert len(frames) == 30
     assert frames[-1].max() > 100                      # something lit is in the picture
     assert [p.name for p in tmp_path.iterdir()] == ["cradle.mp4"]   # no temporary left
@@ -53,8 +50,6 @@ def test_preset_and_crf_choose_the_encoder(tmp_path):
     # the default (ultrafast at its own crf), veryfast at crf 20, and a near-lossless crf: three different
     # files of the same frames; the near-lossless one is the largest, and the others decode to within the
     # encoder's loss of it
-    import imageio_ffmpeg
-
     outs = {}
     for name, extra in (("default", []), ("veryfast", ["--preset", "veryfast", "--crf", "20"]),
                         ("fine", ["--crf", "4"])):
@@ -65,7 +60,7 @@ def test_preset_and_crf_choose_the_encoder(tmp_path):
     sizes = {k: v.stat().st_size for k, v in outs.items()}
     assert len(set(sizes.values())) == 3, sizes
     assert sizes["fine"] > sizes["default"] > sizes["veryfast"], sizes     # veryfast packs tighter
-    frames = {k: np.stack([np.frombuffer(f, np.uint8) for f in list(imageio_ffmpeg.read_frames(str(v)))[1:]])
+    frames = {k: np.stack(mp4_frames(v)[1])
               for k, v in outs.items()}
     assert {len(f) for f in frames.values()} == {30}
     for k in ("default", "veryfast"):                  # the same picture, within the encoder's loss
@@ -186,8 +181,6 @@ def _start_recording(out, *extra):
 def test_a_stop_signal_leaves_a_valid_shorter_video_and_exits_as_the_signal(tmp_path, signame):
     import signal as sg
 
-    import imageio_ffmpeg
-
     signum = getattr(sg, signame)
     out = tmp_path / "cut.mp4"
     proc = _start_recording(out)
@@ -196,7 +189,7 @@ def test_a_stop_signal_leaves_a_valid_shorter_video_and_exits_as_the_signal(tmp_
     assert proc.returncode == 128 + signum, stderr
     assert f"recording interrupted after" in stderr and f"({signame}): wrote" in stderr
     assert "Traceback" not in stderr and f"wrote {out}" in stdout
-    frames = list(imageio_ffmpeg.read_frames(str(out)))[1:]
+    frames = mp4_frames(out)[1]
     assert 0 < len(frames) < 36000
     assert [p.name for p in tmp_path.iterdir()] == ["cut.mp4"]          # nothing hidden left
 

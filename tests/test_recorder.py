@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import os
 
-import imageio_ffmpeg
 import numpy as np
 import pytest
 from PIL import Image
+from videos import mp4_frames
 
 from driftframe.components.body import Transform, Velocity
 from driftframe.components.camera import Camera
@@ -48,13 +48,6 @@ def scene(ctx):
     yield with_render
     for w in worlds:
         w.close()
-
-
-def mp4_frames(path):
-    gen = imageio_ffmpeg.read_frames(str(path))
-    meta = next(gen)
-    w, h = meta["size"]
-    return meta, [np.frombuffer(f, np.uint8).reshape(h, w, 3) for f in gen]
 
 
 def listing(d):
@@ -367,6 +360,45 @@ def test_a_full_disk_is_one_clear_error_and_leaves_nothing(scene, tmp_path, monk
     assert listing(tmp_path) == []
 
 
+@pytest.mark.parametrize("failure, message", [
+    ("invalid", r"the H\.264 encoder failed while receiving frames: \[Errno -1094995529\] Invalid data"),
+    ("full", r"cannot write .*'.*v\.mp4': no space left on the device \(\d+ frames recorded, nothing kept\)"),
+])
+def test_the_mp4_encoder_failing_is_one_clear_error_and_leaves_nothing(scene, tmp_path, monkeypatch, failure,
+                                                                      message):
+    # an error from FFmpeg's libraries (PyAV's exceptions), raised on the writer thread at the 4th frame,
+    # reaches the caller as one line; a full disk names the output, as for every format
+    import errno
+
+    import av
+
+    from driftframe.framework import recorder
+    from driftframe.framework.recorder import RecordingError
+
+    class Failing:                                  # the real stream until its 4th frame
+        def __init__(self, stream):
+            self.stream, self.frames = stream, 0
+
+        def encode(self, frame=None):
+            if frame is not None:
+                self.frames += 1
+                if self.frames == 4:
+                    raise (av.error.InvalidDataError(-1094995529, "Invalid data found when processing input")
+                           if failure == "invalid" else av.error.OSError(errno.ENOSPC, "No space left on device"))
+            return self.stream.encode(frame)
+
+    real = recorder._H264Sink.__init__
+
+    def init(self, *args, **kw):
+        real(self, *args, **kw)
+        self._stream = Failing(self._stream)
+
+    monkeypatch.setattr(recorder._H264Sink, "__init__", init)
+    with pytest.raises(RecordingError, match=message):
+        record(scene(), tmp_path / "v.mp4", frames=10, progress=False)
+    assert listing(tmp_path) == []
+
+
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux /proc to try writing into it")
 def test_a_virtual_file_system_is_named_as_the_reason(scene):
     with pytest.raises(PermissionError, match=r"'/proc' is not writable \(it is on a proc file system"):
@@ -529,13 +561,13 @@ def test_mp4_defaults_are_the_measured_preset_and_its_crf(scene, tmp_path, monke
     from driftframe.framework import recorder
 
     seen = {}
-    real = recorder._FFmpegSink
+    real = recorder._H264Sink
 
     def spy(tmp, size, fps, **kw):
         seen.update(kw)
         return real(tmp, size, fps, **kw)
 
-    monkeypatch.setattr(recorder, "_FFmpegSink", spy)
+    monkeypatch.setattr(recorder, "_H264Sink", spy)
     record(scene(), tmp_path / "a.mp4", frames=2, progress=False)
     assert seen == {"crf": recorder.X264_CRF[recorder.X264_PRESET], "preset": recorder.X264_PRESET,
                     "pixel_format": "nv12"}
