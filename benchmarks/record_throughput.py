@@ -317,9 +317,10 @@ def main(argv=None) -> None:
         "runs, a fresh world each run; the recording time includes finishing the file. Every mode steps the "
         "simulation (collisions included) and draws the HUD. `share of bare` = frames/s relative to the "
         "step + render + read-back loop with no writer, measured in the same process: the median over rounds "
-        "of each run's frames/s divided by the bare loop's in the same round, and the worst round. `CPU a frame` "
-        "= processor time of this process and its ffmpeg (where one runs) together per frame (world building included), which "
-        "depends less on other work than the wall time does; on 2 cores what a recording costs in all is what "
+        "of each run's frames/s divided by the bare loop's in the same round, and the worst round. "
+        "`CPU a frame` = processor time of this process and its ffmpeg (where one runs) together per frame "
+        "(world building included), which depends less on other work than the wall time does; on 2 cores "
+        "what a recording costs in all is what "
         "bounds its speed. The range column shows how much runs varied, from the slowest run to the fastest: "
         f"the 2 cores were shared with other work (load average {load_start:.1f} at the start, "
         f"{os.getloadavg()[0]:.1f} at the end).",

@@ -15,11 +15,11 @@ Nothing reads the wall clock, so the same scene and seed give the same frames.
 Formats, from the path (or ``format=``):
 
 * ``.mp4`` — H.264 (libx264, 4:2:0), encoded in this process by FFmpeg's
-  libraries through PyAV (``av``, whose wheels bundle x264): preset ``ultrafast`` with CABAC and
-  the deblocking filter back on, crf 26 by default (:data:`X264_PRESET`,
-  :data:`X264_TUNING`, :data:`X264_CRF`). On the demos that is at least the
-  quality (luma PSNR) of ``veryfast`` at crf 20 for 0.5-0.7 of its
-  encoder CPU and files 1.7-3.3 times as large
+  libraries through PyAV (``av``, whose wheels bundle x264): preset
+  ``ultrafast`` with CABAC and the deblocking filter back on, crf 26 by
+  default (:data:`X264_PRESET`, :data:`X264_TUNING`, :data:`X264_CRF`). On
+  the demos that is at least the quality (luma PSNR) of ``veryfast`` at crf
+  20 for 0.5-0.7 of its encoder CPU and files 1.7-3.3 times as large
   (``benchmarks/record_throughput.py``): on a 2-core machine shared with a
   software renderer, encoder CPU is recording speed. Frames are converted to
   NV12 (BT.709, limited range; the video is tagged so) by
@@ -27,10 +27,10 @@ Formats, from the path (or ``format=``):
   bands of rows that stay in the core's cache, and handed to a writer
   thread, which encodes them (x264 runs without the GIL) while the caller
   steps and draws the next. ``yuv="gpu"`` converts in a shader instead,
-  ``yuv="ffmpeg"`` hands RGBA to FFmpeg's scaler; both measured slower. Flags pin
-  everything that could vary (thread count, ``+bitexact``, no metadata):
-  the same frames give the same bytes on every run. Width and height must
-  be even.
+  ``yuv="ffmpeg"`` hands RGBA to FFmpeg's scaler; both measured slower.
+  Flags pin everything that could vary (thread count, ``+bitexact``, no
+  metadata): the same frames give the same bytes on every run. Width and
+  height must be even.
 * ``.gif`` — scaled by ``gif_scale`` (default 1/2: GIF is for previews), 256
   colours per frame (Pillow's fast octree, no dithering), looping, written
   frame by frame as they come (memory stays at a frame or two, however long
@@ -272,7 +272,8 @@ class _H264Sink(_Sink):
         if self._to_yuv is None:
             frame = self._av.VideoFrame.from_numpy_buffer(pixels, format="nv12")
         else:
-            frame = self._to_yuv(self._av.VideoFrame.from_ndarray(np.ascontiguousarray(pixels[::-1]), format="rgba"))
+            rgba = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(pixels[::-1]), format="rgba")
+            frame = self._to_yuv(rgba)
         frame.pts = self.count                          # in 1/fps: the codec's time base
         self._mux(frame)
         self.count += 1
