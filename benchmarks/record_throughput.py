@@ -288,7 +288,7 @@ def main(argv=None) -> None:
         print(f"{label:>60}: {fps:6.1f} frames/s  ({share} of bare, {ms} ms CPU a frame)")
 
     qrows, points = encoder_quality(ctx, 30 if args.quick else 120)
-    fig, (ax, bx) = figure(1, 2, figsize=(13, 4.6), gridspec_kw={"width_ratios": [1.25, 1]})
+    fig, (ax, bx) = figure(1, 2, figsize=(13, 1.5 + 0.5 * len(modes)), gridspec_kw={"width_ratios": [1.25, 1]})
     labels = list(fps_of)
     ax.barh(range(len(labels)), [fps_of[k] for k in labels], color=["grey"] + ["C0"] * (len(labels) - 1))
     ax.set_yticks(range(len(labels)), ["\n".join(textwrap.wrap(k, 44)) for k in labels], fontsize=7)
