@@ -224,7 +224,7 @@ class _H264Sink(_Sink):
     def __init__(self, tmp, size, fps, *, crf: int, preset: str, pixel_format: str = "rgba"):
         super().__init__(tmp, size, fps)
         import av
-        from av.video.reformatter import ColorRange, Colorspace, VideoReformatter
+        from av.video.reformatter import VideoReformatter
 
         self._av = av
         self.pixel_format = pixel_format
@@ -234,8 +234,7 @@ class _H264Sink(_Sink):
         # matrix (BT.709, limited range) as framework.yuv and the GPU's.
         self._shape = (h * 3 // 2, w) if pixel_format == "nv12" else (h, w, 4)
         self._to_yuv = None if pixel_format == "nv12" else functools.partial(
-            VideoReformatter().reformat, format="yuv420p", dst_colorspace=Colorspace.ITU709,
-            dst_color_range=ColorRange.MPEG)
+            VideoReformatter().reformat, format="yuv420p", dst_colorspace="ITU709", dst_color_range="MPEG")
         options = {"preset": preset, "crf": str(crf), **X264_TUNING.get(preset, {}),
                    "flags": "+bitexact",                # no version strings that could vary
                    **_BT709}                            # say what the numbers mean, so players do not guess

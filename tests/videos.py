@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import av
 import numpy as np
-from av.video.reformatter import ColorRange, Colorspace
 
 
 def mp4_frames(path) -> tuple[dict, list[np.ndarray]]:
@@ -17,7 +16,7 @@ def mp4_frames(path) -> tuple[dict, list[np.ndarray]]:
         stream = container.streams.video[0]
         info = {"size": (stream.codec_context.width, stream.codec_context.height),
                 "fps": float(stream.average_rate)}
-        frames = [f.reformat(format="rgb24", src_colorspace=Colorspace.ITU709, dst_colorspace=Colorspace.ITU709,
-                             src_color_range=ColorRange.MPEG, dst_color_range=ColorRange.JPEG).to_ndarray()
+        frames = [f.reformat(format="rgb24", src_colorspace="ITU709", dst_colorspace="ITU709",
+                             src_color_range="MPEG", dst_color_range="JPEG").to_ndarray()
                   for f in container.decode(stream)]
     return info, frames
