@@ -216,9 +216,10 @@ class _H264Sink(_Sink):
     process a frame reaches x264 without a copy through a pipe into a second
     process, and without that process's reader and hand-offs between its
     threads: against the ffmpeg command fed on a pipe that this sink
-    replaced (the same x264, the same settings), 0.8 ms less CPU a frame in
-    all and 1.04 times the frame rate (asteroids at 1280x720 on 2 cores,
-    medians of 11 interleaved rounds).
+    replaced (the same x264, the same settings), 0.4-0.8 ms less CPU a frame
+    in all, and 0.85-0.89 of the bare loop's frame rate against 0.83-0.85
+    (asteroids at 1280x720 on 2 cores; three runs of 5-11 interleaved
+    rounds; paired, 1.04 times the frame rate over 11 rounds).
     """
 
     def __init__(self, tmp, size, fps, *, crf: int, preset: str, pixel_format: str = "rgba"):
@@ -454,8 +455,8 @@ class _Writer:
     runs against bare in the same process, 5-15 rounds each). Since x264
     runs in this thread (PyAV encodes without the GIL) instead of in an
     ffmpeg process fed on a pipe, a frame is no longer copied through the
-    pipe nor read by a second process: 0.8 ms less CPU a frame, 1.04 times
-    the frame rate (11 rounds). Measured while x264 ran in ffmpeg's process,
+    pipe nor read by a second process: 0.4-0.8 ms less CPU a frame
+    (:class:`_H264Sink`). Measured while x264 ran in ffmpeg's process,
     and kept as lessons: releasing the GIL for
     that wait (glFinish through ctypes) or a shorter switch interval let the
     writes land during rasterisation and slowed it (0.67-0.71 of bare
