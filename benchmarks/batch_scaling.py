@@ -50,7 +50,7 @@ def headless(count: int, seconds: float, n: int) -> list[Spec]:
 
 
 def cpu_seconds() -> float:
-    """User + system CPU time of this process and of every child it has waited for (workers, ffmpeg)."""
+    """User + system CPU time of this process and of every child it has waited for (the workers)."""
     import resource
     me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
@@ -202,17 +202,17 @@ def main(argv=None) -> int:
         f"{batch.cores()} cores: other work shared the machine, so the figures are lower bounds of what "
         "a quiet machine gives. This kernel shares CPU time between sessions (`sched_autogroup`), so while "
         "other sessions are busy two workers get no more CPU than one: only the quiet minutes show the pool's "
-        "gain. *CPU s* (user + system, workers and ffmpeg included) does not depend on the load: the pool's "
+        "gain. *CPU s* (user + system, the workers included) does not depend on the load: the pool's "
         "extra CPU over serial is its own cost (spawning, importing, pickling).",
         "",
         table(["batch", "serial s", "-j 2 s", "serial CPU s", "-j 2 CPU s", "speed-up",
                "worst round", "best round", "idle-core projection", "bar", ""], rows),
         "",
         f"- Ceiling for the recordings: one recording alone keeps {busy['recordings']:.2f} cores busy (serial "
-        f"CPU s / serial s: x264 encodes beside the run in ffmpeg's process), so {batch.cores()} cores give at "
-        f"most {batch.cores()} / {busy['recordings']:.2f} = {batch.cores() / busy['recordings']:.2f}x, before "
-        "the pool's own start-up (an interpreter importing driftframe, numpy and moderngl and making its "
-        "first GL context: most of the CPU difference above). Headless runs keep one core busy each: the "
+        f"CPU s / serial s: x264 encodes beside the run, on the recorder's writer thread), so "
+        f"{batch.cores()} cores give at most {batch.cores()} / {busy['recordings']:.2f} = "
+        f"{batch.cores() / busy['recordings']:.2f}x, before the pool's own start-up (an interpreter importing "
+        "driftframe, numpy and moderngl and making its first GL context: most of the CPU difference above). Headless runs keep one core busy each: the "
         "ceiling is the core count.",
         f"- Each batch runs in a fresh Python process, as `driftframe batch` does (Mesa reads `LP_NUM_THREADS` "
         "once a process, at its first GL context, so only a fresh process gets the rasteriser threads the "
