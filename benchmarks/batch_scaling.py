@@ -212,8 +212,8 @@ def main(argv=None) -> int:
         f"CPU s / serial s: x264 encodes beside the run, on the recorder's writer thread), so "
         f"{batch.cores()} cores give at most {batch.cores()} / {busy['recordings']:.2f} = "
         f"{batch.cores() / busy['recordings']:.2f}x, before the pool's own start-up (an interpreter importing "
-        "driftframe, numpy and moderngl and making its first GL context: most of the CPU difference above). Headless runs keep one core busy each: the "
-        "ceiling is the core count.",
+        "driftframe, numpy and moderngl and making its first GL context: most of the CPU difference above). "
+        "Headless runs keep one core busy each: the ceiling is the core count.",
         f"- Each batch runs in a fresh Python process, as `driftframe batch` does (Mesa reads `LP_NUM_THREADS` "
         "once a process, at its first GL context, so only a fresh process gets the rasteriser threads the "
         "batch plans: none for `-j 2` on 2 cores, llvmpipe's default for `-j 1`); the clock starts after "
