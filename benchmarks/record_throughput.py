@@ -37,6 +37,7 @@ import statistics
 import tempfile
 import textwrap
 import time
+from unittest import mock
 from pathlib import Path
 
 import numpy as np
@@ -119,18 +120,15 @@ def bare(ctx, frames: int) -> float:
     return fps
 
 
-@contextlib.contextmanager
-def _x264_tuning(tuning):
-    """The recorder's per-preset x264 settings replaced by ``tuning`` for a while (None: left as they are)."""
-    from driftframe.framework import recorder
+def _swapped(**attrs):
+    """A context in which the recorder's named attributes are the values given (None: left as they are)."""
+    attrs = {k: v for k, v in attrs.items() if v is not None}
+    return mock.patch.multiple(recorder, **attrs) if attrs else contextlib.nullcontext()
 
-    saved = recorder.X264_TUNING
-    if tuning is not None:
-        recorder.X264_TUNING = tuning
-    try:
-        yield
-    finally:
-        recorder.X264_TUNING = saved
+
+def _args(options: dict) -> list[str]:
+    """Encoder options as ffmpeg command-line arguments."""
+    return [a for k, v in options.items() for a in (f"-{k}", v)]
 
 
 class _PipedSink(recorder._Sink):
@@ -146,13 +144,12 @@ class _PipedSink(recorder._Sink):
         super().__init__(tmp, size, fps)
         self.pixel_format = pixel_format
         w, h = size
-        tags = [a for k, v in recorder._BT709.items() for a in (f"-{k}", v)]
+        tags = _args(recorder._BT709)
         convert = ["-vf", "vflip,scale=out_color_matrix=bt709:out_range=tv"] if pixel_format == "rgba" else []
-        tuning = [a for k, v in recorder.X264_TUNING.get(preset, {}).items() for a in (f"-{k}", v)]
         cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-nostdin", "-loglevel", "error",
                "-f", "rawvideo", "-pix_fmt", pixel_format, "-s", f"{w}x{h}", "-r", str(fps),
                *(tags if pixel_format == "nv12" else []), "-i", "pipe:0", "-an", *convert,
-               "-c:v", "libx264", "-preset", preset, "-crf", str(crf), *tuning,
+               "-c:v", "libx264", "-preset", preset, "-crf", str(crf), *_args(recorder.X264_TUNING.get(preset, {})),
                "-pix_fmt", "nv12" if pixel_format == "nv12" else "yuv420p",
                "-threads", str(recorder.X264_THREADS), *tags,
                "-fflags", "+bitexact", "-flags:v", "+bitexact", "-map_metadata", "-1", "-f", "mp4", str(tmp)]
@@ -175,30 +172,9 @@ class _PipedSink(recorder._Sink):
         super().abort()
 
 
-@contextlib.contextmanager
-def _piped(on: bool):
-    """MP4 through the ffmpeg command on a pipe, as before in-process encoding (on: for a while)."""
-    saved = recorder._H264Sink
-    if on:
-        recorder._H264Sink = _PipedSink
-    try:
-        yield
-    finally:
-        recorder._H264Sink = saved
-
-
-@contextlib.contextmanager
-def _whole_frames(on: bool):
-    """The NV12 path as it was before bands: read the whole frame, then convert it (on: for a while)."""
-    from driftframe.framework import recorder
-
-    saved = recorder._banded_nv12
-    if on:
-        recorder._banded_nv12 = lambda target, depth: recorder._cpu_nv12(target.read_raw, target.size, depth)
-    try:
-        yield
-    finally:
-        recorder._banded_nv12 = saved
+def _whole_frame_nv12(target, depth: int):
+    """The NV12 path as it was before bands: read the whole frame, then convert it."""
+    return recorder._cpu_nv12(target.read_raw, target.size, depth)
 
 
 def recorded(ctx, frames: int, path, **kw) -> tuple[float, int]:
@@ -211,16 +187,16 @@ def recorded(ctx, frames: int, path, **kw) -> tuple[float, int]:
     """
     from driftframe.systems.motion_blur import SubframePoses
 
-    tuning = kw.pop("_tuning", None)
-    whole = kw.pop("_whole", False)
-    piped = kw.pop("_piped", False)
+    swaps = _swapped(X264_TUNING=kw.pop("_tuning", None),
+                     _banded_nv12=_whole_frame_nv12 if kw.pop("_whole", False) else None,
+                     _H264Sink=_PipedSink if kw.pop("_piped", False) else None)
     if kw.get("motion_blur", 1) > 1:
         kw["interpolate"] = SubframePoses()
     w = build(ctx)
     w.step()
     w.render()                                      # warm-up, as for the baseline
     try:
-        with _x264_tuning(tuning), _whole_frames(whole), _piped(piped):
+        with swaps:
             res = record(w, path, frames=frames, progress=False, **kw)
     finally:
         w.close()
@@ -383,9 +359,7 @@ def _nv12_frames(ctx, demo: str, frames: int) -> list[np.ndarray]:
 
 def _encode(nv12: list[np.ndarray], path: Path, preset: str, crf: int, tuning) -> tuple[float, int]:
     """x264 CPU seconds a frame and bytes, through the recorder's own encoder (in this process)."""
-    from driftframe.framework import recorder
-
-    with _x264_tuning(tuning):
+    with _swapped(X264_TUNING=tuning):
         c0 = resource.getrusage(resource.RUSAGE_SELF)
         sink = recorder._H264Sink(path, SIZE, 60, crf=crf, preset=preset, pixel_format="nv12")
         for f in nv12:

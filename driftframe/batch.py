@@ -31,11 +31,11 @@ Worker count (:func:`plan_jobs`): the cores this process may use, divided
 by what one run keeps busy. A headless run is one busy thread. An MP4
 recording adds its x264 encoder beside it, on the recorder's writer
 thread (x264's threads pinned at ``recorder.X264_THREADS`` because the
-bytes depend on it, so its load is counted: :data:`RECORDING_CORES`). Mesa starts ``LP_NUM_THREADS``
-rasteriser threads in every process (by default one per core): with several
-workers each gets ``LP_NUM_THREADS = cores // jobs``, or 0 (rasterise on the
-run's own thread) where that is 1, unless you set it yourself. Give ``jobs``
-to override.
+bytes depend on it, so its load is counted: :data:`RECORDING_CORES`).
+Mesa starts ``LP_NUM_THREADS`` rasteriser threads in every process (by
+default one per core): with several workers each gets ``LP_NUM_THREADS =
+cores // jobs``, or 0 (rasterise on the run's own thread) where that is 1,
+unless you set it yourself. Give ``jobs`` to override.
 
 Failures: a run that raises becomes a :class:`Failure` (its spec, the error,
 the traceback) and the others go on. Ctrl-C: the first one stops the batch

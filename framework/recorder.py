@@ -102,8 +102,9 @@ X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium"
 #: times as large (asteroids: 3.6 against 1.4 KiB a frame, about 1.8 Mbit/s at 720p60).
 X264_PRESET = "ultrafast"
 #: x264 threads, pinned: the encoded bytes depend on it, so it must not follow the machine's cores. One:
-#: x264 then runs in the recorder's writer thread, beside the render, and at ultrafast one thread keeps up; on
-#: 2 cores two threads only competed with the renderer (1280x720: 0.67 of bare with 2, 0.73 with 1).
+#: x264 then runs on the recorder's writer thread, beside the render, and at ultrafast one thread keeps
+#: up; on 2 cores two threads only competed with the renderer (1280x720: 0.67 of bare with 2, 0.73 with 1,
+#: measured while x264 ran in an ffmpeg process).
 X264_THREADS = 1
 #: Per-preset x264 settings beyond the preset. ultrafast turns off CABAC and the deblocking filter; at
 #: these bit rates both cost little CPU (3.0 against 2.9 ms a 720p frame) and are worth having: CABAC
