@@ -34,7 +34,7 @@ Everything here works on whole arrays; no Python loop runs over pairs.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from driftframe.framework.kernels import kernel
 
 #: Up to this many boxes "auto" tests every pair (measured crossover; see benchmarks/collision_scaling.py).
 ALL_PAIRS_MAX = 32
@@ -359,7 +359,7 @@ class NeighbourList:
         return cand[keep]
 
 
-@njit(cache=True)
+@kernel
 def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
     """Compiled :meth:`NeighbourList.territories`: listed bodies whose territory box meets ``[lo, hi]``.
 
@@ -386,7 +386,7 @@ def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
     return out[:m]
 
 
-@njit(cache=True)
+@kernel
 def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     """Mark as swept every listed body whose path ``x + u t``, 0 <= t <= dt, leaves its territory
     (either end at its skin's distance or more from its build centre; a ball is convex).
@@ -417,7 +417,7 @@ def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     return new, total
 
 
-@njit(cache=True)
+@kernel
 def _within(c, reach, i, j):
     """Which candidate pairs (i, j) have ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n))."""
     out = np.empty(i.shape[0], np.bool_)
@@ -454,7 +454,7 @@ def _grid_build(c, reach, swept, n_slow):
 _KEY_SPAN = 2_000_000
 
 
-@njit(cache=True)
+@kernel
 def _grid_setup(c, reach, swept):
     """Cell side ``h``, the largest ordinary reach ``hh``, low corner and cells per axis.
 
@@ -495,7 +495,7 @@ def _grid_setup(c, reach, swept):
     return h, hh, lo[0], lo[1], lo[2], dims[0], dims[1], dims[2]
 
 
-@njit(cache=True)
+@kernel
 def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
 
@@ -680,7 +680,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     return p
 
 
-@njit(cache=True)
+@kernel
 def _territory(r, d, skin_steps):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
@@ -702,7 +702,7 @@ def _territory(r, d, skin_steps):
     return skin, swept, r + skin
 
 
-@njit(cache=True)
+@kernel
 def _x_order(c, reach, swept):
     """The territories' low ends in x, sorted (a stable sort), their order, and twice the largest
     listed reach: what :meth:`NeighbourList.territories` and :func:`territory_query` search."""

@@ -81,7 +81,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from driftframe.framework.kernels import kernel
 
 from driftframe.framework import broadphase as bp
 
@@ -118,21 +118,21 @@ _INF = math.inf
 # solve_step, the largest kernel, compiled twice on a machine's first run (about 15 s more).
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _grow_f(a, n):
     b = np.empty((max(n, 2 * a.shape[0]),) + a.shape[1:], a.dtype)
     b[:a.shape[0]] = a
     return b
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _grow_i(a, n):
     b = np.empty(max(n, 2 * a.shape[0]), a.dtype)
     b[:a.shape[0]] = a
     return b
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(error_model="numpy")
 def toi(ex, ey, ez, wx, wy, wz, R, inv_sum, speeds, t, dt):
     """Earliest time of impact in [t, dt] of bodies i, j on paths ``x + u t'``; (-1, 0) when none.
 
@@ -192,7 +192,7 @@ def toi(ex, ey, ez, wx, wy, wz, R, inv_sum, speeds, t, dt):
 # every array a function call receives (an atomic operation, before and after the call), and with
 # four arrays those counts were two thirds of a dense gas's solve. Pair and version are whole
 # numbers held exactly in float64 (below 2^53). Order: by time, then by pair.
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _sift_up(H, k):
     t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
     while k > 0:
@@ -205,7 +205,7 @@ def _sift_up(H, k):
     H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _sift_down(H, k, n):
     t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
     while True:
@@ -223,7 +223,7 @@ def _sift_down(H, k, n):
     H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _pop(H, n):
     """Remove the root of a heap of ``n + 1`` rows (already read): the last row to the root, sifted down."""
     if n > 0:
@@ -231,7 +231,7 @@ def _pop(H, n):
         _sift_down(H, np.int64(0), n)     # np.int64: see _NOT_LITERAL
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _push(H, n, t, p, v, s):
     """Add a row to a heap of ``n`` rows, which has room for it (the caller grows ``H`` before a loop
     of pushes: an array reassigned inside a loop is reference-counted on every pass)."""
@@ -241,7 +241,7 @@ def _push(H, n, t, p, v, s):
 
 # -- dense solve ------------------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy", inline="always")
+@kernel(error_model="numpy")
 def _kick(b, sg, lam, c, inv, bmark, wave, dv, moved, nm, wn):
     """Add body ``b``'s share ``sg * lam * inv[b]`` of contact ``c``'s impulse along its normal to ``dv``.
 
@@ -261,7 +261,7 @@ def _kick(b, sg, lam, c, inv, bmark, wave, dv, moved, nm, wn):
     return nm
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def solve_psd(A, y, m, out):
     """Solve ``A[:m, :m] out = y[:m]`` for a symmetric positive semi-definite A (A and y are overwritten).
 
@@ -308,7 +308,7 @@ def solve_psd(A, y, m, out):
         out[perm[s]] = sol[s]
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
     """Impulses of one island's contacts ``cs[:K]`` (indices into the wave), >= 0, into ``lam``."""
     for a in range(K):
@@ -356,7 +356,7 @@ def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
 
 # -- the step ---------------------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _wave_scratch(cap):
     """A wave's arrays for up to ``cap`` contacts: pair, i, j, island root, island members, normal,
     normal velocity, restitution, impulse, stuck; the entries put back (time, pair, version, slack);
@@ -367,7 +367,7 @@ def _wave_scratch(cap):
             np.empty(cap), np.empty(cap))
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _link(p, i, j, head, nxt):
     nxt[2 * p] = head[i]
     head[i] = 2 * p
@@ -375,7 +375,7 @@ def _link(p, i, j, head, nxt):
     head[j] = 2 * p + 1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _pair_structures(pi, pj, n):
     """Growable copies of the pairs, their adjacency lists (head/nxt), versions and marks."""
     P = pi.shape[0]
@@ -393,7 +393,7 @@ def _pair_structures(pi, pj, n):
     return P, PI, PJ, head, nxt, ver, mark
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def all_pairs(n):
     """Every pair i < j of n bodies, in lexicographic order."""
     P = n * (n - 1) // 2
@@ -408,7 +408,7 @@ def all_pairs(n):
     return pi, pj
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
     """Every candidate pair's time of impact from t = 0, into a heap; and the overlaps at the start."""
     H = np.empty((max(2 * P, 1024), 4))                   # room for every pair, and as many again
@@ -440,14 +440,14 @@ def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
     return H, hn, overlaps, worst, wi_, wj_
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _shift(t, d):
     """``t += d`` in place, element by element (``t - now`` and ``+ now`` without two numpy calls a step)."""
     for k in range(t.shape[0]):
         t[k] += d
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
                listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
     """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
@@ -841,7 +841,7 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
     return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen,
            queue):
     """Give the touching cluster of an island's bodies one velocity: its centre of mass's, or that of an
@@ -921,7 +921,7 @@ def _stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark,
     return nm
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _has_pair(b, o, head, nxt, PI, PJ):
     node = head[b]
     while node >= 0:
@@ -932,7 +932,7 @@ def _has_pair(b, o, head, nxt, PI, PJ):
     return False
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, order, lo_x, width, start):
     """Add the pairs of swept body b's path box with the listed territories and the other swept boxes."""
     n = swept.shape[0]
@@ -972,7 +972,7 @@ def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, o
     return P, PI, PJ, nxt, ver, mark
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
     """:func:`solve_step` with every pair a candidate (few bodies): fewer arguments to pass per step."""
     nob = np.zeros(0, np.bool_)
@@ -984,7 +984,7 @@ def solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
                       np.int64(0))                                    # see _NOT_LITERAL
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def gather_bodies(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,
                   x0, v0, a, inv, r, e, x, u, live):
     """The colliders' start-of-step state from the world's columns, in one pass (a scene of a few
@@ -1039,7 +1039,7 @@ def gather_bodies(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_id
     return bad, moving
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(error_model="numpy")
 def scatter_bodies(pos, vel, t_idx, v_idx, x0, v0, a, x, u, changed, dt):
     """Write the end of the step into the columns: a body whose velocity the solver changed ends at
     ``x + u dt`` with ``u`` (plus the second ``a dt/2``), any other at ``x0 + v0 dt + a dt^2/2`` with

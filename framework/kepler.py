@@ -838,10 +838,10 @@ def orbit_points(r, v, mu, n: int = 128, *, max_radius: float | None = None):
 # kernels): one pass over the columns instead of ~170 numpy passes. Formulas and tolerances are
 # those above: Stumpff's series for |psi| <= 1 (12 terms, Horner), the half-angle closed forms
 # beyond; Laguerre (n = 5) from the guess, bracketed, Newton after 8 iterations; f, g from chi.
-from numba import njit  # noqa: E402
+from driftframe.framework.kernels import kernel  # noqa: E402
 
 
-@njit(cache=True)
+@kernel
 def _stumpff1(psi):
     if abs(psi) <= 1.0:
         c2 = 0.0
@@ -861,7 +861,7 @@ _C2_NB = _C2_SERIES.copy()
 _C3_NB = _C3_SERIES.copy()
 
 
-@njit(cache=True)
+@kernel
 def _next_chi_compiled(chi, r, v, X, V, mu, step, out):
     """:func:`next_chi` for ``(n, 3)`` states relative to ``X, V``, one body at a time."""
     for i in range(r.shape[0]):
@@ -876,7 +876,7 @@ def _next_chi_compiled(chi, r, v, X, V, mu, step, out):
         out[i] = chi[i] + dchi if abs(alpha) * dchi * dchi <= 0.2 else np.nan
 
 
-@njit(cache=True)
+@kernel
 def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1, dt, guess,
                  out_r, out_v, out_chi):
     """Returns the number of bodies that needed the numpy path (a guess outside the bracket)."""
@@ -951,7 +951,7 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
     return 0
 
 
-@njit(cache=True)
+@kernel
 def _arc_boxes_compiled(p, w, pe, we, span, mu, surface, ball, grow_by, lo, hi, accel, rho_out):
     for i in range(p.shape[0]):
         rn = np.sqrt(p[i, 0] ** 2 + p[i, 1] ** 2 + p[i, 2] ** 2)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from numba import njit
+from driftframe.framework.kernels import kernel
 
 _S = 16                                        # fixed-point fraction bits
 _KR, _KB = 0.2126, 0.0722
@@ -51,7 +51,7 @@ _C0 = (128 << (_S + 2)) + (1 << (_S + 1))
 _SHIFT_R, _SHIFT_G, _SHIFT_B = (0, 8, 16) if sys.byteorder == "little" else (24, 16, 8)
 
 
-@njit(cache=True, nogil=True, boundscheck=False)
+@kernel(nogil=True, boundscheck=False)
 def _nv12(src, src2, dst, w, h, m0):               # pragma: no cover - compiled
     """GL rows ``m0 .. m0 + len(src) - 1`` of a ``w`` x ``h`` frame into their place in ``dst``.
 

@@ -1,0 +1,136 @@
+"""numba's function cache, pointed at driftframe's folder and checked on every load (see :mod:`.kernels`).
+
+numba's own ``FunctionCache`` with three changes: the folder is
+:func:`kernels.cache_dir` (keyed by the digest of every kernel module), the
+source stamp is that digest (so an index written for other sources is stale
+even in the same folder), and each file is ``sha256(payload) + payload``
+with each compiled entry saved beside its index key. A file that fails the
+check, or an entry under another key (two processes that numbered their
+entries alike, numba issue 4807), is treated as missing: compiled again and
+written anew. A folder that cannot be written: one warning, then the kernels
+are compiled in this process only.
+"""
+from __future__ import annotations
+
+import hashlib
+import inspect
+import itertools
+import os
+import pickle
+import sys
+import tempfile
+
+from numba.core.caching import (CompileResultCacheImpl, FunctionCache, IndexDataCacheFile, _CacheLocator)
+from numba.core.serialize import dumps
+
+from driftframe.framework import kernels
+
+_DIGEST = 32                      # bytes of SHA-256 in front of each file's payload
+
+
+class _Locator(_CacheLocator):
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        self._folder = str(kernels.cache_dir())
+
+    def ensure_cache_path(self):
+        os.makedirs(self._folder, exist_ok=True)
+        tempfile.TemporaryFile(dir=self._folder).close()      # writable, as numba's own locators check
+
+    def get_cache_path(self):
+        return self._folder
+
+    def get_source_stamp(self):
+        return kernels.source_digest()
+
+    def get_disambiguator(self):
+        return str(self._lineno)
+
+
+class _Impl(CompileResultCacheImpl):
+    """numba's ``CacheImpl.__init__`` with our locator in place of its search through its own."""
+
+    def __init__(self, py_func):
+        filename = inspect.getfile(py_func)
+        self._lineno = py_func.__code__.co_firstlineno
+        self._locator = _Locator(py_func, filename)
+        modname = os.path.splitext(os.path.basename(filename))[0]
+        qualname = getattr(py_func, "__qualname__", py_func.__name__)
+        self._filename_base = self.get_filename_base(f"{modname}.{qualname}", getattr(sys, "abiflags", ""))
+
+
+class _CheckedFile(IndexDataCacheFile):
+    """Index and data files with a SHA-256 of their bytes; each data file holds ``(key, entry)``."""
+
+    def _dump(self, obj):
+        payload = dumps(obj)
+        return hashlib.sha256(payload).digest() + payload
+
+    @staticmethod
+    def _checked(blob):
+        if len(blob) < _DIGEST or hashlib.sha256(blob[_DIGEST:]).digest() != blob[:_DIGEST]:
+            return None
+        return pickle.loads(blob[_DIGEST:])
+
+    def _load_index(self):
+        try:
+            with open(self._index_path, "rb") as f:
+                version = pickle.load(f)
+                blob = f.read()
+        except FileNotFoundError:
+            return {}
+        except Exception:          # noqa: BLE001 - a damaged file: whatever unpickling raised, it is stale
+            return {}
+        if version != self._version:
+            return {}
+        try:
+            stamp, overloads = self._checked(blob)
+        except Exception:          # noqa: BLE001 - None (the check failed) or a bad pickle
+            return {}
+        return overloads if stamp == self._source_stamp else {}
+
+    def has_entries(self) -> bool:
+        return bool(self._load_index())
+
+    def save(self, key, data):
+        overloads = self._load_index()
+        name = overloads.get(key)
+        if name is None:
+            taken = set(overloads.values())
+            name = next(n for n in (self._data_name(i) for i in itertools.count(1)) if n not in taken)
+            overloads[key] = name
+            self._save_index(overloads)
+        self._save_data(name, (key, data))
+
+    def load(self, key):
+        name = self._load_index().get(key)
+        if name is None:
+            return None
+        try:
+            with open(self._data_path(name), "rb") as f:
+                saved_key, data = self._checked(f.read())
+        except Exception:          # noqa: BLE001 - missing, damaged (the check failed) or a bad pickle
+            return None
+        return data if saved_key == key else None
+
+
+class KernelCache(FunctionCache):
+    """The cache of one kernel, in :func:`kernels.cache_dir`."""
+
+    _impl_class = _Impl
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file = _CheckedFile(self._cache_path, self._impl.filename_base,
+                                        self._impl.locator.get_source_stamp())
+
+    def has_entries(self) -> bool:
+        """Whether the index lists anything usable (compiled entries for these sources)."""
+        return self._cache_file.has_entries()
+
+    def save_overload(self, sig, data):
+        try:
+            super().save_overload(sig, data)
+        except OSError as e:       # read-only or full: this process keeps what it compiled, in memory
+            kernels._unwritable(self._impl.locator.get_cache_path(), e)

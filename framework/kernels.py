@@ -1,0 +1,345 @@
+"""The numba kernels: one decorator, one cache folder per user, compiling ahead, a compile you can watch.
+
+Every compiled function in driftframe is declared with :func:`kernel` (numba's
+``njit`` with driftframe's own cache) in one of :data:`KERNEL_MODULES`.
+
+Where the cache lives: ``$NUMBA_CACHE_DIR/driftframe/<key>`` when that
+variable is set, else the user's cache folder (``$XDG_CACHE_HOME`` or
+``~/.cache`` on Linux, ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%`` on
+Windows) ``/driftframe/kernels/<key>``; never beside the sources, so a
+read-only install works and uninstalling leaves nothing behind. ``<key>`` is
+driftframe's version and a digest of every kernel module's source: numba
+alone checks only the file a kernel is written in, so a kernel that calls
+one in another file (``contact.solve_step`` calls
+``broadphase.territory_query``) would go on running the old callee after
+that file changed. Each cache file also carries a SHA-256 of its bytes and
+each compiled entry the key it was saved under: a damaged file, or one
+another process overwrote (numba's cache is not safe against concurrent
+writers, numba issue 4807), is compiled again, never loaded.
+
+This module imports nothing heavy: :func:`kernel` imports numba when the
+first kernel is declared, so ``import driftframe`` stays cheap.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+
+from driftframe.framework import __version__
+
+#: The modules (in ``driftframe.framework``) that declare kernels, and the package modules they import
+#: names from at compile time. The cache key digests all of them: a test checks the list is complete.
+KERNEL_MODULES = ("broadphase", "contact", "kepler", "yuv")
+
+_HERE = Path(__file__).resolve().parent
+_registry: list = []                 # every kernel's dispatcher, in declaration order
+_digest: str | None = None
+_warned: set = set()
+
+
+# -- where ------------------------------------------------------------------------------------------------
+def user_cache_root() -> Path:
+    """The platform's per-user cache folder for driftframe (not created here)."""
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
+        return Path(base) / "driftframe" / "Cache"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "driftframe"
+    xdg = os.environ.get("XDG_CACHE_HOME", "")
+    return (Path(xdg) if os.path.isabs(xdg) else Path.home() / ".cache") / "driftframe"   # XDG: relative = unset
+
+
+def source_digest() -> str:
+    """SHA-256 (hex, first 16 digits) of every kernel module's source, in :data:`KERNEL_MODULES` order."""
+    global _digest
+    if _digest is None:
+        h = hashlib.sha256()
+        for name in KERNEL_MODULES:
+            data = (_HERE / f"{name}.py").read_bytes()
+            h.update(f"{name}.py {len(data)}\n".encode())
+            h.update(data)
+        _digest = h.hexdigest()[:16]
+    return _digest
+
+
+def cache_dir() -> Path:
+    """The folder this process caches kernels in (see the module docstring); not created here."""
+    key = f"{__version__}-{source_digest()}"
+    numba_dir = _numba_cache_dir()
+    if numba_dir:
+        return Path(numba_dir) / "driftframe" / key
+    return user_cache_root() / "kernels" / key
+
+
+def _numba_cache_dir() -> str:
+    config = sys.modules.get("numba.core.config")    # set in code after numba was imported, or by the env
+    return (getattr(config, "CACHE_DIR", "") if config is not None else "") or os.environ.get("NUMBA_CACHE_DIR", "")
+
+
+def warn_once(key: str, line: str) -> None:
+    """One line on stderr, once per process for each ``key``."""
+    if key not in _warned:
+        _warned.add(key)
+        print(f"driftframe: warning: {line}", file=sys.stderr, flush=True)
+
+
+def _unwritable(folder: Path, e: OSError) -> None:
+    warn_once(("unwritable", str(folder)),
+              f"cannot write the kernel cache folder {folder} ({e.strerror or e}); "
+              "kernels are compiled in this process only (set NUMBA_CACHE_DIR to a writable folder)")
+
+
+# -- declaring ------------------------------------------------------------------------------------------
+def kernel(fn=None, **options):
+    """``numba.njit(**options)`` with driftframe's cache: ``@kernel`` or ``@kernel(error_model="numpy")``."""
+    if "cache" in options:
+        raise TypeError("kernel() caches always; do not pass cache=")
+
+    def declare(f):
+        from numba import njit
+
+        from driftframe.framework import kernel_cache
+
+        dispatcher = njit(**options)(f)
+        dispatcher._cache = kernel_cache.KernelCache(f)   # what njit(cache=True) sets, ours
+        _registry.append(dispatcher)
+        return dispatcher
+
+    return declare(fn) if fn is not None else declare
+
+
+def registry(load: bool = True) -> list:
+    """Every kernel's dispatcher; ``load`` imports every kernel module first."""
+    if load:
+        import importlib
+        for name in KERNEL_MODULES:
+            importlib.import_module(f"driftframe.framework.{name}")
+    return list(_registry)
+
+
+def kernel_name(dispatcher) -> str:
+    """``contact.solve_step``: the module's last part and the function's name."""
+    return f"{dispatcher.py_func.__module__.rsplit('.', 1)[-1]}.{dispatcher.py_func.__name__}"
+
+
+def _inlined(dispatcher) -> bool:
+    # inline="always": numba pastes the callee's IR into each caller and never compiles it on its own
+    return dispatcher.targetoptions.get("inline", "never") == "always"
+
+
+def callees(dispatcher) -> set:
+    """The kernels ``dispatcher`` names in its code: ``f(...)`` for a kernel global, ``mod.f(...)`` for a module's."""
+    import types
+    f = dispatcher.py_func
+    names, codes = set(), [f.__code__]
+    while codes:
+        code = codes.pop()
+        names.update(code.co_names)
+        codes.extend(c for c in code.co_consts if isinstance(c, types.CodeType))
+    known = {id(d) for d in _registry}
+    found = set()
+    for name in names:
+        value = f.__globals__.get(name)
+        if isinstance(value, types.ModuleType):
+            for attr in names:
+                candidate = getattr(value, attr, None)
+                if id(candidate) in known:
+                    found.add(candidate)
+        elif id(value) in known and value is not dispatcher:
+            found.add(value)
+    return found
+
+
+def closure(dispatcher) -> list:
+    """``dispatcher`` and every kernel it can call, directly or through others."""
+    seen, todo = {id(dispatcher): dispatcher}, [dispatcher]
+    while todo:
+        for c in callees(todo.pop()):
+            if id(c) not in seen:
+                seen[id(c)] = c
+                todo.append(c)
+    return list(seen.values())
+
+
+def needs_compile(dispatcher) -> bool:
+    """True when ``dispatcher`` has nothing compiled in this process and nothing usable in the cache."""
+    return not _inlined(dispatcher) and not dispatcher.overloads and not dispatcher._cache.has_entries()
+
+
+# -- watching a compile ----------------------------------------------------------------------------------
+class KernelCompileError(RuntimeError):
+    """A kernel failed to compile; the message names it."""
+
+
+class CompileWatch:
+    """Counts the kernels numba compiles while it is entered (numba's ``numba:compile`` events).
+
+    ``expected``: the kernels known to need compiling so far: those given, and
+    when a kernel starts compiling, every kernel it can call that has nothing
+    cached (:func:`closure`, :func:`needs_compile`). ``n of m`` is then
+    ``len(started)`` of ``len(expected | started)``: m grows only when a
+    compile begins that nothing predicted. Thread-safe: the events come from
+    the compiling thread, :meth:`line` from any other.
+    """
+
+    def __init__(self, expected=()):
+        self._lock = threading.Lock()
+        self.expected = {id(d): d for d in expected}
+        self.started: dict = {}
+        self.stack: list = []            # (dispatcher, one of ours) compiling now, outermost first
+        self.t0 = None
+        self.seconds = 0.0
+        self.failed = None               # the kernel whose compile raised, innermost
+
+    @property
+    def n(self) -> int:
+        return len(self.started)
+
+    @property
+    def m(self) -> int:
+        return len(self.expected.keys() | self.started.keys())
+
+    def _start(self, ev) -> None:
+        d = ev.data["dispatcher"]       # numba's own numpy functions compile through dispatchers too: not counted
+        with self._lock:
+            if self.t0 is None:
+                self.t0 = time.perf_counter()
+            ours = any(d is k for k in _registry)
+            if ours and not any(mine for _, mine in self.stack):      # the outermost of ours
+                for c in closure(d):
+                    if c is d or needs_compile(c):
+                        self.expected.setdefault(id(c), c)
+            if ours:
+                self.started.setdefault(id(d), d)
+            self.stack.append((d, ours))
+
+    def _end(self, ev) -> None:
+        with self._lock:
+            d, ours = self.stack.pop() if self.stack else (None, False)
+            if ev.is_failed and self.failed is None and ours:
+                self.failed = d
+
+    def elapsed(self) -> float:
+        return 0.0 if self.t0 is None else time.perf_counter() - self.t0
+
+    def current(self) -> str:
+        with self._lock:
+            ours = [d for d, mine in self.stack if mine]
+            return kernel_name(ours[-1]) if ours else ""
+
+    def line(self) -> str:
+        """``3 of 14 kernels, 12 s: contact.solve_step``"""
+        now = self.current()
+        return f"{self.n} of {self.m} kernels, {self.elapsed():.0f} s" + (f": {now}" if now else "")
+
+    def __enter__(self):
+        from numba.core import event
+        watch = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev):
+                watch._start(ev)
+
+            def on_end(self, ev):
+                watch._end(ev)
+
+        self._listener = _Listener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        from numba.core import event
+        event.unregister("numba:compile", self._listener)
+        self.seconds = self.elapsed()
+        if exc_type is not None and issubclass(exc_type, Exception) and self.failed is not None \
+                and not isinstance(exc, KernelCompileError):
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else exc_type.__name__
+            raise KernelCompileError(f"compiling kernel {kernel_name(self.failed)} failed: {first}") from exc
+
+
+# -- compiling ahead -------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def file_lock(path: Path):
+    """An exclusive lock on ``path`` across processes (created if missing); a no-op where it cannot be made."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as e:
+        _unwritable(path.parent, e)
+        yield
+        return
+    try:
+        if sys.platform == "win32":
+            import msvcrt
+            while True:
+                try:
+                    msvcrt.locking(fd, msvcrt.LK_LOCK, 1)
+                    break
+                except OSError:      # LK_LOCK gives up after 10 s; a compile takes longer
+                    continue
+        else:
+            import fcntl
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)                 # closing releases the lock
+
+
+WARM_MARK = "warm.done"
+
+
+def is_warm(folder: Path | None = None) -> bool:
+    """Whether :func:`warm` finished in the cache folder (its mark file exists)."""
+    return ((folder or cache_dir()) / WARM_MARK).exists()
+
+
+def _workload() -> None:
+    """Calls that reach every kernel: one step of each demo scene, one frame through the NV12 converter."""
+    import numpy as np
+
+    from driftframe import demos
+    from driftframe.app import load_kernels
+    from driftframe.framework.yuv import rgba_to_nv12
+
+    for name in demos.NAMES:
+        load_kernels(name)
+    rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
+
+
+def warm(watch: CompileWatch | None = None) -> list:
+    """Compile or load every kernel, one process at a time per cache folder (a file lock).
+
+    Returns the kernels the warm-up did not reach (empty when all are ready).
+    ``watch``: a :class:`CompileWatch` already entered, to show progress; its
+    ``expected`` is set here to every kernel with nothing cached.
+    """
+    folder = cache_dir()
+    with file_lock(folder / "warm.lock"):
+        kernels = registry()
+        for stale in folder.glob("*.tmp.*"):        # a write cut short (Ctrl-C, a crash): numba renames on success
+            with contextlib.suppress(OSError):
+                stale.unlink()
+        if watch is not None:
+            with watch._lock:
+                for d in kernels:
+                    if needs_compile(d):
+                        watch.expected.setdefault(id(d), d)
+        _workload()
+        missed = [d for d in kernels if not _inlined(d) and not d.overloads]
+        if not missed:
+            try:
+                (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
+            except OSError as e:
+                _unwritable(folder, e)
+        return missed
+
+
+def warm_once() -> None:
+    """:func:`warm` unless the cache folder is already warm; quiet. For a batch's workers."""
+    if not is_warm():
+        warm()
