@@ -15,14 +15,24 @@ from pathlib import Path
 
 import esper
 
+from driftframe.framework.inputfile import InputFileError, open_regular
+from driftframe.framework.output import PartFile
+
 
 class HashLogSystem(esper.Processor):
     """Reads every component (``world.state_hash()``); writes one ``STEP HASH`` line per step to a file.
 
     It runs after the camera stage (after every system of the step, added
-    before or after it), so the hash is of the finished step. The file is
-    opened at once (an unwritable path fails before the first step) and closed
-    by ``world.close()`` or :meth:`release`.
+    before or after it), so the hash is of the finished step. The log is
+    written to a part file beside ``path`` (:mod:`framework.output`), made at
+    once (an unwritable folder fails before the first step), and moved into
+    place by ``world.close()`` or :meth:`release`: complete up to the last
+    whole step, however the run ended. An existing ``path`` is refused
+    unless ``overwrite``.
+
+    A failed write (a full disk) does not stop the run: the log stops, its
+    part file is removed and :attr:`error` says why, naming the file (the
+    command line reports it after the run, whose other outputs are kept).
     """
 
     stage = None
@@ -30,25 +40,41 @@ class HashLogSystem(esper.Processor):
     reads = ()          # every component, through world.state_hash()
     writes = ()
 
-    def __init__(self, path):
+    def __init__(self, path, *, overwrite: bool = False):
         self.path = Path(path)
-        self._file = open(self.path, "w", buffering=1 << 16)
+        self._file = PartFile(self.path, overwrite=overwrite, what="hash log", buffering=1 << 16)
         #: Lines written.
         self.lines = 0
+        #: Why the log was not kept (an :class:`~framework.output.OutputError`), or None.
+        self.error: OSError | None = None
+        #: Where the finished log is, once released (None before, or when it failed).
+        self.written: Path | None = None
 
     def process(self, dt: float) -> None:
+        if self.error is not None:
+            return
         w = self.world
-        self._file.write(f"{w.step_count + 1} {w.state_hash()}\n")
+        try:
+            self._file.write(f"{w.step_count + 1} {w.state_hash()}\n")
+        except OSError as e:
+            self.error = e
+            return
         self.lines += 1
 
     def release(self) -> None:
-        if not self._file.closed:
-            self._file.close()
+        """Move the log into place (once); a failure goes to :attr:`error`, never raised from here."""
+        if self.error is not None or self.written is not None:
+            return
+        try:
+            self.written = self._file.commit()
+        except OSError as e:
+            self._file.discard()
+            self.error = e
 
 
-def attach_hash_log(world, path) -> HashLogSystem:
-    """Add a :class:`HashLogSystem` after every system of the step; ``world.close()`` closes its file."""
-    return world.add_system(HashLogSystem(path))
+def attach_hash_log(world, path, *, overwrite: bool = False) -> HashLogSystem:
+    """Add a :class:`HashLogSystem` after every system of the step; ``world.close()`` finishes its file."""
+    return world.add_system(HashLogSystem(path, overwrite=overwrite))
 
 
 @dataclass(frozen=True)
@@ -68,35 +94,81 @@ class Divergence:
         return f"the runs part ways at step {self.step}: {self.a} != {self.b}"
 
 
+#: Largest hash log read: 512 MiB. A line is at most ~45 bytes ("STEP" + a 32-digit hex hash), so this is
+#: over 10,000,000 steps, the most a recording may take (``driftframe.cli.MAX_STEPS``).
+HASH_LOG_CAP = 512 << 20
+#: Longest line: a step number and a hash, with room.
+_LINE_CAP = 256
+
+
+def iter_hash_log(path):
+    """``(step, hash)`` line by line from a log file, without holding it (see :data:`HASH_LOG_CAP`).
+
+    A ValueError (an :class:`~framework.inputfile.InputFileError`) names the
+    file, the line and the text when the file cannot be read or is malformed.
+    """
+    where = str(path)
+    with open_regular(path, HASH_LOG_CAP, "hash log") as f:
+        n = read = 0
+        while True:
+            try:
+                raw = f.readline(_LINE_CAP + 1)
+            except OSError as e:
+                raise InputFileError(f"{where}: cannot read the hash log ({e.strerror or e})") from None
+            if not raw:
+                return
+            n += 1
+            read += len(raw)
+            if read > HASH_LOG_CAP:
+                raise InputFileError(f"{where}: the hash log is over the limit of {HASH_LOG_CAP >> 20} MiB")
+            if len(raw) > _LINE_CAP:
+                raise InputFileError(f"{where}: line {n} is not 'STEP HASH': longer than {_LINE_CAP} bytes")
+            try:
+                line = raw.decode("utf-8")
+            except UnicodeDecodeError:
+                raise InputFileError(f"{where}: line {n} is not 'STEP HASH': {raw[:80]!r} is not text "
+                                     "(a binary file?)") from None
+            parts = line.split()
+            # ASCII digits only: "²".isdigit() is true, yet int("²") fails
+            if len(parts) != 2 or not (parts[0].isascii() and parts[0].isdigit()) or not parts[1].isascii():
+                raise InputFileError(f"{where}: line {n} is not 'STEP HASH': {line.rstrip(chr(10))[:80]!r}")
+            yield int(parts[0]), parts[1]
+
+
 def read_hash_log(path) -> list[tuple[int, str]]:
     """``[(step, hash), ...]`` from a log file; a ValueError naming the file and line if it is malformed."""
-    out = []
-    try:
-        text = Path(path).read_text()
-    except OSError as e:
-        raise ValueError(f"{path}: cannot read the hash log ({e.strerror or e})") from None
-    for n, line in enumerate(text.splitlines(), 1):
-        parts = line.split()
-        if len(parts) != 2 or not parts[0].isdigit():
-            raise ValueError(f"{path}: line {n} is not 'STEP HASH': {line[:80]!r}")
-        out.append((int(parts[0]), parts[1]))
-    return out
+    return list(iter_hash_log(path))
 
 
 def first_divergence(a, b) -> Divergence | None:
     """The first step where hash logs ``a`` and ``b`` (paths, or lists of ``(step, hash)``) differ.
 
-    None when they agree line for line and have the same length.
+    None when they agree line for line and have the same length. Files are
+    read line by line in step, so two long logs need no memory.
     """
-    la = read_hash_log(a) if isinstance(a, (str, Path)) else list(a)
-    lb = read_hash_log(b) if isinstance(b, (str, Path)) else list(b)
-    for (sa, ha), (sb, hb) in zip(la, lb):
+    la = iter_hash_log(a) if isinstance(a, (str, Path)) else iter(list(a))
+    lb = iter_hash_log(b) if isinstance(b, (str, Path)) else iter(list(b))
+    n = 0
+    last = 0
+    end = object()
+    while True:
+        ea, eb = next(la, end), next(lb, end)
+        if ea is end and eb is end:
+            return None
+        if ea is end or eb is end:
+            step = last + 1 if n else 1
+            return Divergence(step, None if ea is end else ea[1], None if eb is end else eb[1])
+        (sa, ha), (sb, hb) = ea, eb
         if sa != sb:
-            raise ValueError(f"the logs are not aligned: step {sa} against step {sb}")
+            raise ValueError(f"the logs are not aligned: step {sa} in {a} against step {sb} in {b}"
+                             if isinstance(a, (str, Path)) else
+                             f"the logs are not aligned: step {sa} against step {sb}")
         if ha != hb:
             return Divergence(sa, ha, hb)
-    if len(la) != len(lb):
-        n = min(len(la), len(lb))
-        step = (la[n - 1][0] + 1) if n else 1
-        return Divergence(step, la[n][1] if len(la) > n else None, lb[n][1] if len(lb) > n else None)
-    return None
+        n += 1
+        last = sa
+
+
+def count_steps(path) -> int:
+    """Lines in a hash log (checked as :func:`iter_hash_log` checks them)."""
+    return sum(1 for _ in iter_hash_log(path))

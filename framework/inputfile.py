@@ -29,13 +29,18 @@ def _size_words(n: int) -> str:
     return f"{n} bytes"
 
 
-def read_bytes_capped(path, cap: int, what: str) -> bytes:
-    """The bytes of the regular file ``path``; an :class:`InputFileError` naming it if it cannot be used.
+def _kind(mode: int) -> str:
+    return ("a directory" if stat.S_ISDIR(mode) else
+            "a FIFO (named pipe)" if stat.S_ISFIFO(mode) else
+            "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else
+            "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
 
-    ``what`` says what the file is for ("track", "bindings", "batch spec"):
-    ``flight.json: the track is 200 MiB; the limit is 32 MiB``.
-    Refused: a missing or unreadable file, a directory, a FIFO, a socket, a
-    device, a file longer than ``cap`` bytes.
+
+def open_regular(path, cap: int, what: str):
+    """``path`` opened for reading in binary, if it is a regular file of at most ``cap`` bytes.
+
+    For readers that go line by line (hash logs); the caller still stops
+    at ``cap`` bytes, as the file can grow while it is read.
     """
     where = os.fspath(path)
     try:
@@ -45,28 +50,33 @@ def read_bytes_capped(path, cap: int, what: str) -> bytes:
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            kind = ("a directory" if stat.S_ISDIR(st.st_mode) else
-                    "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else
-                    "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
-                    "a socket" if stat.S_ISSOCK(st.st_mode) else "not a regular file")
-            raise InputFileError(f"{where}: cannot read the {what}: it is {kind}, not a regular file")
+            raise InputFileError(f"{where}: cannot read the {what}: it is {_kind(st.st_mode)}, not a regular file")
         if st.st_size > cap:
             raise InputFileError(f"{where}: the {what} is {_size_words(st.st_size)}; the limit is "
                                  f"{_size_words(cap)}")
-        chunks, got = [], 0
-        while got <= cap:                    # the size can change while we read: stop at cap + 1 bytes
-            chunk = os.read(fd, min(1 << 20, cap + 1 - got))
-            if not chunk:
-                break
-            chunks.append(chunk)
-            got += len(chunk)
-        if got > cap:
-            raise InputFileError(f"{where}: the {what} is over the limit of {_size_words(cap)}")
-        return b"".join(chunks)
-    except OSError as e:
-        raise InputFileError(f"{where}: cannot read the {what} ({e.strerror or e})") from None
-    finally:
+        return os.fdopen(fd, "rb")
+    except BaseException:
         os.close(fd)
+        raise
+
+
+def read_bytes_capped(path, cap: int, what: str) -> bytes:
+    """The bytes of the regular file ``path``; an :class:`InputFileError` naming it if it cannot be used.
+
+    ``what`` says what the file is for ("track", "bindings", "batch spec"):
+    ``flight.json: the track is 200 MiB; the limit is 32 MiB``.
+    Refused: a missing or unreadable file, a directory, a FIFO, a socket, a
+    device, a file longer than ``cap`` bytes.
+    """
+    where = os.fspath(path)
+    with open_regular(path, cap, what) as f:
+        try:
+            data = f.read(cap + 1)          # the size can change after the check: never more than cap + 1
+        except OSError as e:
+            raise InputFileError(f"{where}: cannot read the {what} ({e.strerror or e})") from None
+    if len(data) > cap:
+        raise InputFileError(f"{where}: the {what} is over the limit of {_size_words(cap)}")
+    return data
 
 
 def read_text_capped(path, cap: int, what: str) -> str:

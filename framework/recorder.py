@@ -90,6 +90,8 @@ from pathlib import Path
 import numpy as np
 
 from driftframe.framework import warp as time_warp
+from driftframe.framework.output import (OutputExistsError, check_output_file, new_part, no_space, publish,
+                                         remove_stale_parts)
 from driftframe.framework.gl import current
 
 FORMATS = ("mp4", "gif", "png")
@@ -178,8 +180,7 @@ def output_format(path) -> str:
     return fmt
 
 
-def _no_space(e: BaseException) -> bool:
-    return isinstance(e, OSError) and e.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+_no_space = no_space
 
 
 # -- writers: each writes to a temporary path, then is finished or aborted ---------------------
@@ -521,97 +522,14 @@ def _positive_int(name: str, value) -> int:
     return int(value)
 
 
-def _mount_of(path: Path) -> tuple[str, str] | None:
-    """(mount point, file system type) holding ``path``, from /proc/self/mounts; None if unknown."""
-    try:
-        with open("/proc/self/mounts") as f:
-            mounts = [line.split()[1:3] for line in f if len(line.split()) >= 3]
-    except OSError:
-        return None
-    real = os.path.realpath(path)
-    best = None
-    for mnt, fstype in mounts:
-        mnt = mnt.replace("\\040", " ")
-        if real == mnt or real.startswith(mnt.rstrip("/") + "/"):
-            if best is None or len(mnt) > len(best[0]):
-                best = (mnt, fstype)
-    return best
-
-
-def _why_not_writable(parent: Path, e: OSError) -> str:
-    """The reason a new file cannot be made in ``parent``, in words."""
-    if e.errno == errno.EROFS:
-        return "it is on a read-only file system"
-    if e.errno in (errno.EACCES, errno.EPERM):
-        return "permission denied"
-    if e.errno in (errno.ENOSPC, errno.EDQUOT):
-        return "no space left on the device"
-    if e.errno == errno.ENOENT:
-        # the directory exists (checked before), yet a new file there "does not exist": a virtual file system
-        where = _mount_of(parent)
-        if where is not None:
-            return f"it is on a {where[1]} file system ({where[0]}), which does not accept new files"
-        return "the file system does not accept new files"
-    return e.strerror or str(e)
-
-
-#: ``.NAME.<pid>.<random>.part<suffix>`` (and ``.NAME.<pid>.<random>.old`` for a replaced frame folder)
-def _part_prefix(path: Path) -> str:
-    return f".{path.name}.{os.getpid()}."
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OSError):
-        return True                                   # someone else's process: leave its files alone
-    return True
-
-
-def remove_stale_parts(path) -> list[Path]:
-    """Delete temporary outputs for ``path`` left by recordings whose process is gone (SIGKILL, a crash).
-
-    Only files named ``.NAME.<pid>.<random>.part...`` / ``.old`` beside the
-    target whose ``<pid>`` is no longer running are removed; a recording to
-    the same output still running in another process keeps its files.
-    Returns what was removed.
-    """
-    path = Path(os.fspath(path))
-    parent = path.parent
-    pattern = re.compile(re.escape(f".{path.name}.") + r"(\d+)\.[^/]*\.(part[^/]*|old)$")
-    removed = []
-    try:
-        names = os.listdir(parent)
-    except OSError:
-        return removed
-    for name in names:
-        m = pattern.match(name)
-        if m is None or _pid_alive(int(m.group(1))):
-            continue
-        stale = parent / name
-        try:
-            if stale.is_dir() and not stale.is_symlink():
-                shutil.rmtree(stale)
-            else:
-                stale.unlink()
-            removed.append(stale)
-        except OSError:
-            pass
-    return removed
-
-
-class OutputExistsError(FileExistsError):
-    """The output exists and ``overwrite`` was not given."""
-
-
-def check_output(path, *, overwrite: bool = False, format: str | None = None) -> None:
-    """Raise what :func:`record` would raise for ``path`` before it renders anything; create nothing.
+def check_output(path, *, overwrite: bool = False, format: str | None = None, probe: bool = True) -> None:
+    """Raise what :func:`record` would raise for ``path`` before it renders anything; leave nothing.
 
     An existing output without ``overwrite``, a missing folder, a directory
-    where a file should be (and the reverse), a read-only file to replace. A
-    caller with costly work before :func:`record` (building a world, a
+    where a file should be (and the reverse), a read-only file to replace, a
+    name too long, and (``probe``) a folder where no file can be made (a part
+    file is made there and removed: :func:`framework.output.check_output_file`).
+    A caller with costly work before :func:`record` (building a world, a
     first run's compiling) checks first; :func:`record` checks again.
     """
     fmt = format or output_format(path)
@@ -641,56 +559,18 @@ def check_output(path, *, overwrite: bool = False, format: str | None = None) ->
         if not path.stat().st_mode & 0o222:
             raise PermissionError(f"cannot replace {str(path)!r}: it is read-only (make it writable or "
                                   "delete it first)")
+    # the rest (a name too long, a folder where nothing can be made) is the shared check's
+    check_output_file(path, overwrite=True, folder=fmt == "png", probe=probe)
 
 
 def _prepare_path(path: Path, fmt: str, overwrite: bool) -> Path:
     """Check the target and create the temporary output beside it (proving it is writable)."""
-    check_output(path, overwrite=overwrite, format=fmt)
-    parent = path.parent
-    remove_stale_parts(path)
-    try:
-        if fmt == "png":
-            return Path(tempfile.mkdtemp(prefix=_part_prefix(path), suffix=".part", dir=parent))
-        fd, tmp = tempfile.mkstemp(prefix=_part_prefix(path), suffix=f".part{path.suffix}", dir=parent)
-        os.close(fd)
-        return Path(tmp)
-    except OSError as e:
-        raise PermissionError(f"cannot write {str(path)!r}: directory {str(parent)!r} is not writable "
-                              f"({_why_not_writable(parent, e)})") from None
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+    check_output(path, overwrite=overwrite, format=fmt, probe=False)
+    return new_part(path, folder=fmt == "png")
 
 
 def _move_into_place(tmp: Path, path: Path, fmt: str, overwrite: bool) -> None:
-    # mkstemp/mkdtemp made the temporary output private (0600/0700): give it the usual permissions
-    mask = _umask()
-    os.chmod(tmp, (0o777 if fmt == "png" else 0o666) & ~mask)
-    if fmt == "png":
-        for f in tmp.iterdir():
-            os.chmod(f, 0o666 & ~mask)
-    if fmt == "png" and path.is_dir():
-        # swap the old frames directory out, the new one in, then delete the old one
-        old = Path(tempfile.mkdtemp(prefix=_part_prefix(path), suffix=".old", dir=path.parent))
-        os.replace(path, old / "frames")
-        os.replace(tmp, path)
-        shutil.rmtree(old, ignore_errors=True)
-    elif not overwrite and fmt != "png":
-        # no clobbering an output that appeared while we recorded: a hard link fails if the name exists
-        try:
-            os.link(tmp, path)
-        except FileExistsError:
-            raise OutputExistsError(f"{str(path)!r} appeared while recording; pass overwrite=True "
-                                    "(--overwrite) to replace it") from None
-        except OSError:
-            os.replace(tmp, path)                     # no hard links on this file system
-            return
-        os.unlink(tmp)
-    else:
-        os.replace(tmp, path)
+    publish(tmp, path, overwrite=overwrite or fmt == "png", folder=fmt == "png")
 
 
 class StopSignals:
