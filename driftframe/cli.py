@@ -226,6 +226,12 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--overwrite", action="store_true",
                        help="replace outputs that exist already (default: refuse them before any run starts)")
     batch.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    warm = sub.add_parser("warm", help="compile (or load) every physics kernel now, into the kernel cache",
+                          description="Compile every numba kernel for this machine, or load it from the cache "
+                                      "if it is there, so that the next play, record or batch starts at once. "
+                                      "The cache is per user (the folder is printed; NUMBA_CACHE_DIR moves it).")
+    warm.add_argument("--quiet", action="store_true", help="no progress line")
     return p
 
 
@@ -309,38 +315,51 @@ def frame_count(seconds: float, fps: float, steps: int) -> int:
     return frames
 
 
-def _load_kernels(name: str, seed: int) -> None:
-    """:func:`driftframe.app.load_kernels` on a helper thread while this, the main thread, waits.
+def _compile(task, quiet: bool = False) -> None:
+    """``task(watch)`` on a helper thread while this, the main thread, shows the compile and waits.
 
-    A Ctrl-C, SIGTERM or SIGHUP during a first run's compile then stops the
-    command here, between waits, with the usual message and exit status
-    (the recorder's :class:`~framework.recorder.StopSignals` takes them). In
-    the main thread it would land inside numba's compiler, which calls back
-    into Python through ctypes, where an exception is printed and dropped and
-    the compile goes on. The helper is a daemon: it ends with the process.
+    ``watch`` is a :class:`~framework.kernels.CompileWatch`. A Ctrl-C, SIGTERM
+    or SIGHUP during a first run's compile then stops the command here,
+    between waits, with the usual message and exit status (the recorder's
+    :class:`~framework.recorder.StopSignals` takes them). In the main thread
+    it would land inside numba's compiler, which calls back into Python
+    through ctypes, where an exception is printed and dropped and the compile
+    goes on. The helper is a daemon: it ends with the process.
     """
     import threading
 
-    from driftframe.app import load_kernels
+    from driftframe.framework.kernels import CompileWatch
     from driftframe.framework.recorder import Interrupted, StopSignals
 
     failed: list[BaseException] = []
+    watch = CompileWatch()
 
     def run():
         try:
-            load_kernels(name, seed=seed)
+            with watch:
+                task(watch)
         except BaseException as e:   # noqa: BLE001 - handed to the main thread
             failed.append(e)
 
     helper = threading.Thread(target=run, name="driftframe-kernels", daemon=True)
+    shown = _CompileProgress(watch, enabled=not quiet)
     with StopSignals(True) as stop:
         helper.start()
         while helper.is_alive() and stop.requested is None:
-            helper.join(0.1)
+            helper.join(0.2)
+            shown.tick()
         if stop.requested is not None:
+            shown.end(stopped=True)
             raise Interrupted(stop.requested)
+    shown.end(stopped=bool(failed))
     if failed:
         raise failed[0]
+
+
+def _load_kernels(name: str, seed: int, quiet: bool = False) -> None:
+    """:func:`driftframe.app.load_kernels` through :func:`_compile`."""
+    from driftframe.app import load_kernels
+    _compile(lambda watch: load_kernels(name, seed=seed), quiet)
 
 
 def cmd_record(args) -> int:
@@ -373,7 +392,7 @@ def cmd_record(args) -> int:
         poses = None
     try:
         check_output(out, overwrite=args.overwrite, format=fmt)    # before the costly part: build, compile
-        _load_kernels(args.demo, args.seed)         # a first run's compiling, before the progress bar
+        _load_kernels(args.demo, args.seed, args.quiet)     # a first run's compiling, before the progress bar
         world, demo = make_world(args.demo, seed=args.seed, track=track)
         try:
             attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
@@ -494,69 +513,68 @@ def cmd_batch(args) -> int:
     return 1 if outcome.failures else 0
 
 
-class _CompileNotice:
-    """Says so when numba compiles kernels (a machine's first run: its cache is empty), and how long it took.
+def cmd_warm(args) -> int:
+    from driftframe.framework import kernels
 
-    numba reports a compile only when its cache misses, so a warm run prints
-    nothing. Without this, a first ``record`` sits at frame 0 for most of a
-    minute with no word why. The line goes through ``tqdm.write``, which keeps
-    a progress bar on screen intact.
+    missed: list = []
+    _compile(lambda watch: missed.extend(kernels.warm(watch)), args.quiet)
+    total = len(kernels.registry(load=False))
+    if missed:
+        print(f"driftframe: warning: the warm-up did not reach {len(missed)} of {total} kernels "
+              f"({', '.join(kernels.kernel_name(d) for d in missed)}); they compile at their first call",
+              file=sys.stderr)
+    print(f"{total - len(missed)} of {total} kernels ready in {kernels.cache_dir()}")
+    return 0
+
+
+class _CompileProgress:
+    """Shows a compile while :func:`_compile` waits: a line saying so, then which kernel, n of m and the time.
+
+    numba reports a compile only when its cache misses, so a warm run shows
+    nothing. The progress line is rewritten in place (``\\r``) at least once a
+    second; the summary line follows it when the compile ends, before the
+    command goes on.
     """
 
-    def __init__(self, enabled: bool):
+    def __init__(self, watch, enabled: bool):
+        self.watch = watch
         self.enabled = enabled
-        self.depth = 0
-        self.t0 = 0.0
-        self.seconds = 0.0
-        self.count = 0
+        self.announced = False
+        self.last = (None, 0.0)
+        self.width = 0
 
-    def on_start(self, event) -> None:
-        if self.depth == 0:
-            self.t0 = time.perf_counter()
-            if self.count == 0:
-                self._say("compiling the physics kernels for this machine, up to a minute: "
-                          "the first run only (numba caches them)")
-            self.count += 1
-        self.depth += 1
+    def _write(self, text: str) -> None:
+        sys.stderr.write(text)
+        sys.stderr.flush()
 
-    def on_end(self, event) -> None:
-        self.depth -= 1
-        if self.depth == 0:
-            self.seconds += time.perf_counter() - self.t0
+    def tick(self) -> None:
+        if not self.enabled or self.watch.n == 0:
+            return
+        if not self.announced:
+            from driftframe.framework.kernels import cache_dir
+            self.announced = True
+            self._write(f"driftframe: compiling the physics kernels for this machine: the first run only "
+                        f"(they are cached in {cache_dir()})\n")
+        line = f"driftframe: compiling {self.watch.line()}"
+        now = time.monotonic()
+        if line != self.last[0] or now - self.last[1] >= 1.0:
+            self._write("\r" + line.ljust(self.width))     # spaces over a longer previous line
+            self.width = len(line)
+            self.last = (line, now)
 
-    def _say(self, line: str) -> None:
-        from tqdm import tqdm
-        tqdm.write(f"driftframe: {line}", file=sys.stderr)
-
-    def __enter__(self):
-        if self.enabled:
-            from numba.core import event
-            notice = self
-
-            class _Listener(event.Listener):         # numba's event API: start and end of each compile
-                def on_start(self, ev):
-                    notice.on_start(ev)
-
-                def on_end(self, ev):
-                    notice.on_end(ev)
-
-            self._listener = _Listener()
-            event.register("numba:compile", self._listener)
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        if self.enabled:
-            from numba.core import event
-            event.unregister("numba:compile", self._listener)
-            if self.depth > 0:                           # stopped in the middle of a compile
-                self.seconds += time.perf_counter() - self.t0
-            if not self.count:
-                return
-            if exc_type is not None and issubclass(exc_type, KeyboardInterrupt):   # Ctrl-C, SIGTERM, SIGHUP
-                self._say(f"stopped after {self.seconds:.0f} s of compiling kernels: those finished are "
-                          "cached, the rest are compiled on the next run")
-            else:
-                self._say(f"compiled the kernels in {self.seconds:.0f} s; later runs load them from the cache")
+    def end(self, stopped: bool) -> None:
+        if not self.enabled:
+            return
+        self.tick()
+        if not self.announced:
+            return
+        seconds, n, m = self.watch.elapsed(), self.watch.n, self.watch.m
+        if stopped:
+            self._write(f"\ndriftframe: stopped after {seconds:.0f} s of compiling kernels ({n} of {m} begun): "
+                        "those finished are cached, the rest are compiled on the next run\n")
+        else:
+            self._write(f"\ndriftframe: compiled {n} kernels in {seconds:.0f} s; "
+                        "later runs load them from the cache\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -569,14 +587,15 @@ def main(argv: list[str] | None = None) -> int:
     from driftframe.framework.recorder import RecordingError
 
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
-                "diverge": cmd_diverge, "batch": cmd_batch}
+                "diverge": cmd_diverge, "batch": cmd_batch, "warm": cmd_warm}
+    from driftframe.framework.kernels import KernelCompileError
+
     try:
-        with _CompileNotice(args.command in ("record", "play", "batch") and not getattr(args, "quiet", False)):
-            return handlers[args.command](args)
+        return handlers[args.command](args)
     except UsageError as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2
-    except RecordingError as e:
+    except (RecordingError, KernelCompileError) as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 1
     except GLUnavailableError as e:
