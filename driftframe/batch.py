@@ -603,8 +603,15 @@ def _pool_attempt(spec: Spec):
 
 
 def _dask_attempt(spec: Spec, stop_name: str):
-    """:func:`attempt` on a Dask worker; the batch's stop flag is a distributed Event, read twice a second."""
+    """:func:`attempt` on a Dask worker; the batch's stop flag is a distributed Event, read twice a second.
+
+    The worker's first run warms the kernel cache first, one worker at a time per cache folder (a file
+    lock): the first compiles, the rest then load."""
     from distributed import Event
+
+    from driftframe.framework.kernels import warm_once
+
+    warm_once()
 
     stop = Event(stop_name)
     last = [0.0, False]

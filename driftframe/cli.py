@@ -495,6 +495,11 @@ def cmd_batch(args) -> int:
             tqdm.write(f"driftframe: run failed: {res.spec.where or res.spec.label}\n{res.traceback.rstrip()}",
                        file=sys.stderr)
 
+    from driftframe.framework import kernels
+    if client is None and batch.plan_jobs(specs, args.jobs)[0] > 1 and not kernels.is_warm():
+        # once, before the workers start: each then loads the kernels instead of all compiling them at
+        # the same time into one cache (numba's cache is not safe against concurrent writers)
+        _compile(kernels.warm, args.quiet)
     try:
         outcome = batch.run_all(specs, jobs=args.jobs, scheduler=client, progress=not args.quiet, on_done=report)
     finally:

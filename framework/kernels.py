@@ -315,31 +315,38 @@ def warm(watch: CompileWatch | None = None) -> list:
     """Compile or load every kernel, one process at a time per cache folder (a file lock).
 
     Returns the kernels the warm-up did not reach (empty when all are ready).
-    ``watch``: a :class:`CompileWatch` already entered, to show progress; its
-    ``expected`` is set here to every kernel with nothing cached.
+    ``watch``: a :class:`CompileWatch` already entered, to show progress; every
+    kernel with nothing cached is added to its ``expected`` here.
     """
-    folder = cache_dir()
-    with file_lock(folder / "warm.lock"):
-        kernels = registry()
-        for stale in folder.glob("*.tmp.*"):        # a write cut short (Ctrl-C, a crash): numba renames on success
-            with contextlib.suppress(OSError):
-                stale.unlink()
-        if watch is not None:
-            with watch._lock:
-                for d in kernels:
-                    if needs_compile(d):
-                        watch.expected.setdefault(id(d), d)
-        _workload()
-        missed = [d for d in kernels if not _inlined(d) and not d.overloads]
-        if not missed:
-            try:
-                (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
-            except OSError as e:
-                _unwritable(folder, e)
-        return missed
+    with file_lock(cache_dir() / "warm.lock"):
+        return _warm(watch)
 
 
 def warm_once() -> None:
-    """:func:`warm` unless the cache folder is already warm; quiet. For a batch's workers."""
+    """:func:`warm` unless the cache folder is warm already; quiet. Each batch worker calls it before a run:
+    the first to take the lock compiles, the others wait and then find the folder warm."""
     if not is_warm():
-        warm()
+        with file_lock(cache_dir() / "warm.lock"):
+            if not is_warm():
+                _warm(None)
+
+
+def _warm(watch) -> list:
+    folder = cache_dir()
+    kernels = registry()
+    for stale in folder.glob("*.tmp.*"):        # a write cut short (Ctrl-C, a crash): numba renames on success
+        with contextlib.suppress(OSError):
+            stale.unlink()
+    if watch is not None:
+        with watch._lock:
+            for d in kernels:
+                if needs_compile(d):
+                    watch.expected.setdefault(id(d), d)
+    _workload()
+    missed = [d for d in kernels if not _inlined(d) and not d.overloads]
+    if not missed:
+        try:
+            (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
+        except OSError as e:
+            _unwritable(folder, e)
+    return missed
