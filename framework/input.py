@@ -19,12 +19,12 @@ from __future__ import annotations
 import bisect
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from driftframe.framework import validate
+from driftframe.framework.inputfile import InputFileError, read_text_capped
+from driftframe.framework.output import write_file
 
 #: The proportional channels of a pilot's intent (``FlightInput``), each in [-1, 1].
 CHANNELS = ("throttle", "roll", "pitch", "yaw")
@@ -308,8 +308,11 @@ class TrackFileError(ValueError):
     """A track file that cannot be read: the message names the file and the entry."""
 
 
-def save_track(track: Track, path) -> Path:
+def save_track(track: Track, path, *, overwrite: bool = False) -> Path:
     """Write ``track`` to ``path`` as JSON (format below); atomically: a complete file or none.
+
+    Written under :mod:`framework.output`'s discipline: an existing ``path``
+    is refused unless ``overwrite``; the file gets the umask's permissions.
 
     The format, version 1 (every time in simulated seconds, on whole steps of
     ``dt`` for a flown track)::
@@ -347,22 +350,54 @@ def save_track(track: Track, path) -> Path:
         body = ",\n".join(f"    {json.dumps(it)}" for it in items)
         lines.append(f'  "{key}": [\n{body}\n  ],' if items else f'  "{key}": [],')
     text = "{\n" + "\n".join(lines)[:-1] + "\n}\n"
-    _write_atomically(path, text)
-    return path
+    return write_file(path, text, overwrite=overwrite, what="track")
 
 
-def _write_atomically(path: Path, text: str) -> None:
-    folder = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=folder)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+#: Largest track file read: 32 MiB. A flown hold is about 60-90 bytes, so this is over 350,000 entries: a
+#: gamepad flight (at most one entry a step) of 1.6 h at 60 steps/s. A 200 MB track took 3 GB and 146 s.
+TRACK_CAP = 32 << 20
+#: Deepest JSON nesting read. A track is 3 levels deep; JSON nested ~100,000 deep hit Python's recursion limit.
+_TRACK_DEPTH = 8
+
+
+class _Huge:
+    """A number in a track too large for a float (``1e400``, 400 digits): kept as text to be refused by name."""
+
+    def __init__(self, text: str):
+        self.text = text
+
+    def __repr__(self) -> str:
+        digits = self.text.lstrip("-")
+        return self.text if len(digits) <= 24 else f"{self.text[:12]}... ({len(digits)} digits)"
+
+
+def _json_int(text: str):
+    # past 308 digits no float holds it; past 4,300 int() itself refuses (CPython's conversion limit)
+    return int(text) if len(text) <= 308 else _Huge(text)
+
+
+def _json_float(text: str):
+    v = float(text)
+    return v if math.isfinite(v) else _Huge(text)
+
+
+def _json_constant(text: str):
+    return _Huge(text)                           # NaN, Infinity, -Infinity: not JSON, refused by name
+
+
+def _check_doc(where: str, doc) -> None:
+    """Refuse nesting deeper than a track has, and numbers no float holds, naming the entry."""
+    stack = [(doc, "", 0)]
+    while stack:
+        v, at, depth = stack.pop()
+        if isinstance(v, _Huge):
+            raise TrackFileError(f"{where}: {at or 'the file'}: {v!r} is not a finite number a float can hold")
+        if depth > _TRACK_DEPTH:
+            raise TrackFileError(f"{where}: {at}: nested deeper than a track is ({_TRACK_DEPTH} levels)")
+        if isinstance(v, dict):
+            stack.extend((x, f"{at}.{k}" if at else str(k), depth + 1) for k, x in v.items())
+        elif isinstance(v, list):
+            stack.extend((x, f"{at}[{i}]", depth + 1) for i, x in enumerate(v))
 
 
 def load_track(path) -> Track:
@@ -374,13 +409,16 @@ def load_track(path) -> Track:
     path = Path(path)
     where = str(path)
     try:
-        text = path.read_text()
-    except OSError as e:
-        raise TrackFileError(f"{where}: cannot read the track ({e.strerror or e})") from None
+        text = read_text_capped(path, TRACK_CAP, "track")
+    except InputFileError as e:
+        raise TrackFileError(str(e)) from None
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, parse_int=_json_int, parse_float=_json_float, parse_constant=_json_constant)
     except json.JSONDecodeError as e:
         raise TrackFileError(f"{where}: not JSON: {e.msg} at line {e.lineno} column {e.colno}") from None
+    except RecursionError:
+        raise TrackFileError(f"{where}: not a driftframe track: its JSON is nested too deeply") from None
+    _check_doc(where, doc)
     if not isinstance(doc, dict) or doc.get("format") != _TRACK_FORMAT:
         raise TrackFileError(f'{where}: not a driftframe track (expected "format": "{_TRACK_FORMAT}")')
     version = doc.get("version")
@@ -400,7 +438,7 @@ def load_track(path) -> Track:
             if key in ("seed", "steps") and ok:
                 ok = v >= 0
             if not ok:
-                raise TrackFileError(f"{where}: {key} has a bad value {v!r}")
+                raise TrackFileError(f"{where}: {key} has a bad value {v!r}"[:300])
             info[key] = float(v) if kind is float else v
     events = []
     for key, make in (("holds", _hold_entry), ("presses", _press_entry)):

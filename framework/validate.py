@@ -11,7 +11,12 @@ import numpy as np
 
 
 def _show(value) -> str:
-    arr = np.asarray(value)
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value).bit_length() > 80:
+        return f"an integer of about {int(abs(value).bit_length() * 0.30103) + 1} digits"   # log10(2) digits a bit
+    try:
+        arr = np.asarray(value)
+    except (OverflowError, ValueError):
+        return f"a {type(value).__name__}"
     if arr.size > 12:
         return f"array of shape {arr.shape}"
     return repr(value.tolist() if isinstance(value, np.ndarray) else value)
@@ -21,6 +26,8 @@ def vector(name: str, value, shape=(3,), *, allow_inf: bool = False) -> np.ndarr
     """Return ``value`` as a float64 array of ``shape``; reject NaN and (unless allowed) inf."""
     try:
         arr = np.array(value, dtype=np.float64)
+    except OverflowError:
+        raise ValueError(f"{name} holds a number too large for a float (over 1.8e308)") from None
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be numbers of shape {shape}, got {_show(value)}") from None
     if arr.shape != tuple(shape):
@@ -37,7 +44,10 @@ def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     """Return ``value`` as a float after range checks that name the argument."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"{name} must be a number, got {value!r}")
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:     # an int past 1.8e308
+        raise ValueError(f"{name} is too large for a float (over 1.8e308), got {_show(value)}") from None
     if math.isnan(x):
         raise ValueError(f"{name} must not be NaN, got {x!r}")
     if math.isinf(x) and not allow_inf:
@@ -56,6 +66,8 @@ def array(name: str, value, shape_tail=(3,), n: int | None = None, *, allow_inf:
     """Validate a column of values, shape ``(n, *shape_tail)``; the message gives the first bad row."""
     try:
         arr = np.array(value, dtype=np.float64)
+    except OverflowError:
+        raise ValueError(f"{name} holds a number too large for a float (over 1.8e308)") from None
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be an array of numbers, got {type(value).__name__}") from None
     if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != tuple(shape_tail):
