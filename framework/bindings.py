@@ -29,11 +29,14 @@ channels; it is a pure function, tested on recorded states.
 """
 from __future__ import annotations
 
+import json
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from driftframe.framework.inputfile import InputFileError, read_text_capped
 from driftframe.framework.input import ACTION_HELP, CHANNELS, HELD, KEYMAP, PRESSED
 
 #: GLFW's gamepad axes, in the order of ``GLFWgamepadstate.axes``.
@@ -138,37 +141,72 @@ def _key_names() -> set[str] | None:
     return {n[4:] for n in dir(glfw) if n.startswith("KEY_") and n != "KEY_UNKNOWN"}
 
 
+#: Largest bindings file read: 1 MiB (the defaults, from ``driftframe keys``, are 1.6 KiB).
+BINDINGS_CAP = 1 << 20
+#: Largest gamepad mappings file read: 8 MiB (SDL_GameControllerDB's whole file is about 0.5 MiB).
+MAPPINGS_CAP = 8 << 20
+
+
+def _show(v) -> str:
+    """A value as a message shows it: a huge integer by its digit count, anything long cut short."""
+    if isinstance(v, int) and not isinstance(v, bool) and abs(v).bit_length() > 80:
+        return f"an integer of about {int(abs(v).bit_length() * 0.30103) + 1} digits"
+    text = repr(v)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
 def _number(where, v, lo, hi) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
-        raise BindingsError(f"{where} must be a number in [{lo}, {hi}], got {v!r}")
+    ok = not isinstance(v, bool) and isinstance(v, (int, float))
+    if ok:
+        try:
+            ok = math.isfinite(v) and lo <= v <= hi
+        except OverflowError:                          # an int no float holds
+            ok = False
+    if not ok:
+        raise BindingsError(f"{where} must be a number in [{lo}, {hi}], got {_show(v)}")
     return float(v)
 
 
+def _table(where, v) -> dict:
+    if not isinstance(v, dict):
+        raise BindingsError(f"{where} must be a table, got {_show(v)}")
+    return v
+
+
 def load_bindings(path) -> Bindings:
-    """Read a TOML bindings file over the defaults; a :class:`BindingsError` names the file and entry."""
+    """Read a TOML bindings file over the defaults; a :class:`BindingsError` names the file and entry.
+
+    The file is read through :func:`~framework.inputfile.read_text_capped`
+    (at most :data:`BINDINGS_CAP`, a regular file, UTF-8).
+    """
     path = Path(path)
     try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except OSError as e:
-        raise BindingsError(f"{path}: cannot read the bindings ({e.strerror or e})") from None
+        text = read_text_capped(path, BINDINGS_CAP, "bindings file")
+        doc = tomllib.loads(text)
+    except InputFileError as e:
+        raise BindingsError(str(e)) from None
     except tomllib.TOMLDecodeError as e:
         raise BindingsError(f"{path}: not TOML: {e}") from None
+    except ValueError:            # an integer past CPython's 4,300-digit conversion limit: tomllib names no line
+        m = re.search(r"^[ \t]*([^=\n]+?)[ \t]*=[ \t]*[+-]?[\d_]{4300,}", text, re.M)
+        where = f"{m.group(1)} (line {text.count(chr(10), 0, m.start()) + 1})" if m else "a number"
+        raise BindingsError(f"{path}: {where}: an integer of over 4,300 digits is not a number in range") from None
     w = str(path)
-    if doc.get("version", 1) != 1:
-        raise BindingsError(f"{w}: bindings version {doc['version']!r} is not supported (this driftframe reads 1)")
+    if doc.get("version", 1) != 1 or isinstance(doc.get("version"), bool):
+        raise BindingsError(f"{w}: bindings version {_show(doc['version'])} is not supported "
+                            "(this driftframe reads 1)")
     extra = set(doc) - {"version", "keys", "gamepad"}
     if extra:
         raise BindingsError(f"{w}: unknown table(s) {', '.join(sorted(map(repr, extra)))}; known: keys, gamepad")
     keys = dict(KEYMAP)
     names = _key_names()
-    for action, ks in doc.get("keys", {}).items():
+    for action, ks in _table(f"{w}: keys", doc.get("keys", {})).items():
         if action not in KEYMAP:
-            raise BindingsError(f"{w}: keys.{action}: unknown action; actions: {', '.join(KEYMAP)}")
+            raise BindingsError(f"{w}: keys.{action}: unknown action; actions: {', '.join(KEYMAP)}"[:400])
         if isinstance(ks, str):
             ks = [ks]
         if not isinstance(ks, list) or not all(isinstance(k, str) for k in ks):
-            raise BindingsError(f"{w}: keys.{action} must be a list of key names, got {ks!r}")
+            raise BindingsError(f"{w}: keys.{action} must be a list of key names, got {_show(ks)}")
         ks = [k.upper() for k in ks]
         for k in ks:
             if names is not None and k not in names:
@@ -181,7 +219,7 @@ def load_bindings(path) -> Bindings:
             if k in seen and seen[k] != action:
                 raise BindingsError(f"{w}: key {k!r} is bound to both {seen[k]!r} and {action!r}")
             seen[k] = action
-    pad = doc.get("gamepad", {})
+    pad = _table(f"{w}: gamepad", doc.get("gamepad", {}))
     extra = set(pad) - {"dead_zone", "curve", "mappings", "axes", "buttons"}
     if extra:
         raise BindingsError(f"{w}: gamepad: unknown key(s) {', '.join(sorted(map(repr, extra)))}")
@@ -190,18 +228,19 @@ def load_bindings(path) -> Bindings:
     mappings = None
     if "mappings" in pad:
         if not isinstance(pad["mappings"], str):
-            raise BindingsError(f"{w}: gamepad.mappings must be a file name, got {pad['mappings']!r}")
+            raise BindingsError(f"{w}: gamepad.mappings must be a file name, got {_show(pad['mappings'])}")
         mappings = (path.parent / pad["mappings"]).resolve()
         if not mappings.is_file():
             raise BindingsError(f"{w}: gamepad.mappings: no such file {str(mappings)!r}")
     axes = dict(DEFAULT_AXES) if "axes" not in pad else {}
-    for name, spec in pad.get("axes", {}).items():
+    for name, spec in _table(f"{w}: gamepad.axes", pad.get("axes", {})).items():
         at = f"{w}: gamepad.axes.{name}"
         if name not in AXES:
             raise BindingsError(f"{at}: unknown axis; axes: {', '.join(AXES)}")
-        if not isinstance(spec, dict) or spec.get("channel") not in CHANNELS:
+        if not isinstance(spec, dict) or not isinstance(spec.get("channel"), str) \
+                or spec.get("channel") not in CHANNELS:
             raise BindingsError(f"{at} must be {{ channel = one of {', '.join(CHANNELS)}, scale = ... }}, "
-                                f"got {spec!r}")
+                                f"got {_show(spec)}")
         extra = set(spec) - {"channel", "scale", "dead_zone", "curve"}
         if extra:
             raise BindingsError(f"{at}: unknown key(s) {', '.join(sorted(map(repr, extra)))}")
@@ -210,13 +249,21 @@ def load_bindings(path) -> Bindings:
             None if "dead_zone" not in spec else _number(f"{at}.dead_zone", spec["dead_zone"], 0.0, 0.95),
             None if "curve" not in spec else _number(f"{at}.curve", spec["curve"], 0.2, 5.0))
     buttons = dict(DEFAULT_BUTTONS) if "buttons" not in pad else {}
-    for name, action in pad.get("buttons", {}).items():
+    for name, action in _table(f"{w}: gamepad.buttons", pad.get("buttons", {})).items():
         if name not in BUTTONS:
             raise BindingsError(f"{w}: gamepad.buttons.{name}: unknown button; buttons: {', '.join(BUTTONS)}")
+        if not isinstance(action, str):
+            raise BindingsError(f"{w}: gamepad.buttons.{name} must be an action name, got {_show(action)}")
         if action not in HELD and action not in PRESSED:
-            raise BindingsError(f"{w}: gamepad.buttons.{name}: unknown action {action!r}")
+            raise BindingsError(f"{w}: gamepad.buttons.{name}: unknown action {_show(action)}")
         buttons[name] = action
     return Bindings(keys, axes, buttons, dz, cv, mappings)
+
+
+def _toml_str(s: str) -> str:
+    """``s`` as a TOML basic string. JSON's escapes are TOML's (\\" \\\\ \\n \\uXXXX ...), except that TOML also
+    wants DEL escaped; non-ASCII text stays as it is (JSON's \\u surrogate pairs are not TOML)."""
+    return json.dumps(s, ensure_ascii=False).replace("\x7f", "\\u007f")
 
 
 def bindings_toml(b: Bindings | None = None) -> str:
@@ -225,19 +272,19 @@ def bindings_toml(b: Bindings | None = None) -> str:
     out = ["# driftframe bindings: save as a file and pass it to `driftframe play --bindings FILE`.",
            "# Any entry left out keeps its default.", "version = 1", "", "[keys]"]
     width = max(map(len, b.keys))
-    values = {a: "[" + ", ".join(f'"{k}"' for k in ks) + "]" for a, ks in b.keys.items()}
+    values = {a: "[" + ", ".join(map(_toml_str, ks)) + "]" for a, ks in b.keys.items()}
     vwidth = max(map(len, values.values()))
     for action, v in values.items():
         out.append(f"{action:<{width}} = {v:<{vwidth}}   # {ACTION_HELP[action]}")
     out += ["", "[gamepad]", f"dead_zone = {b.dead_zone!r}   # |axis| below this reads 0",
             f"curve = {b.curve!r}       # response exponent: 1 linear, 2 finer near the centre"]
     if b.mappings is not None:
-        out.append(f'mappings = "{b.mappings}"')
+        out.append(f"mappings = {_toml_str(str(b.mappings))}")
     out += ["", "[gamepad.axes]   # sticks: -1 left/up .. +1 right/down; triggers: 0 released .. 1 pulled"]
     for name, ab in b.axes.items():
         extra = "".join(f", {k} = {getattr(ab, k)!r}" for k in ("dead_zone", "curve") if getattr(ab, k) is not None)
-        out.append(f'{name} = {{ channel = "{ab.channel}", scale = {ab.scale!r}{extra} }}')
+        out.append(f'{name} = {{ channel = {_toml_str(ab.channel)}, scale = {ab.scale!r}{extra} }}')
     out += ["", "[gamepad.buttons]"]
     for name, action in b.buttons.items():
-        out.append(f'{name} = "{action}"')
+        out.append(f"{name} = {_toml_str(action)}")
     return "\n".join(out) + "\n"
