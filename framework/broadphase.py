@@ -360,6 +360,73 @@ class NeighbourList:
 
 
 @kernel
+def argsort_stable(a, m):
+    """The order that sorts ``a[:m]`` ascending, ties in index order: what ``np.argsort(a[:m],
+    kind="stable")`` gives (NaN last). Merge sort of insertion-sorted runs of 16; its compile costs a
+    fraction of numba's argsort (see docs/bench/compile.md)."""
+    idx = np.empty(m, np.int64)
+    for k in range(m):
+        idx[k] = k
+    for s in range(0, m, 16):
+        f = min(s + 16, m)
+        for k in range(s + 1, f):
+            v = idx[k]
+            key = a[v]
+            q = k - 1
+            while q >= s:
+                w = a[idx[q]]
+                if not (key < w or (w != w and key == key)):     # key < w, NaN last
+                    break
+                idx[q + 1] = idx[q]
+                q -= 1
+            idx[q + 1] = v
+    tmp = np.empty(m, np.int64)
+    width = 16
+    while width < m:
+        for s in range(0, m, 2 * width):
+            mid = min(s + width, m)
+            f = min(s + 2 * width, m)
+            i = s
+            j = mid
+            k = s
+            while i < mid and j < f:
+                x = a[idx[j]]
+                y = a[idx[i]]
+                if x < y or (y != y and x == x):                  # the right one only when smaller: stable
+                    tmp[k] = idx[j]
+                    j += 1
+                else:
+                    tmp[k] = idx[i]
+                    i += 1
+                k += 1
+            while i < mid:
+                tmp[k] = idx[i]
+                i += 1
+                k += 1
+            while j < f:
+                tmp[k] = idx[j]
+                j += 1
+                k += 1
+        idx, tmp = tmp, idx
+        width *= 2
+    return idx
+
+
+@kernel
+def median(a):
+    """``np.median`` of a 1-d float array (the mean of the middle two for an even count; NaN when
+    empty), by :func:`argsort_stable`: numba's median compiles a partition for every dtype."""
+    n = a.shape[0]
+    if n == 0:
+        return np.nan
+    o = argsort_stable(a, n)
+    h = n >> 1
+    if n & 1 == 0:
+        return (a[o[h - 1]] + a[o[h]]) / 2
+    return a[o[h]]
+
+
+@kernel
 def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
     """Compiled :meth:`NeighbourList.territories`: listed bodies whose territory box meets ``[lo, hi]``.
 
@@ -474,7 +541,7 @@ def _grid_setup(c, reach, swept):
         if not swept[k]:
             rs[m] = reach[k]
             m += 1
-    cut = 2.0 * np.median(rs)
+    cut = 2.0 * median(rs)
     hh = 0.0
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
@@ -550,7 +617,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                 keys[j] = cell[k]
                 idx[j] = k
                 j += 1
-        order = np.argsort(keys, kind="mergesort")
+        order = argsort_stable(keys, m)
         nu = 0
         for s in range(m):
             body[s] = idx[order[s]]
@@ -693,10 +760,10 @@ def _territory(r, d, skin_steps):
     swept = np.zeros(n, np.bool_)
     if n == 0:
         return skin, swept, r + skin
-    floor_ = max(np.median(d), 1e-6 * np.median(r))
+    floor_ = max(median(d), 1e-6 * median(r))
     for k in range(n):
         skin[k] = skin_steps * max(d[k], floor_)
-    limit = 8.0 * np.median(skin) + 4.0 * r.max()
+    limit = 8.0 * median(skin) + 4.0 * r.max()
     for k in range(n):
         swept[k] = skin[k] > limit
     return skin, swept, r + skin
@@ -707,7 +774,7 @@ def _x_order(c, reach, swept):
     """The territories' low ends in x, sorted (a stable sort), their order, and twice the largest
     listed reach: what :meth:`NeighbourList.territories` and :func:`territory_query` search."""
     lo_x = c[0] - reach
-    order = np.argsort(lo_x, kind="mergesort")
+    order = argsort_stable(lo_x, lo_x.shape[0])
     width = 0.0
     for k in range(reach.shape[0]):
         if not swept[k]:

@@ -4,7 +4,7 @@ Pure functions over arrays, compiled with numba (``cache=True``: the
 machine code is kept next to this file, so only the first run on a machine
 pays the compilation; ``benchmarks/collision_stress.py`` measures it). The
 collision system (:mod:`driftframe.systems.collision`) gathers the bodies'
-start-of-step state, calls :func:`solve_step` once per step and writes the
+start-of-step state, calls a solver (:func:`solve_all_pairs`, :func:`solve_listed`) once per step and writes the
 result back; nothing here knows about entities or components.
 
 **Paths.** Body ``k`` moves as ``p(t) = x[k] + u[k] t`` for ``0 <= t <= dt``.
@@ -102,12 +102,22 @@ CAP = 8
 #: Default t_c of the TC model, as a fraction of dt.
 TC = 1e-6
 
-#: flags returned by solve_step
+#: flags returned by the solvers (solve_all_pairs, solve_listed)
 F_JAM = 1
 F_TC = 2
 F_CAP = 4
 F_STICK = 8
 F_LIMIT = 16
+#: more bodies were swept than the list's budget: rebuild it
+F_REBUILD = 32
+#: the step needs the jam path: run it again with the _stick variant (the inputs are as they came)
+F_AGAIN = 64
+
+#: the solvers' stats: candidate pairs, contacts, waves, bodies swept, overlapping pairs at the start,
+#: the deepest one's bodies i and j and its centres' distance / (r_i + r_j), islands solved contact by
+#: contact, heap entries popped into a wave, pushed, put back
+(S_PAIRS, S_CONTACTS, S_WAVES, S_SWEPT, S_OVERLAPS, S_WORST_I, S_WORST_J, S_WORST, S_SEQUENTIAL, S_POPPED,
+ S_PUSHED, S_BACK) = range(12)
 
 _INF = math.inf
 
@@ -118,17 +128,26 @@ _INF = math.inf
 # solve_step, the largest kernel, compiled twice on a machine's first run (about 15 s more).
 
 
+# Copies are loops, not slice assignments: ``b[:k] = a`` compiles numba's shape check and the string
+# formatting of its error (about 1.5 s of an empty cache; docs/bench/compile.md).
 @kernel(error_model="numpy")
 def _grow_f(a, n):
-    b = np.empty((max(n, 2 * a.shape[0]),) + a.shape[1:], a.dtype)
-    b[:a.shape[0]] = a
+    """A (rows, cols) float array with room for ``n`` rows (at least twice as many), ``a`` copied in."""
+    b = np.empty((max(n, 2 * a.shape[0]), a.shape[1]))
+    for k in range(a.shape[0]):
+        for d in range(a.shape[1]):
+            b[k, d] = a[k, d]
     return b
 
 
 @kernel(error_model="numpy")
-def _grow_i(a, n):
-    b = np.empty(max(n, 2 * a.shape[0]), a.dtype)
-    b[:a.shape[0]] = a
+def _grow_i(a, n, fill):
+    """An int64 array of ``max(n, 2 len(a))`` with ``a`` copied in and ``fill`` after it."""
+    b = np.empty(max(n, 2 * a.shape[0]), np.int64)
+    for k in range(a.shape[0]):
+        b[k] = a[k]
+    for k in range(a.shape[0], b.shape[0]):
+        b[k] = fill
     return b
 
 
@@ -382,8 +401,9 @@ def _pair_structures(pi, pj, n):
     cap_p = max(2 * P, 16)
     PI = np.empty(cap_p, np.int64)
     PJ = np.empty(cap_p, np.int64)
-    PI[:P] = pi
-    PJ[:P] = pj
+    for p in range(P):
+        PI[p] = pi[p]
+        PJ[p] = pj[p]
     head = np.full(n, -1, np.int64)
     nxt = np.empty(2 * cap_p, np.int64)
     for p in range(P):
@@ -447,66 +467,25 @@ def _shift(t, d):
         t[k] += d
 
 
-@kernel(error_model="numpy")
-def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-               listed, swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
-    """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
-
-    ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
-    per body; ``live``: bodies taking part (False: a body with non-finite
-    state, left out); ``t_last``: each body's last contact time in absolute
-    seconds (-inf: none), updated in place (the TC model looks back across
-    steps); ``now``: the step's start, s. Inside, times are relative to the
-    step's start: ``t_last`` is shifted by ``-now`` on the way in and by
-    ``+now`` on the way out. (One kernel: a wrapper doing the shifts around
-    an inner kernel, which numba linked and optimised into it again, cost an
-    empty cache about 1 s more: 24.5 against 23.5 s for the first steps of
-    asteroids, billiards and swarm.) ``pi``, ``pj``: candidate pairs. With ``listed`` the
-    candidates come from a :class:`~driftframe.framework.broadphase.NeighbourList`
-    (``swept``, ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n),
-    ``skin``, ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in
-    place for bodies swept here), and bodies whose path leaves their territory
-    are swept against the others and their new pairs added.
-
-    Returns ``(changed, events, ev_n, ev_point, stats, flags)``: which bodies'
-    velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
-    and the contact points on i's and on j's surface (6 numbers); ``stats`` = [pairs, contacts, waves,
-    swept, overlaps, worst overlap pair i, j, worst distance / R, islands
-    solved contact by contact]; ``flags`` (F_* bits).
-    """
+@kernel(error_model="numpy", inline="always")
+def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst, start, resweep, stick_fn):
+    """The step's event loop, shared by the drivers (:func:`solve_all_pairs`, :func:`solve_listed` and
+    their ``_stick`` variants), which pick its pieces: ``lst`` the neighbour list's arrays (or None),
+    ``start`` and ``resweep`` what the list does at the start and after each wave (:func:`_listed_start`,
+    :func:`_listed_resweep`, or the ``_unlisted`` ones, which do nothing), ``stick_fn`` :func:`_stick` or
+    :func:`_no_stick` (which ends the step with F_AGAIN: the caller runs it again with :func:`_stick`).
+    Inlined into each driver: each is compiled alone, with only the code its scenes run."""
     _shift(t_last, -now)
     n = x.shape[0]
-    P = pi.shape[0]
     stats = np.zeros(12)
     flags = 0
-    n_swept = 0
-    if listed:
-        for k in range(n):
-            if swept[k] and live[k]:
-                n_swept += 1
     # the pair structures (adjacency, versions) are made only when needed: a quiet step makes none
+    n_swept, P, PI, PJ, head, nxt, ver, mark = start(lst, pi, pj, x, u, r, live, dt)
     early = n_swept > 0
-    if early:
-        P, PI, PJ, head, nxt, ver, mark = _pair_structures(pi, pj, n)
-    else:
-        PI, PJ = pi, pj
+    stats[3] = n_swept
     spd = np.empty(n)
     for k in range(n):
         spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
-    if early:
-        # bodies swept at the start: their whole path against the territories and each other
-        for k in range(n):
-            if swept[k] and live[k]:
-                for d in range(3):
-                    a0 = x[k, d]
-                    a1 = x[k, d] + u[k, d] * dt
-                    blo[k, d] = min(a0, a1) - r[k]
-                    bhi[k, d] = max(a0, a1) + r[k]
-        for k in range(n):
-            if swept[k] and live[k]:
-                P, PI, PJ, nxt, ver, mark = _sweep(k, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
-                                                   centre, reach, order, lo_x, width, np.bool_(True))
-        stats[3] = n_swept
 
     # -- heap of pending contacts --
     H, hn, overlaps, worst, wi_, wj_ = _initial(PI, PJ, P, x, u, r, inv, live, spd, dt)
@@ -544,9 +523,6 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
     one = np.zeros(1, np.int64)
     moved = np.empty(n, np.int64)
     dv = np.zeros((n, 3))
-    tosweep = np.empty(n, np.int64)                       # moved bodies whose path left their cover
-    newlo = np.empty((n, 3))                               # ... and their new path boxes
-    newhi = np.empty((n, 3))
     # events
     ev = np.empty((64, 4))
     ev_n = np.empty((64, 3))
@@ -685,7 +661,7 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
         if K == 1:
             ordk = one                                     # a lone contact (most waves): nothing to sort
         else:
-            ordk = np.argsort(wroot[:K], kind="mergesort")   # islands together, wave order inside
+            ordk = bp.argsort_stable(wroot, K)             # islands together, wave order inside
         nm = np.int64(0)                 # see _NOT_LITERAL
         s = 0
         while s < K:
@@ -702,8 +678,10 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
                     if wstick[cs[a]]:
                         stick = True
             if stick:
-                nm = _stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head, nxt,
-                            PI, PJ, sseen, squeue)
+                nm = stick_fn(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head,
+                              nxt, PI, PJ, sseen, squeue)
+                if nm < 0:
+                    break                                  # _no_stick: this driver cannot; F_AGAIN below
                 flags |= F_STICK
             elif m == 1:
                 c = cs[0]
@@ -727,7 +705,7 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
                 keys = np.empty(m, np.int64)
                 for a in range(m):
                     keys[a] = wi[cs[a]] * n + wj[cs[a]]
-                ko = np.argsort(keys, kind="mergesort")
+                ko = bp.argsort_stable(keys, m)
                 for a in range(m):
                     c = cs[ko[a]]
                     i, j = wi[c], wj[c]
@@ -746,6 +724,9 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
                     nm = _kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
                     nm = _kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
             s = f
+        if nm < 0:
+            flags |= F_AGAIN
+            break
         # -- bookkeeping of the bodies that took an impulse; events --
         if ne + K > ev.shape[0]:
             ev, ev_n, ev_x = _grow_f(ev, ne + K), _grow_f(ev_n, ne + K), _grow_f(ev_x, ne + K)
@@ -775,42 +756,8 @@ def solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
             spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
             changed[b] = True
         # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
-        if listed:
-            # first which (the loop that may replace the pair arrays runs only over those: see _push)
-            ns = 0
-            for a in range(nm):
-                b = moved[a]
-                if not swept[b]:
-                    ox = x[b, 0] + u[b, 0] * dt - centre[0, b]
-                    oy = x[b, 1] + u[b, 1] * dt - centre[1, b]
-                    oz = x[b, 2] + u[b, 2] * dt - centre[2, b]
-                    if ox * ox + oy * oy + oz * oz < skin[b] * skin[b]:
-                        continue                           # still inside its territory (a ball: convex)
-                inside = swept[b]
-                for d in range(3):
-                    a0 = x[b, d] + u[b, d] * t
-                    a1 = x[b, d] + u[b, d] * dt
-                    newlo[ns, d] = min(a0, a1) - r[b]
-                    newhi[ns, d] = max(a0, a1) + r[b]
-                    if newlo[ns, d] < blo[b, d] or newhi[ns, d] > bhi[b, d]:
-                        inside = False
-                if inside:
-                    continue                               # swept: still inside its box
-                tosweep[ns] = b
-                ns += 1
-            for q in range(ns):
-                b = tosweep[q]
-                if not swept[b]:
-                    swept[b] = True
-                    n_swept += 1
-                    if n_swept > budget:
-                        flags |= 32                        # the list should be rebuilt
-                for d in range(3):
-                    blo[b, d] = newlo[q, d]
-                    bhi[b, d] = newhi[q, d]
-                stats[3] += 1
-                P, PI, PJ, nxt, ver, mark = _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
-                                                   centre, reach, order, lo_x, width, np.bool_(False))
+        P, PI, PJ, nxt, ver, mark, n_swept, flags = resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt,
+                                                            ver, mark, n_swept, stats, flags)
         # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
         if hn + P > H.shape[0]:
             H = _grow_f(H, hn + P)
@@ -955,14 +902,11 @@ def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, o
         if o == b or _has_pair(b, o, head, nxt, PI, PJ):
             continue
         if P == PI.shape[0]:
-            PI, PJ = _grow_i(PI, 2 * P), _grow_i(PJ, 2 * P)
-            nxt = _grow_i(nxt, 4 * P)
-            ver2 = np.zeros(2 * P, np.int64)
-            ver2[:P] = ver[:P]
-            ver = ver2
-            mark2 = np.full(2 * P, -1, np.int64)
-            mark2[:P] = mark[:P]
-            mark = mark2
+            z = np.int64(0)                                # see _NOT_LITERAL
+            PI, PJ = _grow_i(PI, 2 * P, z), _grow_i(PJ, 2 * P, z)    # (all four hold P pairs, nxt 2 P)
+            nxt = _grow_i(nxt, 4 * P, z)
+            ver = _grow_i(ver, 2 * P, z)
+            mark = _grow_i(mark, 2 * P, np.int64(-1))
         PI[P] = min(b, o)
         PJ[P] = max(b, o)
         ver[P] = 0
@@ -972,16 +916,185 @@ def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, o
     return P, PI, PJ, nxt, ver, mark
 
 
+# -- the neighbour list's part of a step, and the drivers -----------------------------------------
+
+@kernel(error_model="numpy")
+def _listed_start(lst, pi, pj, x, u, r, live, dt):
+    """Bodies swept at the start: their whole path against the territories and each other. Returns the
+    count of swept bodies, and the pair structures when there are any (else ``pi``, ``pj`` stand in)."""
+    swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget, tosweep, newlo, newhi = lst
+    n = x.shape[0]
+    n_swept = np.int64(0)                # see _NOT_LITERAL
+    for k in range(n):
+        if swept[k] and live[k]:
+            n_swept += 1
+    if n_swept == 0:
+        return n_swept, pi.shape[0], pi, pj, pi, pi, pi, pi
+    P, PI, PJ, head, nxt, ver, mark = _pair_structures(pi, pj, n)
+    for k in range(n):
+        if swept[k] and live[k]:
+            for d in range(3):
+                a0 = x[k, d]
+                a1 = x[k, d] + u[k, d] * dt
+                blo[k, d] = min(a0, a1) - r[k]
+                bhi[k, d] = max(a0, a1) + r[k]
+    for k in range(n):
+        if swept[k] and live[k]:
+            P, PI, PJ, nxt, ver, mark = _sweep(k, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
+                                               centre, reach, order, lo_x, width, np.bool_(True))
+    return n_swept, P, PI, PJ, head, nxt, ver, mark
+
+
+@kernel(error_model="numpy")
+def _unlisted_start(lst, pi, pj, x, u, r, live, dt):
+    """Every pair a candidate: nobody swept (``pi`` stands in for the pair structures, made later)."""
+    return np.int64(0), pi.shape[0], pi, pj, pi, pi, pi, pi
+
+
+@kernel(error_model="numpy")
+def _listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
+    """The moved bodies whose new path leaves their territory (or their swept box) are swept: their new
+    pairs are added. Returns the pair structures, the count of swept bodies and the flags."""
+    swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget, tosweep, newlo, newhi = lst
+    # first which (the loop that may replace the pair arrays runs only over those: see _push)
+    ns = 0
+    for a in range(nm):
+        b = moved[a]
+        if not swept[b]:
+            ox = x[b, 0] + u[b, 0] * dt - centre[0, b]
+            oy = x[b, 1] + u[b, 1] * dt - centre[1, b]
+            oz = x[b, 2] + u[b, 2] * dt - centre[2, b]
+            if ox * ox + oy * oy + oz * oz < skin[b] * skin[b]:
+                continue                                   # still inside its territory (a ball: convex)
+        inside = swept[b]
+        for d in range(3):
+            a0 = x[b, d] + u[b, d] * t
+            a1 = x[b, d] + u[b, d] * dt
+            newlo[ns, d] = min(a0, a1) - r[b]
+            newhi[ns, d] = max(a0, a1) + r[b]
+            if newlo[ns, d] < blo[b, d] or newhi[ns, d] > bhi[b, d]:
+                inside = False
+        if inside:
+            continue                                       # swept: still inside its box
+        tosweep[ns] = b
+        ns += 1
+    for q in range(ns):
+        b = tosweep[q]
+        if not swept[b]:
+            swept[b] = True
+            n_swept += 1
+            if n_swept > budget:
+                flags |= F_REBUILD
+        for d in range(3):
+            blo[b, d] = newlo[q, d]
+            bhi[b, d] = newhi[q, d]
+        stats[3] += 1
+        P, PI, PJ, nxt, ver, mark = _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
+                                           centre, reach, order, lo_x, width, np.bool_(False))
+    return P, PI, PJ, nxt, ver, mark, n_swept, flags
+
+
+@kernel(error_model="numpy")
+def _unlisted_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
+    """Every pair a candidate: nothing to add."""
+    return P, PI, PJ, nxt, ver, mark, n_swept, flags
+
+
+@kernel(error_model="numpy")
+def _no_stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen,
+              queue):
+    """:func:`_stick`'s stand-in in the drivers without it: -1, the step is to be run again with it."""
+    return np.int64(-1)
+
+
+@kernel(error_model="numpy")
+def _copy_into(dst, src):
+    """``dst[...] = src`` for (n, 3) arrays, as a loop (see _grow_f)."""
+    for k in range(src.shape[0]):
+        for d in range(3):
+            dst[k, d] = src[k, d]
+
+
+# The drivers. Each is one compiled unit with the pieces of _solve its scenes run: a scene of few bodies
+# compiles no neighbour-list code, and no scene compiles the jam path (_stick) until one jams; a step that
+# needs it ends with F_AGAIN, its inputs as they came, and the caller runs it again with the _stick variant
+# (the same result bit for bit as running that variant first). Measured in docs/bench/compile.md.
+
 @kernel(error_model="numpy")
 def solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
-    """:func:`solve_step` with every pair a candidate (few bodies): fewer arguments to pass per step."""
-    nob = np.zeros(0, np.bool_)
-    n3 = np.empty((0, 3))
-    t3 = np.empty((3, 0))
-    f = np.empty(0)
-    return solve_step(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                      np.bool_(False), nob, n3, n3.copy(), t3, f, f.copy(), np.empty(0, np.int64), f.copy(), 0.0,
-                      np.int64(0))                                    # see _NOT_LITERAL
+    """One step of contacts with the candidate pairs ``pi``, ``pj`` (every pair of few bodies); see
+    :func:`solve_listed` for the arguments and the result. Returns ``flags`` with F_AGAIN, and ``x``,
+    ``u``, ``t_last`` as they came, when the step needs the jam path: run
+    :func:`solve_all_pairs_stick` then."""
+    x_in, u_in, t_in = x.copy(), u.copy(), t_last.copy()
+    out = _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
+                 None, _unlisted_start, _unlisted_resweep, _no_stick)
+    if out[5] & F_AGAIN:
+        _copy_into(x, x_in)
+        _copy_into(u, u_in)
+        for k in range(t_in.shape[0]):
+            t_last[k] = t_in[k]
+    return out
+
+
+@kernel(error_model="numpy")
+def solve_all_pairs_stick(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
+    """:func:`solve_all_pairs` with the jam path (:func:`_stick`)."""
+    return _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
+                  None, _unlisted_start, _unlisted_resweep, _stick)
+
+
+@kernel(error_model="numpy")
+def solve_listed(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
+                 swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
+    """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
+
+    ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
+    per body; ``live``: bodies taking part (False: a body with non-finite
+    state, left out); ``t_last``: each body's last contact time in absolute
+    seconds (-inf: none), updated in place (the TC model looks back across
+    steps); ``now``: the step's start, s (inside, times are relative to it).
+    ``pi``, ``pj``: candidate pairs from a
+    :class:`~driftframe.framework.broadphase.NeighbourList` (``swept``,
+    ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n), ``skin``,
+    ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in place for
+    bodies swept here; ``budget``: swept bodies before F_REBUILD): bodies whose
+    path leaves their territory are swept against the others and their new
+    pairs added.
+
+    Returns ``(changed, events, ev_n, ev_point, stats, flags)``: which bodies'
+    velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
+    and the contact points on i's and on j's surface (6 numbers); ``stats``
+    (indexed by the S_* constants); ``flags`` (F_* bits). With F_AGAIN the step
+    needs the jam path: every input is as it came; run :func:`solve_listed_stick`.
+    """
+    n = x.shape[0]
+    x_in, u_in, t_in = x.copy(), u.copy(), t_last.copy()
+    swept_in, blo_in, bhi_in = swept.copy(), blo.copy(), bhi.copy()
+    lst = (swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget,
+           np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)))
+    out = _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
+                 lst, _listed_start, _listed_resweep, _no_stick)
+    if out[5] & F_AGAIN:
+        _copy_into(x, x_in)
+        _copy_into(u, u_in)
+        _copy_into(blo, blo_in)
+        _copy_into(bhi, bhi_in)
+        for k in range(n):
+            t_last[k] = t_in[k]
+            swept[k] = swept_in[k]
+    return out
+
+
+@kernel(error_model="numpy")
+def solve_listed_stick(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
+                       swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
+    """:func:`solve_listed` with the jam path (:func:`_stick`)."""
+    n = x.shape[0]
+    lst = (swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget,
+           np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)))
+    return _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
+                  lst, _listed_start, _listed_resweep, _stick)
 
 
 @kernel(error_model="numpy")

@@ -70,7 +70,7 @@ _ZERO_STATS = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "
 
 
 def kernel_events(ents, ev, ev_n, ev_x, t0: float, step: int, method: str = "continuous") -> list:
-    """CollisionEvents from the contact kernel's arrays (:func:`framework.contact.solve_step`:
+    """CollisionEvents from the contact kernel's arrays (:func:`framework.contact.solve_listed`:
     ``(i, j, time, impulse)``, the normal i to j, the points on i and on j), the lower entity id
     first (its point, the normal towards the other). ``ents``: entity id of each kernel body;
     ``t0``: the step's start (s)."""
@@ -249,6 +249,7 @@ class CollisionSystem(esper.Processor):
         self._bad: set[int] = set()
         self._t_last_layout = None
         self._none_changed = None
+        self._stick = False                          # a step jammed: solve with the jam path's variant
         self.stats = dict(_ZERO_STATS)
 
     # the world this system is in: it integrates the colliders, so movement must leave them alone
@@ -398,7 +399,12 @@ class CollisionSystem(esper.Processor):
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
             pi, pj = self._pairs
-            out = contact.solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, self.max_contacts)
+            solve = contact.solve_all_pairs_stick if self._stick else contact.solve_all_pairs
+            out = solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, self.max_contacts)
+            if out[5] & contact.F_AGAIN:                     # a jam: the variant with the jam path, from now on
+                self._stick = True
+                out = contact.solve_all_pairs_stick(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c,
+                                                    self.max_contacts)
         else:
             nl = self._list
             rebuild = self._list_dirty or self._list_layout is not lay or len(nl.radius) != n
@@ -411,10 +417,12 @@ class CollisionSystem(esper.Processor):
                 self._build_list(lay, st, dt, x, u, r)
                 self.stats["builds"] = 1
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
-            out = contact.solve_step(x, u, r, inv, e, live, t_last, now, self._pi, self._pj, dt, t_c,
-                                     self.max_contacts,
-                                     True, nl.swept, self._blo, self._bhi, centre, skin, reach,
-                                     order, lo_x, float(width), int(nl.budget))
+            args = (x, u, r, inv, e, live, t_last, now, self._pi, self._pj, dt, t_c, self.max_contacts,
+                    nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width), int(nl.budget))
+            out = contact.solve_listed_stick(*args) if self._stick else contact.solve_listed(*args)
+            if out[5] & contact.F_AGAIN:                     # a jam: the variant with the jam path, from now on
+                self._stick = True
+                out = contact.solve_listed_stick(*args)
         changed, ev, ev_n, ev_x, stats, flags = out
         s = stats.tolist()
         st_ = self.stats
@@ -424,7 +432,7 @@ class CollisionSystem(esper.Processor):
         if s[4] or s[8]:
             st_["overlaps"], st_["sequential"] = int(s[4]), int(s[8])
         if flags:
-            if flags & 32:
+            if flags & contact.F_REBUILD:
                 self._list_dirty = True
             self._flags(flags, lay)
         if s[4] and self._reported_overlap is not lay:
