@@ -27,6 +27,7 @@ before any run starts.
 """
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import re
@@ -43,7 +44,7 @@ KEYS = {
     "seeds": "'a..b' (both ends included), an integer, or a list of integers",
     "seconds": "simulated seconds per run",
     "fps": "frames per second of a recording (must divide 60)",
-    "size": "'WIDTHxHEIGHT' of a recording",
+    "size": "'WIDTHxHEIGHT' or [WIDTH, HEIGHT] of a recording (a list of those is an axis)",
     "camera": "'cockpit', 'chase' or 'overhead'",
     "sky": "'lines' (the green line cube) or 'starfield'",
     "output": "file name template, relative to the output folder; none: headless",
@@ -53,6 +54,11 @@ KEYS = {
 }
 _RANGE = re.compile(r"^\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*$")
 MAX_RUNS = 1_000_000
+#: Longest batch file read (bytes): a grid is a few lines; 1 MiB holds an explicit list of 10^5 seeds.
+MAX_FILE_BYTES = 1 << 20
+#: Bytes a file name may have beyond the output's own: the recorder writes ``.NAME.<pid>.<random>.part.mp4``
+#: first, 32 bytes more than NAME with a 7-digit pid.
+_PART_EXTRA = 40
 
 
 def parse_seeds(value, where: str = "seeds") -> list[int]:
@@ -96,25 +102,41 @@ def _axis(value, where: str) -> list:
     return [value]
 
 
+def _size_axis(value, where: str) -> list:
+    """``size``: ``"640x360"``, ``[640, 360]`` (one size: the natural TOML), or a list of either (an axis).
+    Each becomes a (width, height) tuple where it parses; a bad one is left for the check to name."""
+    from driftframe.app import parse_size
+
+    if isinstance(value, list) and len(value) == 2 and all(isinstance(v, int) and not isinstance(v, bool)
+                                                           for v in value):
+        value = [value]
+    out = []
+    for v in _axis(value, where):
+        try:
+            out.append(parse_size(v if isinstance(v, str) else "x".join(map(str, v))))
+        except (TypeError, ValueError):
+            out.append(v)
+    return out
+
+
 def load(path, out_dir, *, check: bool = True) -> list[Spec]:
     """The runs of batch file ``path``, outputs placed in ``out_dir``; a SpecError otherwise.
 
     ``check``: check every run (:func:`~driftframe.batch.check_all`; the
     output folder must exist then); False only parses the grid.
     """
+    from driftframe.framework.inputfile import InputFileError, read_text_capped
+
     path = Path(path)
     name = str(path)
+    if not path.exists() and not path.is_symlink():
+        raise SpecError(f"{name}: no such batch file")
     try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except FileNotFoundError:
-        raise SpecError(f"{name}: no such batch file") from None
-    except IsADirectoryError:
-        raise SpecError(f"{name}: is a directory, not a batch file") from None
+        data = tomllib.loads(read_text_capped(path, MAX_FILE_BYTES, "batch file"))
+    except InputFileError as e:
+        raise SpecError(str(e)) from None
     except tomllib.TOMLDecodeError as e:
         raise SpecError(f"{name}: not valid TOML: {e}") from None
-    except OSError as e:
-        raise SpecError(f"{name}: cannot read: {e.strerror or e}") from None
     return grid(data, out_dir, name=name, check=check)
 
 
@@ -153,7 +175,7 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
         "seed": parse_seeds(data.get("seeds", 0), f"{name}: seeds"),
         "seconds": _axis(data.get("seconds"), f"{name}: seconds"),
         "fps": _axis(data.get("fps", 60), f"{name}: fps"),
-        "size": _axis(data.get("size", "640x360"), f"{name}: size"),
+        "size": _size_axis(data.get("size", "640x360"), f"{name}: size"),
         "camera": _axis(data.get("camera"), f"{name}: camera"),
         "sky": _axis(data.get("sky", "lines"), f"{name}: sky"),
     }
@@ -168,56 +190,131 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
     out_dir = Path(out_dir)
     if template is not None:
         _check_template(template, overrides, name)
-    specs = []
+    inside = _Inside(out_dir) if template is not None else None
+    # one pass, no per-run dict: a grid of 10^6 runs is built in a few seconds (each axis value was
+    # parsed once above; Spec.check's memo checks each distinct combination of the rest once)
     keys = list(axes)
+    ov_keys = [k.split(".", 1)[1] for k in keys[7:]]
+    ov_memo: dict = {}
+    stats = tuple(stats)
+    specs = []
     for index, combo in enumerate(itertools.product(*axes.values())):
-        point = dict(zip(keys, combo))
-        ov = {k.split(".", 1)[1]: v for k, v in point.items() if k.startswith("overrides.")}
-        where = f"{name}: run {index} ({point[kind]}, seed {point['seed']}" + \
-            "".join(f", {k}={v!r}" for k, v in ov.items()) + ")"
+        what, seed, seconds, fps, size, camera, sky = combo[:7]
+        if type(fps) is int:
+            fps = float(fps)
+        if type(seconds) is int:
+            seconds = float(seconds)
+        ov_values = combo[7:]
+        try:
+            ov = ov_memo[ov_values]
+        except (KeyError, TypeError):              # TypeError: an unhashable value (a list): its own dict
+            ov = dict(zip(ov_keys, ov_values))
+            with contextlib.suppress(TypeError):
+                ov_memo[ov_values] = ov
+        where = f"{name}: run {index} ({what}, seed {seed}" + \
+            ("".join(f", {k}={v!r}" for k, v in ov.items()) if ov else "") + ")"
         output = None
         if template is not None:
-            output = str(out_dir / _fill(template, point, kind, ov, index, where))
-        specs.append(Spec(**{kind: point[kind]}, seed=point["seed"], seconds=point["seconds"], fps=point["fps"],
-                          size=point["size"], camera=point["camera"], sky=point["sky"], overrides=ov, output=output,
-                          stats=tuple(stats), scripted=scripted, where=where))
+            point = dict(zip(keys[:7], combo[:7]))
+            output = inside(_fill(template, point, kind, ov, index, where), where)
+        specs.append(Spec(**{kind: what}, seed=seed, seconds=seconds, fps=fps, size=size, camera=camera, sky=sky,
+                          overrides=ov, output=output, stats=stats, scripted=scripted, where=where))
     return check_all(specs) if check else specs
+
+
+class _Inside:
+    """Where an output name goes, after every substitution: a path inside the output folder, or a
+    SpecError. Refused: an absolute name, a ``..`` part, a folder that resolves (through a symbolic
+    link) outside the output folder, a name part too long for the file system once the recorder's
+    temporary suffix is added. The resolved folders are remembered: each is looked at once."""
+
+    def __init__(self, out_dir: Path):
+        self.out_dir = out_dir
+        self.real = os.path.realpath(out_dir)
+        probe = out_dir
+        while not probe.exists() and probe != probe.parent:
+            probe = probe.parent
+        try:
+            self.name_max = os.pathconf(probe, "PC_NAME_MAX")
+        except (OSError, ValueError):
+            self.name_max = 255
+        self.folders: dict[str, bool] = {}
+
+    def __call__(self, filled: str, where: str) -> str:
+        if "\0" in filled or not filled.strip():
+            raise SpecError(f"{where}: output name {filled!r} is not a usable file name")
+        parts = filled.replace(os.sep, "/").split("/")
+        if os.path.isabs(filled) or ".." in parts:
+            raise SpecError(f"{where}: output {filled!r} leaves the output folder {str(self.out_dir)!r} "
+                            "(an absolute path or '..' after the fields were filled in)")
+        for part in parts:
+            if len(os.fsencode(part)) > self.name_max - _PART_EXTRA:
+                raise SpecError(f"{where}: output name part {part[:40]!r}... is {len(os.fsencode(part))} bytes; "
+                                f"the limit here is {self.name_max - _PART_EXTRA} (the file system's "
+                                f"{self.name_max}, less the recorder's temporary suffix)")
+        full = os.path.join(self.out_dir, filled)
+        folder = os.path.dirname(full)
+        ok = self.folders.get(folder)
+        if ok is None:
+            real = os.path.realpath(folder)
+            ok = self.folders[folder] = real == self.real or real.startswith(self.real.rstrip(os.sep) + os.sep)
+        if not ok:
+            raise SpecError(f"{where}: output {filled!r} leaves the output folder {str(self.out_dir)!r} "
+                            f"(its folder resolves to {os.path.realpath(folder)!r})")
+        return full
 
 
 def without_outputs(specs) -> list[Spec]:
     """The same runs, headless: to check everything but the outputs before any folder exists."""
     import dataclasses
-    return [dataclasses.replace(s, output=None) for s in specs]
+    return [s if s.output is None else dataclasses.replace(s, output=None) for s in specs]
 
 
-def prepare(specs, out_dir, *, overwrite: bool = False) -> list[Spec]:
+def prepare(specs, out_dir, *, overwrite: bool = False, done=frozenset()) -> list[Spec]:
     """Check the runs, then the output folder, then the outputs in it: errors before anything runs.
 
     Everything but the outputs is checked first, so a bad entry creates no
     folder; then ``out_dir`` (created if needed, proven writable) and any
     sub-folder an output template names. Outputs that exist already are an
     error naming the first (and how many) unless ``overwrite``; with it the
-    runs replace them.
+    runs replace them. ``done``: indices of runs a resumed batch skips (the
+    journal holds them): their outputs are theirs. An existing output that
+    resolves outside the output folder (a symbolic link) is refused always.
     """
     import dataclasses
 
-    existing = [s.output for s in specs if s.output is not None and Path(s.output).exists()]
+    real = os.path.realpath(out_dir)
+    existing = []
+    for i, s in enumerate(specs):
+        if s.output is None or i in done or not (os.path.lexists(s.output)):
+            continue
+        target = os.path.realpath(s.output)
+        if not target.startswith(real.rstrip(os.sep) + os.sep):
+            raise SpecError(f"{s.where}: output {s.output!r} is a link to {target!r}, outside the output folder")
+        existing.append(s.output)
     if existing and not overwrite:
         more = f" and {len(existing) - 1} more" if len(existing) > 1 else ""
-        raise SpecError(f"output {existing[0]!r}{more} exists already; pass --overwrite to replace")
+        raise SpecError(f"output {existing[0]!r}{more} exists already; pass --overwrite to replace it "
+                        "(or --resume to continue the batch that wrote it)")
     if overwrite:
-        specs = [dataclasses.replace(s, overwrite=True) for s in specs]
-    check_all(without_outputs(specs))
+        specs = [s if s.output is None else dataclasses.replace(s, overwrite=True) for s in specs]
+    checked = check_all(without_outputs(specs))
     check_output_names(specs)
     out_dir = check_out_dir(out_dir)
+    made: set = set()
     for s in specs:
         if s.output is not None:
-            parent = Path(s.output).parent
-            if not parent.exists():
+            parent = os.path.dirname(s.output)
+            if parent in made:
+                continue
+            made.add(parent)
+            if not os.path.isdir(parent):
                 try:
-                    parent.mkdir(parents=True, exist_ok=True)
+                    os.makedirs(parent, exist_ok=True)
                 except OSError as e:
-                    raise SpecError(f"{s.where}: cannot create folder {str(parent)!r}: {e.strerror or e}") from None
+                    raise SpecError(f"{s.where}: cannot create folder {parent!r}: {e.strerror or e}") from None
+    if not any(s.output is not None for s in specs):
+        return checked                          # headless: checked above, nothing more to look at
     return check_all(specs)
 
 

@@ -13,11 +13,14 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import os
 import statistics
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 from driftframe.batch import Outcome, Result
 
@@ -37,27 +40,27 @@ def group(spec) -> str:
 
 
 def rows(outcome: Outcome) -> list[dict]:
-    out = []
-    for i, res in enumerate(outcome.results):
-        if res is None:
-            continue
-        s = res.spec
-        row = {"index": i, "demo": s.demo or "", "scene": s.scene or "", "seed": s.seed, "seconds": s.seconds,
-               "fps": s.fps if s.output else "", "size": f"{s.size[0]}x{s.size[1]}" if s.output else "",
-               "camera": s.camera or "", "sky": s.sky if s.output else "", "overrides": " ".join(f"{k}={v}" for k, v in sorted(s.overrides.items())),
-               "output": s.output or "", "wall_seconds": f"{res.wall_seconds:.3f}"}
-        if isinstance(res, Result):
-            st = res.stats
-            row.update(status="ok", state_hash=res.state_hash, steps=res.steps, frames=res.frames,
-                       energy_drift=_g(st.get("energy_drift")), momentum_drift=_g(st.get("momentum_drift")),
-                       contacts=st.get("contacts", ""), energy_start=_g(st.get("energy_start")),
-                       energy_end=_g(st.get("energy_end")), error="")
-            for stage, took in st.get("stage_seconds", {}).items():
-                row[f"{stage}_seconds"] = f"{took:.6f}"
-        else:
-            row.update(status="failed", error=res.error)
-        out.append(row)
-    return out
+    return [_row(i, res) for i, res in enumerate(outcome.results) if res is not None]
+
+
+def _row(i: int, res) -> dict:
+    s = res.spec
+    row = {"index": i, "demo": s.demo or "", "scene": s.scene or "", "seed": s.seed, "seconds": s.seconds,
+           "fps": s.fps if s.output else "", "size": f"{s.size[0]}x{s.size[1]}" if s.output else "",
+           "camera": s.camera or "", "sky": s.sky if s.output else "",
+           "overrides": " ".join(f"{k}={v}" for k, v in sorted(s.overrides.items())),
+           "output": s.output or "", "wall_seconds": f"{res.wall_seconds:.3f}"}
+    if isinstance(res, Result):
+        st = res.stats
+        row.update(status="ok", state_hash=res.state_hash, steps=res.steps, frames=res.frames,
+                   energy_drift=_g(st.get("energy_drift")), momentum_drift=_g(st.get("momentum_drift")),
+                   contacts=st.get("contacts", ""), energy_start=_g(st.get("energy_start")),
+                   energy_end=_g(st.get("energy_end")), error="")
+        for stage, took in st.get("stage_seconds", {}).items():
+            row[f"{stage}_seconds"] = f"{took:.6f}"
+    else:
+        row.update(status="failed", error=res.error)
+    return row
 
 
 def _g(v) -> str:
@@ -101,6 +104,11 @@ def markdown(outcome: Outcome, *, title: str, chart: str | None) -> str:
     lines = [f"# {title}", "",
              f"{len(outcome.results)} runs on {outcome.where}: {len(done)} ok, {len(failed)} failed; "
              f"{outcome.wall_seconds:.1f} s wall time.", ""]
+    if outcome.signal is not None:
+        from driftframe.batch import signal_name
+        missing = len(outcome.results) - len(done) - len(failed)
+        lines += [f"Stopped by {signal_name(outcome.signal)}: {missing} runs did not run (or were stopped "
+                  "and left nothing); `driftframe batch --resume` runs them.", ""]
     groups: dict[str, list] = {}
     for res in outcome.results:
         if res is not None:
@@ -219,3 +227,88 @@ def write(outcome: Outcome, out_dir, *, title: str) -> tuple[list[Path], str | N
     _atomic_write(path, lambda f: f.write(md.encode()))
     written.insert(1, path)
     return written, note
+
+
+# -- the journal: each run as it ends -------------------------------------------------------------
+JOURNAL = "journal.jsonl"
+
+
+def _jsonable(v):
+    if isinstance(v, dict):
+        return {k: _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    return v
+
+
+class Journal:
+    """Each finished run, appended the moment it ends: a JSON line in ``journal.jsonl`` (what
+    ``--resume`` reads back) and a row in ``summary.csv``. A stop, a crash or SIGKILL loses at most the
+    line being written; :func:`read_journal` skips a torn last line. The summary files are written again,
+    whole and in run order, at the end (:func:`write`)."""
+
+    def __init__(self, out_dir, *, append: bool):
+        out_dir = Path(out_dir)
+        self.path = out_dir / JOURNAL
+        self._json = open(self.path, "a" if append else "w", encoding="utf-8")
+        self._csv_file = open(out_dir / "summary.csv", "w", encoding="utf-8", newline="")
+        self._csv = csv.DictWriter(self._csv_file, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n")
+        self._csv.writeheader()
+        self._csv_file.flush()
+
+    def add(self, index: int, res, *, again: bool = True) -> None:
+        """Append ``res``, the run at ``index``; ``again=False``: a resumed run, in the journal already
+        (its CSV row only)."""
+        if again:
+            self._json.write(json.dumps(_journal_row(index, res), separators=(",", ":")) + "\n")
+            self._json.flush()
+        self._csv.writerow(_row(index, res))
+        self._csv_file.flush()
+
+    def close(self) -> None:
+        self._json.close()
+        self._csv_file.close()
+
+
+def _journal_row(index: int, res) -> dict:
+    spec = res.spec
+    row = {"index": index, "hash": spec.content_hash(), "label": spec.label, "ok": res.ok,
+           "wall_seconds": res.wall_seconds}
+    if isinstance(res, Result):
+        row.update(state_hash=res.state_hash, steps=res.steps, frames=res.frames, output=res.output,
+                   stats=_jsonable(res.stats))
+    else:
+        row.update(error=res.error, traceback=res.traceback)
+    return row
+
+
+def read_journal(path) -> dict:
+    """The journal's finished runs, ``{spec hash: row}`` (the last row of a hash wins); {} if none."""
+    rows: dict = {}
+    try:
+        f = open(path, encoding="utf-8")
+    except FileNotFoundError:
+        return rows
+    with f:
+        for line in f:
+            try:
+                row = json.loads(line)
+                rows[row["hash"]] = row
+            except (ValueError, KeyError, TypeError):
+                continue                        # a line torn by a kill: that run is simply run again
+    return rows
+
+
+def resumed(specs, rows: dict) -> dict:
+    """``{index: Result}`` of the runs a resumed batch skips: a journal row with the spec's hash that
+    finished ok, and, for a recording, its output still there."""
+    out = {}
+    for i, spec in enumerate(specs):
+        row = rows.get(spec.content_hash())
+        if row is None or not row.get("ok") or (spec.output is not None and not os.path.exists(spec.output)):
+            continue
+        out[i] = Result(spec, row["state_hash"], row["steps"], row["stats"], row["output"], row["frames"],
+                        row["wall_seconds"])
+    return out

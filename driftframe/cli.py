@@ -214,13 +214,23 @@ def build_parser() -> argparse.ArgumentParser:
                            description="Run every combination in SPEC.toml (demo or scene, seeds, overrides, "
                                        "...; see driftframe/batch_file.py) headless or recorded, then write "
                                        "summary.csv, summary.md and summary.png to the output folder. "
-                                       "Ctrl-C stops cleanly: no half-written output is left.")
+                                       "Each run is journalled as it ends (journal.jsonl). Ctrl-C, SIGTERM or "
+                                       "SIGHUP stops cleanly: no half-written output is left, the summary of "
+                                       "what ran is written, and --resume runs the rest.")
     batch.add_argument("spec", metavar="SPEC.toml", help="the batch file")
     batch.add_argument("-j", "--jobs", type=_jobs, default=None, metavar="N",
                        help="processes running specs: this one and N-1 workers (default: from the cores; 1 runs "
                             "serially in this process)")
     batch.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="run on this dask.distributed scheduler (tcp://host:8786) instead of local processes")
+                       help="run on this dask.distributed scheduler (tcp://host:8786) instead of local processes "
+                            "(default: $DASK_SCHEDULER_ADDRESS if set and -j is not given)")
+    batch.add_argument("--scheduler-file", default=None, metavar="FILE",
+                       help="run on the scheduler that `dask scheduler --scheduler-file FILE` describes")
+    batch.add_argument("--resume", action="store_true",
+                       help="continue a stopped batch: skip the runs that journal.jsonl in the output folder "
+                            "lists as finished (same spec, output still there)")
+    batch.add_argument("--retries", type=_retries, default=1, metavar="N",
+                       help="run again a run whose worker process died, up to N times (default 1)")
     batch.add_argument("-o", "--output", default=None, metavar="DIR",
                        help="folder for the recordings and the summary (default out/SPEC)")
     batch.add_argument("--overwrite", action="store_true",
@@ -233,6 +243,16 @@ def build_parser() -> argparse.ArgumentParser:
                                       "The cache is per user (the folder is printed; NUMBA_CACHE_DIR moves it).")
     warm.add_argument("--quiet", action="store_true", help="no progress line")
     return p
+
+
+def _retries(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--retries must be an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"--retries must be an integer >= 0, got {text!r}")
+    return v
 
 
 def _jobs(text):
@@ -467,55 +487,94 @@ def cmd_batch(args) -> int:
     from driftframe import batch, batch_file, batch_report
 
     spec_path = Path(args.spec)
-    # scenes are named by import path, as in `python -m`: from the current folder too (the console
-    # script's sys.path starts at its own bin folder); spawned workers inherit sys.path
-    if os.getcwd() not in sys.path and "" not in sys.path:
-        sys.path.insert(0, os.getcwd())
-    if args.jobs is not None and args.scheduler is not None:
+    # scenes are named by import path ('mymod:func'), found in the current folder too, as `python -m` would;
+    # but after the installed packages: a tqdm.py or av.py lying here must not replace the real one
+    here = os.getcwd()
+    sys.path[:] = [p for p in sys.path if p not in ("", here)] + [here]
+    scheduler = args.scheduler
+    if args.jobs is not None and (scheduler is not None or args.scheduler_file is not None):
         raise UsageError("-j and --scheduler exclude each other: the cluster's workers decide")
+    if scheduler is not None and args.scheduler_file is not None:
+        raise UsageError("give --scheduler or --scheduler-file, not both")
+    if scheduler is None and args.scheduler_file is None and args.jobs is None:
+        scheduler = os.environ.get("DASK_SCHEDULER_ADDRESS") or None     # as dask's own Client() reads it
+    if args.resume and args.overwrite:
+        raise UsageError("--resume keeps what a batch wrote, --overwrite replaces it: give one of them")
     out_dir = Path(args.output) if args.output else Path("out") / spec_path.stem
+    journal_path = out_dir / batch_report.JOURNAL
+    client = None
     try:
         # every check before any run: the file, each entry, the output folder, the scheduler
         specs = batch_file.load(spec_path, out_dir.resolve(), check=False)
+        if journal_path.exists() and not (args.resume or args.overwrite):
+            raise batch.SpecError(f"{journal_path} exists: a batch ran into {str(out_dir)!r} before; pass "
+                                  "--resume to continue it or --overwrite to start again")
         batch.check_all(batch_file.without_outputs(specs))
         batch.check_output_names(specs)
-        client = batch.connect(args.scheduler) if args.scheduler else None
-        try:
-            specs = batch_file.prepare(specs, out_dir, overwrite=args.overwrite)
-        except BaseException:
-            if client is not None:
-                client.close()
-            raise
+        skip = batch_report.resumed(specs, batch_report.read_journal(journal_path)) if args.resume else {}
+        if scheduler is not None or args.scheduler_file is not None:
+            client = batch.connect(scheduler, scheduler_file=args.scheduler_file)
+            batch.check_versions(client)
+            link = batch.dashboard(client)
+            if link:
+                print(f"driftframe: dashboard: {link}", file=sys.stderr)
+        specs = batch_file.prepare(specs, out_dir, overwrite=args.overwrite, done=skip.keys())
     except batch.SpecError as e:
+        if client is not None:
+            client.close()
         raise UsageError(str(e)) from None
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
     from tqdm import tqdm
 
-    def report(i, res):
-        if isinstance(res, batch.Failure):
-            tqdm.write(f"driftframe: run failed: {res.spec.where or res.spec.label}\n{res.traceback.rstrip()}",
-                       file=sys.stderr)
-
+    todo = [i for i in range(len(specs)) if i not in skip]
     from driftframe.framework import kernels
     if client is None and batch.plan_jobs(specs, args.jobs)[0] > 1 and not kernels.is_warm():
         # once, before the workers start: each then loads the kernels instead of all compiling them at
         # the same time into one cache (numba's cache is not safe against concurrent writers)
         _compile(kernels.warm, args.quiet)
+    journal = batch_report.Journal(out_dir, append=args.resume)
+    if skip:
+        tqdm.write(f"driftframe: resuming: {len(skip)} of {len(specs)} runs are done already (journal.jsonl)",
+                   file=sys.stderr)
+        for i in sorted(skip):
+            journal.add(i, skip[i], again=False)
+
+    def report(k, res):
+        journal.add(todo[k], res)
+        if isinstance(res, batch.Failure):
+            tqdm.write(f"driftframe: run failed: {res.spec.where or res.spec.label}\n{res.traceback.rstrip()}",
+                       file=sys.stderr)
+
     try:
-        outcome = batch.run_all(specs, jobs=args.jobs, scheduler=client, progress=not args.quiet, on_done=report)
+        part = batch.run_all([specs[i] for i in todo], jobs=args.jobs, scheduler=client, progress=not args.quiet,
+                             on_done=report, retries=args.retries)
+    except batch.Aborted as e:
+        print(f"driftframe: aborted ({batch.signal_name(e.signum)}): the runs that finished are in "
+              f"{journal_path} (--resume continues); no summary written", file=sys.stderr)
+        return 128 + e.signum
     finally:
+        journal.close()
         if client is not None:
             client.close()
-    if outcome.interrupted:
-        finished = len(outcome.done) + len(outcome.failures)
-        print(f"driftframe: interrupted: {finished} of {len(specs)} runs finished (their outputs are whole); "
-              "no summary written", file=sys.stderr)
-        return 130
+    results = [skip.get(i) for i in range(len(specs))]
+    for k, i in enumerate(todo):
+        results[i] = part.results[k]
+    outcome = batch.Outcome(results, part.signal, part.wall_seconds, part.jobs, part.where)
     written, note = batch_report.write(outcome, out_dir, title=f"{spec_path.name}: {len(specs)} runs")
     if note:
         print(f"driftframe: {note}", file=sys.stderr)
-    print(f"{len(outcome.done)} of {len(specs)} runs ok, {len(outcome.failures)} failed, on {outcome.where} "
-          f"in {outcome.wall_seconds:.1f} s; wrote {', '.join(str(p) for p in written)}")
-    return 1 if outcome.failures else 0
+    finished = len(outcome.done) + len(outcome.failures)
+    if outcome.interrupted:
+        print(f"driftframe: interrupted ({batch.signal_name(outcome.signal)}): {finished} of {len(specs)} runs "
+              f"finished (their outputs are whole; --resume runs the rest); wrote "
+              f"{', '.join(str(p) for p in written)}", file=sys.stderr)
+    else:
+        print(f"{len(outcome.done)} of {len(specs)} runs ok, {len(outcome.failures)} failed, on {outcome.where} "
+              f"in {outcome.wall_seconds:.1f} s; wrote {', '.join(str(p) for p in written)}")
+    return outcome.exit_status
 
 
 def cmd_warm(args) -> int:

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from videos import mp4_frames
 
-from driftframe import batch, batch_file, batch_report, cli
+from driftframe import batch, batch_exec, batch_file, batch_report, cli
 from driftframe.batch import Failure, Result, Spec, SpecError
 
 HERE = Path(__file__).parent
@@ -191,9 +191,13 @@ def test_the_cli_reports_a_failed_run_writes_the_summary_and_exits_1(tmp_path):
 
 
 # -- Ctrl-C --------------------------------------------------------------------------------------
+SUMMARY = {"summary.csv", "summary.md", "summary.png", "journal.jsonl"}
+COL_OUTPUT = batch_report.COLUMNS.index("output")
+
+
 def _whole(folder: Path, frames: int):
-    """Every file in ``folder`` is a finished MP4 of ``frames`` frames; returns their names."""
-    names = sorted(p.name for p in folder.iterdir())
+    """Every file in ``folder`` (but the summary) is a finished MP4 of ``frames`` frames; their names."""
+    names = sorted(p.name for p in folder.iterdir() if p.name not in SUMMARY)
     assert all(n.startswith("box-") and n.endswith(".mp4") for n in names), names   # no .part, no summary
     for name in names:
         assert len(mp4_frames(folder / name)[1]) == frames, name
@@ -217,9 +221,14 @@ def test_ctrl_c_stops_the_batch_and_leaves_only_whole_outputs(tmp_path, jobs):
     os.killpg(proc.pid, signal.SIGINT)       # what a terminal's Ctrl-C does: the whole process group
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
-    assert "interrupted" in stderr and "no summary written" in stderr and "Traceback" not in stderr
-    assert 1 <= len(_whole(out, 240)) < 8     # each output that is there is whole: 240 frames
+    assert "interrupted (SIGINT)" in stderr and "wrote" in stderr and "Traceback" not in stderr
+    names = _whole(out, 240)
+    assert 1 <= len(names) < 8     # each output that is there is whole: 240 frames
     assert not [p for p in tmp_path.rglob(".*part*")]
+    # the summary of what ran: a row per finished run, in the CSV and the journal
+    rows = (out / "summary.csv").read_text().splitlines()[1:]
+    assert sorted(Path(r.split(",")[COL_OUTPUT]).name for r in rows) == names
+    assert len((out / "journal.jsonl").read_text().splitlines()) == len(names)
 
 
 def test_ctrl_c_while_the_workers_start_is_a_clean_stop_too(tmp_path):
@@ -236,7 +245,7 @@ def test_ctrl_c_while_the_workers_start_is_a_clean_stop_too(tmp_path):
     os.killpg(proc.pid, signal.SIGINT)
     stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr
-    assert "no summary written" in stderr and "run failed" not in stderr and "Traceback" not in stderr
+    assert "interrupted (SIGINT)" in stderr and "run failed" not in stderr and "Traceback" not in stderr
     _whole(out, 240)
     assert not [p for p in tmp_path.rglob(".*part*")]
 
@@ -385,7 +394,7 @@ def test_an_unreachable_scheduler_is_refused_before_any_run(tmp_path, monkeypatc
         port = s.getsockname()[1]
     spec = tmp_path / "s.toml"
     spec.write_text('demo = "cradle"\nseconds = 0.2\noutput = "{seed}.mp4"\n')
-    monkeypatch.setattr(batch, "CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(batch_exec, "CONNECT_TIMEOUT", 1.0)
     rc = cli.main(["batch", str(spec), "--scheduler", f"tcp://127.0.0.1:{port}", "-o", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert rc == 2 and f"scheduler 'tcp://127.0.0.1:{port}' cannot be reached" in err
@@ -477,7 +486,8 @@ def test_the_cli_batch_end_to_end_with_recordings(tmp_path):
     assert res.returncode == 0, res.stderr
     assert "2 of 2 runs ok, 0 failed, on 2 processes" in res.stdout
     assert sorted(p.name for p in (out / "clips").iterdir()) == [f"box-{s}.gif" for s in range(2)]
-    assert sorted(p.name for p in out.iterdir()) == ["clips", "summary.csv", "summary.md", "summary.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["clips", "journal.jsonl", "summary.csv", "summary.md",
+                                                     "summary.png"]
     from PIL import Image
     with Image.open(out / "clips" / "box-0.gif") as im:
         assert im.size == (32, 32) and im.n_frames >= 2
@@ -492,7 +502,7 @@ def test_existing_outputs_are_refused_before_any_run_unless_overwrite(tmp_path):
     base = [*EXE, "batch", str(spec), "-j", "1", "-o", str(out), "--quiet"]
     res = subprocess.run(base, capture_output=True, text=True, timeout=120, cwd=HERE)
     assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
-    assert "box-1.gif' exists already; pass --overwrite" in res.stderr
+    assert "box-1.gif' exists already; pass --overwrite to replace it" in res.stderr
     assert sorted(p.name for p in out.iterdir()) == ["box-1.gif"]          # nothing ran
     res = subprocess.run(base + ["--overwrite"], capture_output=True, text=True, timeout=120, cwd=HERE)
     assert res.returncode == 0, res.stderr
