@@ -194,7 +194,7 @@ class CompileWatch:
         self.stack: list = []            # (dispatcher, one of ours) compiling now, outermost first
         self.t0 = None
         self.seconds = 0.0
-        self.failed = None               # the kernel whose compile raised, innermost
+        self.attempts: list = []         # (kernel, argument types) of each compile begun
 
     @property
     def n(self) -> int:
@@ -216,13 +216,22 @@ class CompileWatch:
                         self.expected.setdefault(id(c), c)
             if ours:
                 self.started.setdefault(id(d), d)
+                self.attempts.append((d, tuple(ev.data["args"])))
             self.stack.append((d, ours))
 
     def _end(self, ev) -> None:
         with self._lock:
-            d, ours = self.stack.pop() if self.stack else (None, False)
-            if ev.is_failed and self.failed is None and ours:
-                self.failed = d
+            if self.stack:
+                self.stack.pop()
+
+    def failed(self):
+        """The kernel whose compile failed: the last one begun that has no code for its arguments (numba
+        reports a typing error after the compile events end, from the outermost call)."""
+        with self._lock:
+            for d, args in reversed(self.attempts):
+                if args not in d.overloads:
+                    return d
+        return None
 
     def elapsed(self) -> float:
         return 0.0 if self.t0 is None else time.perf_counter() - self.t0
@@ -256,10 +265,12 @@ class CompileWatch:
         from numba.core import event
         event.unregister("numba:compile", self._listener)
         self.seconds = self.elapsed()
-        if exc_type is not None and issubclass(exc_type, Exception) and self.failed is not None \
-                and not isinstance(exc, KernelCompileError):
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else exc_type.__name__
-            raise KernelCompileError(f"compiling kernel {kernel_name(self.failed)} failed: {first}") from exc
+        from numba.core.errors import NumbaError
+        culprit = self.failed() if isinstance(exc, NumbaError) else None
+        if culprit is not None:
+            lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip() and not ln.startswith("Failed in")]
+            first = lines[0] if lines else exc_type.__name__        # numba's own first line names its pass
+            raise KernelCompileError(f"compiling kernel {kernel_name(culprit)} failed: {first}") from exc
 
 
 # -- compiling ahead -------------------------------------------------------------------------------------
@@ -299,15 +310,28 @@ def is_warm(folder: Path | None = None) -> bool:
 
 
 def _workload() -> None:
-    """Calls that reach every kernel: one step of each demo scene, one frame through the NV12 converter."""
+    """Calls that reach the kernels: two steps of each demo scene (the second checks the neighbour list),
+    a Kepler propagation of enough bodies for the compiled loops, one frame through the NV12 converter."""
     import numpy as np
 
     from driftframe import demos
-    from driftframe.app import load_kernels
+    from driftframe.app import make_world
+    from driftframe.framework import kepler
     from driftframe.framework.yuv import rgba_to_nv12
 
     for name in demos.NAMES:
-        load_kernels(name)
+        world, _ = make_world(name)
+        try:
+            world.step()
+            world.step()
+        finally:
+            world.close()
+    n = kepler.COMPILED_MIN
+    angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1
+    v = np.stack([-np.sin(angle), np.cos(angle), np.zeros(n)], axis=1)
+    r1, v1, chi = kepler.Epoch(r, v, 1.0).at(0.1, chi=np.full(n, 0.1))
+    kepler.next_chi(chi, r1, v1, 1.0, 0.1)
     rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
 
 
@@ -343,10 +367,8 @@ def _warm(watch) -> list:
                 if needs_compile(d):
                     watch.expected.setdefault(id(d), d)
     _workload()
-    missed = [d for d in kernels if not _inlined(d) and not d.overloads]
-    if not missed:
-        try:
-            (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
-        except OSError as e:
-            _unwritable(folder, e)
-    return missed
+    try:                          # what the warm-up did not reach compiles at its first call, as numba does
+        (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
+    except OSError as e:
+        _unwritable(folder, e)
+    return [d for d in kernels if not _inlined(d) and not d.overloads]

@@ -1,0 +1,263 @@
+"""The kernel cache (framework.kernels): where it lives, what invalidates it, damage, faults, warm-up.
+
+Each test runs its kernels in a fresh process with its own cache folder: numba keeps what it compiled
+for the life of a process, and the folder is chosen when a kernel module is imported.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from driftframe.framework import kernels
+
+ROOT = Path(__file__).resolve().parent.parent
+PY = sys.executable
+EXE = [PY, "-m", "driftframe"]
+# a 4x4 RGBA frame through the one-kernel NV12 converter: the cheapest kernel to compile (about 1 s)
+NV12 = ("import numpy as np; from driftframe.framework.yuv import rgba_to_nv12, _nv12; "
+        "print(rgba_to_nv12(np.arange(64, dtype=np.uint8).reshape(4, 4, 4), 4, 4).sum(), "
+        "sum(_nv12.stats.cache_misses.values()))")
+
+
+def _env(**extra):
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
+    env.update({k: str(v) for k, v in extra.items() if v is not None})
+    return env
+
+
+def _py(code, *, env, timeout=300):
+    # run outside the repository: ``-c`` puts the current folder first on sys.path, where driftframe/ is
+    # the source folder and not the installed package
+    return subprocess.run([PY, "-c", code], capture_output=True, text=True, env=env, cwd=tempfile.gettempdir(),
+                          timeout=timeout)
+
+
+def _nv12(env):
+    res = _py(NV12, env=env)
+    assert res.returncode == 0, res.stderr
+    total, compiled = res.stdout.split()
+    return int(total), int(compiled), res.stderr
+
+
+# -- what keys the cache ----------------------------------------------------------------------------------
+def _package_sources():
+    for folder in ("driftframe", "framework", "components", "systems", "demos"):
+        yield from (ROOT / folder).glob("*.py")
+
+
+def test_every_module_that_declares_a_kernel_is_in_the_cache_key_and_none_uses_numba_directly():
+    declares = {p.stem for p in (ROOT / "framework").glob("*.py")
+                if re.search(r"^@kernel\b", p.read_text(), re.M)}
+    assert declares == set(kernels.KERNEL_MODULES)
+    for p in _package_sources():          # njit(cache=True) would cache beside the sources, keyed by one file
+        if p.name not in ("kernels.py", "kernel_cache.py"):
+            assert not re.search(r"^\s*(from numba import|@(numba\.)?n?jit)", p.read_text(), re.M), p
+    # a kernel module's compile-time globals from another driftframe module: that module is keyed too
+    for name in kernels.KERNEL_MODULES:
+        text = (ROOT / "framework" / f"{name}.py").read_text()
+        for mod in re.findall(r"^from driftframe\.framework import (\w+)", text, re.M):
+            assert mod in kernels.KERNEL_MODULES, (name, mod)
+        for mod in re.findall(r"^from driftframe\.framework\.(\w+) import", text, re.M):
+            assert mod in kernels.KERNEL_MODULES + ("kernels",), (name, mod)
+
+
+def test_the_folder_is_per_user_keyed_by_version_and_sources_and_honours_numba_cache_dir(tmp_path):
+    code = "from driftframe.framework import kernels; print(kernels.cache_dir())"
+    key = f"{kernels.__version__}-{kernels.source_digest()}"
+    xdg = _py(code, env=_env(XDG_CACHE_HOME=tmp_path / "xdg")).stdout.strip()
+    assert xdg == str(tmp_path / "xdg" / "driftframe" / "kernels" / key)
+    home = _py(code, env=_env(HOME=tmp_path / "home")).stdout.strip()
+    assert home == str(tmp_path / "home" / ".cache" / "driftframe" / "kernels" / key)
+    numba = _py(code, env=_env(NUMBA_CACHE_DIR=tmp_path / "nc", XDG_CACHE_HOME=tmp_path / "xdg")).stdout.strip()
+    assert numba == str(tmp_path / "nc" / "driftframe" / key)
+    # and numba's own setting is left as the user gave it
+    res = _py("import numba; from driftframe.framework import yuv; print(numba.config.CACHE_DIR)",
+              env=_env(NUMBA_CACHE_DIR=tmp_path / "nc"))
+    assert res.stdout.strip() == str(tmp_path / "nc")
+
+
+def _copy_package(dest: Path) -> Path:
+    """driftframe/ and framework/ as an importable package under ``dest`` (enough for the kernel modules)."""
+    pkg = dest / "driftframe"
+    ignore = shutil.ignore_patterns("__pycache__")
+    shutil.copytree(ROOT / "driftframe", pkg, ignore=ignore)
+    shutil.copytree(ROOT / "framework", pkg / "framework", ignore=ignore)
+    return pkg
+
+
+@pytest.mark.slow
+def test_editing_a_callee_in_another_file_changes_the_callers_result(tmp_path):
+    # the issue's bug: contact's kernel calls broadphase's; numba alone re-checks only the caller's own file
+    pkg = _copy_package(tmp_path / "src")
+    bp, contact = pkg / "framework" / "broadphase.py", pkg / "framework" / "contact.py"
+    bp.write_text(bp.read_text() + "\n\n@kernel\ndef _probe_callee(x):\n    return x + 1\n")
+    contact.write_text(contact.read_text() + "\n\n@kernel\ndef _probe(x):\n    return bp._probe_callee(x) * 10\n")
+    env = _env(PYTHONPATH=tmp_path / "src", NUMBA_CACHE_DIR=tmp_path / "cache")
+    code = ("import driftframe.framework.contact as c; assert c.__file__.startswith(%r); "
+            "print(c._probe(1), sum(c._probe.stats.cache_hits.values()))" % str(tmp_path / "src"))
+    first = _py(code, env=env)
+    assert first.stdout.split() == ["20", "0"], first.stderr
+    again = _py(code, env=env)
+    assert again.stdout.split() == ["20", "1"], again.stderr          # loaded from the cache
+    bp.write_text(bp.read_text().replace("return x + 1", "return x + 2"))
+    edited = _py(code, env=env)
+    assert edited.stdout.split() == ["30", "0"], edited.stderr        # the caller was compiled again
+
+
+# -- faults -----------------------------------------------------------------------------------------------
+def test_a_cache_folder_that_cannot_be_written_warns_once_and_the_run_goes_on(tmp_path):
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("a file where the cache folder would go")     # unwritable even for root
+    total, compiled, err = _nv12(_env(NUMBA_CACHE_DIR=blocker))
+    warm_total, _, _ = _nv12(_env(NUMBA_CACHE_DIR=tmp_path / "ok"))
+    assert total == warm_total and compiled == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("driftframe: warning: cannot write the kernel cache folder "
+                                                   f"{blocker}/driftframe/"), err
+    assert "compiled in this process only" in lines[0]
+
+
+def _cache_files(folder: Path, pattern: str) -> list[Path]:
+    return sorted(folder.rglob(pattern))
+
+
+@pytest.mark.parametrize("damage", ["flip a byte", "truncate", "empty", "garbage index"])
+def test_a_damaged_cache_file_is_compiled_again_never_loaded(tmp_path, damage):
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+    total, compiled, _ = _nv12(env)
+    assert compiled == 1 and _nv12(env)[1] == 0                      # cached, then loaded
+    (data,) = _cache_files(tmp_path / "nc", "yuv._nv12-*.nbc")
+    (index,) = _cache_files(tmp_path / "nc", "yuv._nv12-*.nbi")
+    blob = data.read_bytes()
+    if damage == "flip a byte":
+        i = len(blob) // 2
+        data.write_bytes(blob[:i] + bytes([blob[i] ^ 0x40]) + blob[i + 1:])
+    elif damage == "truncate":
+        data.write_bytes(blob[: len(blob) // 3])
+    elif damage == "empty":
+        data.write_bytes(b"")
+    else:
+        index.write_bytes(b"\x80\x04not a pickle at all")
+    again_total, again_compiled, err = _nv12(env)
+    assert (again_total, again_compiled) == (total, 1), err
+    assert "Traceback" not in err
+    assert _nv12(env)[1] == 0                                        # and the repaired entry is used
+
+
+def test_an_entry_saved_under_another_key_is_not_loaded(tmp_path):
+    # two processes numbering their entries alike (numba issue 4807): the index names a data file that
+    # holds another signature's code. The entry keeps its own key, which must match.
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+    code = ("import numpy as np; from driftframe.framework.kepler import _stumpff1 as f; "
+            "print(repr(f(np.float64(0.5))[0]), sum(f.stats.cache_misses.values()))")
+    code_f32 = code.replace("np.float64(0.5)", "np.float32(0.5)")
+    first = _py(code, env=env)
+    assert first.returncode == 0 and first.stdout.split()[1] == "1", first.stderr
+    second = _py(code_f32, env=env)                                    # a second signature: entry 2
+    assert second.returncode == 0 and second.stdout.split()[1] == "1", second.stderr
+    one, two = _cache_files(tmp_path / "nc", "kepler._stumpff1-*.nbc")
+    one.write_bytes(two.read_bytes())                                 # entry 1 now holds entry 2's code
+    again = _py(code, env=env)
+    assert again.returncode == 0 and again.stdout.split() == [first.stdout.split()[0], "1"], again.stderr
+
+
+def test_a_kernel_that_fails_to_compile_is_named(tmp_path):
+    mod = tmp_path / "broken_kernels.py"
+    mod.write_text("from driftframe.framework.kernels import kernel\n\n"
+                   "@kernel\ndef helper(x):\n    return x.no_such_attribute\n\n"
+                   "@kernel\ndef outer(x):\n    return helper(x) + 1\n")
+    code = ("from driftframe.framework.kernels import CompileWatch, KernelCompileError\n"
+            "import broken_kernels\n"
+            "try:\n    with CompileWatch():\n        broken_kernels.outer(1.0)\n"
+            "except KernelCompileError as e:\n    print(e)\n")
+    res = _py(code, env=_env(NUMBA_CACHE_DIR=tmp_path / "nc", PYTHONPATH=tmp_path))
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.startswith("compiling kernel broken_kernels.helper failed: "), res.stdout
+
+
+# -- installs ---------------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_a_read_only_install_runs_and_uninstalling_leaves_nothing_in_site_packages(tmp_path):
+    target = tmp_path / "site"
+    res = subprocess.run([PY, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
+                          "--disable-pip-version-check", "--target", str(target), str(ROOT)],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    installed = {p for p in target.rglob("*") if p.is_file()}
+    for p in [target, *target.rglob("*")]:
+        p.chmod(p.stat().st_mode & ~0o222)                           # read-only (root still may write: checked below)
+    try:
+        env = _env(PYTHONPATH=target, XDG_CACHE_HOME=tmp_path / "xdg", PYTHONDONTWRITEBYTECODE=1)
+        code = "import driftframe; assert driftframe.__file__.startswith(%r); " % str(target) + NV12
+        res = _py(code, env=env)
+        assert res.returncode == 0 and res.stdout.split()[1] == "1", res.stderr
+        assert {p for p in target.rglob("*") if p.is_file()} == installed       # nothing written there
+        assert _cache_files(tmp_path / "xdg" / "driftframe" / "kernels", "yuv._nv12-*.nbi")
+        assert _py(code, env=env).stdout.split()[1] == "0"          # and the next run loads it
+    finally:
+        for p in [target, *target.rglob("*")]:
+            p.chmod(p.stat().st_mode | 0o200)
+    # what pip uninstall removes: the files listed in RECORD (and the .pyc of each listed .py)
+    (record,) = target.glob("driftframe-*.dist-info/RECORD")
+    listed = {(target / line.split(",")[0]).resolve() for line in record.read_text().splitlines() if line}
+    left = [p for p in (target / "driftframe").rglob("*") if p.is_file() and p.resolve() not in listed]
+    assert not left, left[:5]
+
+
+# -- driftframe warm --------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_ctrl_c_during_warm_leaves_a_cache_the_next_warm_completes_and_uses(tmp_path):
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+    proc = subprocess.Popen(EXE + ["warm"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    first = proc.stderr.readline()
+    assert first.startswith("driftframe: compiling the physics kernels"), first
+    time.sleep(4.0)                                                   # some kernels done, one in the middle
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "s of compiling kernels" in err and "Traceback" not in err
+    saved_before = len(_cache_files(tmp_path / "nc", "*.nbi"))
+    total = len(kernels.registry())
+    done = subprocess.run(EXE + ["warm"], capture_output=True, text=True, env=env, timeout=900)
+    assert done.returncode == 0, done.stderr
+    m = re.search(r"(\d+) of (\d+) kernels ready", done.stdout)
+    assert m and m.group(1) == m.group(2) == str(total), done.stdout
+    progress = re.findall(r"compiling (\d+) of (\d+) kernels", done.stderr)
+    n, m_ = map(int, progress[-1])
+    assert n == m_ <= total - saved_before + 1, (progress[-1], saved_before)   # those cached were loaded
+    assert not _cache_files(tmp_path / "nc", "*.tmp.*")
+    again = subprocess.run(EXE + ["warm"], capture_output=True, text=True, env=env, timeout=300)
+    assert again.returncode == 0 and "compil" not in again.stderr, again.stderr
+
+
+def test_warm_once_takes_the_lock_and_skips_a_warm_folder(tmp_path):
+    # a worker finding the folder warm loads nothing and compiles nothing
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+    code = ("import sys; from driftframe.framework import kernels; d = kernels.cache_dir(); "
+            "d.mkdir(parents=True); (d / kernels.WARM_MARK).write_text('x'); kernels.warm_once(); "
+            "print('numba' in sys.modules)")
+    res = _py(code, env=env)
+    assert res.returncode == 0 and res.stdout.strip() == "False", res.stderr
+
+
+# -- a cheap start ----------------------------------------------------------------------------------------
+def test_import_driftframe_imports_none_of_the_heavy_libraries():
+    code = ("import sys, driftframe; driftframe.__version__; "
+            "print(sorted(m for m in ('numba', 'moderngl', 'av', 'PIL', 'tqdm', 'scipy', 'esper', 'glfw', "
+            "'matplotlib') if m in sys.modules))")
+    res = _py(code, env=_env())
+    assert res.returncode == 0 and res.stdout.strip() == "[]", (res.stdout, res.stderr)
+    res = _py("import driftframe; print(driftframe.World.__module__, set(driftframe.__all__) <= set(dir(driftframe)))",
+              env=_env())
+    assert res.stdout.split() == ["driftframe.framework.world", "True"], res.stderr
+    res = _py("import driftframe; driftframe.NoSuchName", env=_env())
+    assert "module 'driftframe' has no attribute 'NoSuchName'" in res.stderr
