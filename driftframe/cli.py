@@ -20,6 +20,7 @@ from decimal import Decimal
 from driftframe.framework import __version__
 
 CAMERAS = ("cockpit", "chase", "overhead")
+SKIES = ("lines", "starfield")
 
 
 class UsageError(Exception):
@@ -110,17 +111,26 @@ def _positive_int(name):
     return parse
 
 
-def _output_file(option: str, path: str | None) -> None:
-    """A UsageError now, before anything runs, if ``path`` cannot be written (its folder missing or read-only)."""
+def _output_file(option: str, path: str | None, overwrite: bool = False) -> None:
+    """A UsageError now, before anything runs, if ``path`` cannot be written (:mod:`framework.output`'s check:
+    a missing or read-only folder, an existing file without --overwrite, a name too long)."""
     if path is None:
         return
-    folder = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise UsageError(f"{option}: {path!r} is a directory, not a file")
-    if not os.path.isdir(folder):
-        raise UsageError(f"{option}: no such directory: {os.path.dirname(path) or '.'!r} (for {path!r})")
-    if not os.access(folder, os.W_OK):
-        raise UsageError(f"{option}: cannot write into {os.path.dirname(path) or '.'!r} (for {path!r})")
+    from driftframe.framework.output import check_output_file
+    try:
+        check_output_file(path, overwrite=overwrite, option=option)
+    except OSError as e:
+        hint = " (or choose another path)" if isinstance(e, FileExistsError) else ""
+        raise UsageError(f"{e}{hint}") from None
+
+
+def _distinct_paths(**named) -> None:
+    """A UsageError when two options name one file (``-o out/a.mp4 --hash-log out/a.mp4``)."""
+    from driftframe.framework.output import same_paths
+    try:
+        same_paths({k: v for k, v in named.items()})
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -144,7 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="random seed of the scene (default 0)")
     common.add_argument("--camera", choices=CAMERAS, default=None,
                         help="camera to start with (default: the demo's own)")
-    common.add_argument("--sky", choices=("lines", "starfield"), default=DEFAULT_SKY,
+    common.add_argument("--sky", choices=SKIES, default=DEFAULT_SKY,
                         help="skybox: the green line cube (default) or a starfield made from the seed")
 
     rec = sub.add_parser("record", parents=[common], help="record a demo off-screen to MP4, GIF or PNG frames",
@@ -158,7 +168,8 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("-o", "--output", default=None, metavar="FILE",
                      help="FILE.mp4, FILE.gif, or DIR/ (a trailing slash, or an existing directory) for "
                           "numbered PNGs (default out/DEMO.mp4, creating out/)")
-    rec.add_argument("--overwrite", action="store_true", help="replace the output if it exists (refused otherwise)")
+    rec.add_argument("--overwrite", action="store_true",
+                     help="replace the output and the --hash-log file if they exist (refused otherwise)")
     rec.add_argument("--motion-blur", type=_blur, default=1, metavar="N",
                      help="average N sub-frames, posed between the fixed steps, into each frame "
                           "(default 1: none); a fast spin then blurs instead of strobing")
@@ -191,6 +202,8 @@ def build_parser() -> argparse.ArgumentParser:
                            "`driftframe record DEMO --track FILE` re-renders it")
     play.add_argument("--hash-log", default=None, metavar="FILE",
                       help="write one 'STEP HASH' line per step (compare two with `driftframe diverge`)")
+    play.add_argument("--overwrite", action="store_true",
+                      help="replace --save-track, --hash-log and --state-out files that exist (refused otherwise)")
     play.add_argument("--bindings", default=None, metavar="FILE",
                       help="key and gamepad bindings, TOML (`driftframe keys` prints the defaults)")
     play.add_argument("--frames", type=_positive_int("frames"), default=None, metavar="N",
@@ -307,6 +320,15 @@ def _apply_track(args, demo):
         args.sky = info.get("sky", "lines")
     if args.seconds is None:
         args.seconds = info["steps"] * info["dt"] if "steps" in info and "dt" in info else track.duration
+    # the track's own entries, named as its file: a bad one would otherwise fail later, unnamed
+    if args.camera is not None and args.camera not in CAMERAS:
+        raise UsageError(f"--track {args.track}: camera {args.camera!r} is not one of {', '.join(CAMERAS)}")
+    if args.sky not in SKIES:
+        raise UsageError(f"--track {args.track}: sky {args.sky!r} is not one of {', '.join(SKIES)}")
+    if "dt" in info and not math.isclose(info["dt"], demo_dt(demo), rel_tol=1e-9):
+        # a track holds whole steps of its dt: at another dt every hold would cover other steps
+        raise UsageError(f"--track {args.track}: dt {info['dt']!r} is not {args.demo}'s step "
+                         f"{demo_dt(demo)!r} s; the track was flown at another step")
     return track
 
 
@@ -387,10 +409,11 @@ def cmd_record(args) -> int:
     from driftframe.framework.recorder import X264_PRESET, OutputExistsError, check_output, output_format, record
 
     demo = _load_demo(args.demo)
-    track = _apply_track(args, demo)
-    _output_file("--hash-log", args.hash_log)
-    seconds = args.seconds if args.seconds is not None else demo.SECONDS
     out = args.output or os.path.join("out", f"{args.demo}.mp4")
+    _distinct_paths(**{"-o": out, "--hash-log": args.hash_log, "--track": args.track})
+    track = _apply_track(args, demo)
+    _output_file("--hash-log", args.hash_log, args.overwrite)
+    seconds = args.seconds if args.seconds is not None else demo.SECONDS
     try:
         fmt = output_format(out)
     except ValueError as e:
@@ -399,7 +422,7 @@ def cmd_record(args) -> int:
         raise UsageError(f"--preset and --crf are for MP4 output, not {fmt.upper()} ({out!r})")
     k = steps_per_frame(args.fps, demo_dt(demo))
     frames = frame_count(seconds, args.fps, k)
-    if args.output is None:
+    if args.output is None and not os.path.isdir("out"):
         try:
             os.makedirs("out", exist_ok=True)         # the default folder is ours to make; -o DIR/ must exist
         except OSError as e:
@@ -410,6 +433,7 @@ def cmd_record(args) -> int:
         poses = SubframePoses()
     else:
         poses = None
+    log = None
     try:
         check_output(out, overwrite=args.overwrite, format=fmt)    # before the costly part: build, compile
         _load_kernels(args.demo, args.seed, args.quiet)     # a first run's compiling, before the progress bar
@@ -418,14 +442,19 @@ def cmd_record(args) -> int:
             attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
             if args.hash_log:
                 from driftframe.framework.hashlog import attach_hash_log
-                attach_hash_log(world, args.hash_log)
+                log = attach_hash_log(world, args.hash_log, overwrite=args.overwrite)
             result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet,
                             overwrite=args.overwrite, motion_blur=args.motion_blur, interpolate=poses,
                             preset=args.preset or X264_PRESET, crf=args.crf)
         finally:
-            world.close()
+            world.close()                           # the hash log is moved into place here, however it ended
     except OutputExistsError as e:                  # early, or at record()'s own check (made meanwhile)
         raise UsageError(f"{e} (or choose another -o)") from None
+    failed = log is not None and log.error is not None
+    if failed:                                      # a full disk under the log: the video is kept
+        print(f"driftframe: error: {log.error}", file=sys.stderr)
+    elif log is not None:
+        print(f"wrote the hash log {log.path} ({log.lines} steps)", file=sys.stderr)
     if result.path is None:
         print("nothing written (interrupted before the first frame)", file=sys.stderr)
         return 128 + result.signal
@@ -433,7 +462,7 @@ def cmd_record(args) -> int:
     print(f"wrote {result.path} ({result.frames} frames, {result.frames / args.fps:.2f} s of {args.demo} "
           f"at {args.fps:g} fps, {w}x{h}) in {result.seconds:.1f} s "
           f"({result.frames_per_second:.0f} frames/s)")
-    return 128 + result.signal if result.interrupted else 0
+    return 128 + result.signal if result.interrupted else 1 if failed else 0
 
 
 def demo_dt(demo) -> float:
@@ -447,8 +476,10 @@ def cmd_play(args) -> int:
     _load_demo(args.demo)
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
+    _distinct_paths(**{"--state-out": args.state_out, "--save-track": args.save_track,
+                       "--hash-log": args.hash_log, "--bindings": args.bindings})
     for option in ("state_out", "save_track", "hash_log"):     # fail now, not when the session ends
-        _output_file("--" + option.replace("_", "-"), getattr(args, option))
+        _output_file("--" + option.replace("_", "-"), getattr(args, option), args.overwrite)
     bindings = load_bindings(args.bindings) if args.bindings else None
     try:
         check_display()                              # after the options' own checks, before the costly part
@@ -460,7 +491,7 @@ def cmd_play(args) -> int:
                     screenshot_dir=args.screenshots, sky=args.sky, bindings=bindings,
                     save_track=args.save_track,
                     hash_log=args.hash_log, frames=args.frames, overlay=args.overlay,
-                    interpolate=not args.no_interpolation)
+                    interpolate=not args.no_interpolation, overwrite=args.overwrite)
     except PlayError as e:
         raise UsageError(str(e)) from None
 
@@ -472,10 +503,10 @@ def cmd_keys(args) -> int:
 
 
 def cmd_diverge(args) -> int:
-    from driftframe.framework.hashlog import first_divergence, read_hash_log
+    from driftframe.framework.hashlog import count_steps, first_divergence
     d = first_divergence(args.log_a, args.log_b)
     if d is None:
-        print(f"the logs agree for all {len(read_hash_log(args.log_a))} steps")
+        print(f"the logs agree for all {count_steps(args.log_a)} steps")
         return 0
     print(d)
     return 1

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import statistics
 import sys
 import time
@@ -32,6 +33,7 @@ import numpy as np
 
 from driftframe.framework.gl import RenderTarget
 from driftframe.framework.input import HELD
+from driftframe.framework.recorder import StopSignals, _signal_name
 
 
 class PlayError(Exception):
@@ -132,7 +134,12 @@ class Gamepads:
         self.glfw = glfw
         text = os.environ.get("SDL_GAMECONTROLLERCONFIG", "")
         if mappings is not None:
-            text = Path(mappings).read_text() + "\n" + text
+            from driftframe.framework.bindings import MAPPINGS_CAP
+            from driftframe.framework.inputfile import InputFileError, read_text_capped
+            try:
+                text = read_text_capped(mappings, MAPPINGS_CAP, "gamepad mappings file") + "\n" + text
+            except InputFileError as e:
+                raise PlayError(str(e)) from None
         if text.strip() and not glfw.update_gamepad_mappings(text):
             raise PlayError("the gamepad mappings (SDL_GAMECONTROLLERCONFIG or the bindings' gamepad.mappings) "
                             "could not be parsed")
@@ -192,8 +199,17 @@ def overlay_lines(stats, loop) -> list[str]:
 def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
          state_out: str | None = None, screenshot_dir: str = ".", bindings=None, save_track: str | None = None,
          hash_log: str | None = None, frames: int | None = None, overlay: bool = False, interpolate: bool = True,
-         loop_options: dict | None = None, setup=None, quiet: bool = False, sky: str = "lines") -> int:
-    """Open a window and fly demo ``name`` until Esc, the window is closed, or ``frames`` frames. Returns 0.
+         loop_options: dict | None = None, setup=None, quiet: bool = False, sky: str = "lines",
+         overwrite: bool = False, handle_signals: bool = True) -> int:
+    """Open a window and fly demo ``name`` until Esc, the window is closed, or ``frames`` frames.
+
+    Returns the exit status: 0; 128 + the signal's number when Ctrl-C,
+    SIGTERM or SIGHUP ended the flight (``handle_signals``, main thread
+    only); 1 when an output could not be written. However the flight ends
+    (a signal, an exception, the X server gone: exit status 1 from inside
+    Xlib), the track and the hash log are written, complete up to the last
+    whole step, and stderr says where. Outputs follow
+    :mod:`framework.output` (an existing file is refused unless ``overwrite``).
 
     ``sky``: ``"lines"`` or ``"starfield"`` (see :func:`driftframe.app.attach_rendering`).
     ``bindings``: a :class:`~framework.bindings.Bindings` (default: the
@@ -206,23 +222,127 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
     world is built (a benchmark adds a load there). The last line on stderr
     is a summary of the frame rate; the figures are also in ``play.last_run``.
     """
-    from driftframe.app import attach_rendering, make_world
-    from driftframe.framework.bindings import Bindings, gamepad_actions, gamepad_channels
-    from driftframe.framework.gl import wrap_current_context
-    from driftframe.framework.hashlog import attach_hash_log
-    from driftframe.framework.input import TrackRecorder, save_track as write_track
-    from driftframe.framework.loop import FixedStepLoop, FrameStats
-    from driftframe.systems.camera import switch_camera
-    from driftframe.systems.hud import HudSystem
-    from driftframe.systems.input import InputSystem
-    from driftframe.systems.interpolation import attach_interpolation
+    from driftframe.framework.bindings import Bindings
 
     bindings = bindings or Bindings()
     glfw = _glfw()
     from driftframe import demos
     demo = demos.load(name)
+    flight = _Flight(save_track, overwrite, dict(demo=name, seed=int(seed), camera=camera, sky=str(sky)))
+    with StopSignals(handle_signals) as stop:
+        stopped = _play(glfw, demo, flight, stop, name, size, seed, camera, state_out, screenshot_dir, bindings,
+                        save_track, hash_log, frames, overlay, interpolate, loop_options, setup, quiet, sky,
+                        overwrite)
+    if flight.errors:
+        for line in flight.errors:
+            print(f"driftframe: error: {line}", file=sys.stderr)
+    if stopped is not None:
+        return 128 + stopped
+    return 1 if flight.errors else 0
+
+
+class _Flight:
+    """What ``play`` keeps however it ends: the track and the hash log, complete to the last whole step."""
+
+    def __init__(self, save_track, overwrite, info):
+        self.save_track = save_track
+        self.overwrite = overwrite
+        self.info = info
+        self.recorder = None
+        self.log = None
+        self.kept = False
+        #: "the track flight.json (912 steps)", ... once kept.
+        self.notes: list[str] = []
+        #: Outputs that could not be written, in words (each names its file).
+        self.errors: list[str] = []
+
+    def keep(self) -> list[str]:
+        """Write the track and finish the hash log (once); never raises for a failed write."""
+        if self.kept:
+            return self.notes
+        self.kept = True
+        from driftframe.framework.input import save_track as write_track
+        if self.recorder is not None:
+            try:
+                write_track(self.recorder.to_track(**self.info), self.save_track, overwrite=self.overwrite)
+                self.notes.append(f"the track {self.save_track} ({self.recorder.steps} steps)")
+            except (OSError, ValueError) as e:
+                self.errors.append(f"the track {self.save_track!r} was not written: {e}")
+        if self.log is not None:
+            self.log.release()
+            if self.log.error is not None:
+                self.errors.append(str(self.log.error))
+            else:
+                self.notes.append(f"the hash log {self.log.path} ({self.log.lines} steps)")
+        return self.notes
+
+    def where(self) -> str:
+        return f"wrote {' and '.join(self.notes)}" if self.notes else "nothing to write"
+
+
+def _on_lost_display(glfw, flight):
+    """Keep the flight when the X server goes away; returns a function that removes the handler.
+
+    Xlib's default handler for a lost connection prints ``XIO: fatal IO
+    error`` and calls ``exit()`` from inside whatever GLFW call noticed it,
+    so no Python code runs after it. This handler, called from inside that
+    GLFW call (between two frames, so every step is whole), writes the track
+    and the hash log and ends the process with status 1; it cannot return,
+    as Xlib would then exit anyway.
+    """
+    platform = getattr(glfw, "get_platform", lambda: None)()
+    if not os.environ.get("DISPLAY") or platform not in (None, getattr(glfw, "PLATFORM_X11", None)):
+        return lambda: None
+    import ctypes
+    try:
+        x11 = ctypes.CDLL("libX11.so.6")          # the copy GLFW loaded (one per process)
+    except OSError:
+        return lambda: None
+    display = os.environ.get("DISPLAY")
+
+    def handler(_conn):
+        try:
+            flight.keep()
+            print(f"driftframe: error: lost the display {display!r} (the X server closed the connection); "
+                  f"{flight.where()}", file=sys.stderr)
+            for line in flight.errors:
+                print(f"driftframe: error: {line}", file=sys.stderr)
+            sys.stderr.flush()
+        finally:
+            os._exit(1)
+        return 0
+
+    callback = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)(handler)
+    x11.XSetIOErrorHandler.restype = ctypes.c_void_p
+    x11.XSetIOErrorHandler.argtypes = [ctypes.c_void_p]
+    old = x11.XSetIOErrorHandler(ctypes.cast(callback, ctypes.c_void_p))
+
+    def restore():
+        x11.XSetIOErrorHandler(old)
+        restore.callback = None                   # (kept alive until here: Xlib holds a pointer to it)
+    restore.callback = callback
+    return restore
+
+
+def _play(glfw, demo, flight, stop, name, size, seed, camera, state_out, screenshot_dir, bindings, save_track,
+          hash_log, frames, overlay, interpolate, loop_options, setup, quiet, sky, overwrite):
+    """:func:`play`'s body, under its signal handlers; returns the signal that stopped it, or None."""
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.framework.bindings import gamepad_actions, gamepad_channels
+    from driftframe.framework.gl import wrap_current_context
+    from driftframe.framework.hashlog import attach_hash_log
+    from driftframe.framework.input import TrackRecorder
+    from driftframe.framework.loop import FixedStepLoop, FrameStats
+    from driftframe.framework.output import write_file
+    from driftframe.systems.camera import switch_camera
+    from driftframe.systems.hud import HudSystem
+    from driftframe.systems.input import InputSystem
+    from driftframe.systems.interpolation import attach_interpolation
+
     win = open_window(glfw, size, f"driftframe - {demo.TITLE}")
+    restore_x = _on_lost_display(glfw, flight)
     world = None
+    stopped = None
     shots: list[str] = []
     try:
         pads = Gamepads(glfw, bindings.mappings)
@@ -235,9 +355,9 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
         interp = attach_interpolation(world, render) if interpolate else None
         recorder = None
         if save_track:
-            recorder = inputs.recorder = TrackRecorder(world.dt)
+            recorder = flight.recorder = inputs.recorder = TrackRecorder(world.dt)
         if hash_log:
-            attach_hash_log(world, hash_log)
+            flight.log = attach_hash_log(world, hash_log, overwrite=overwrite)
         if setup is not None:
             setup(world)
         loop = FixedStepLoop(world, time.perf_counter, **(loop_options or {}))
@@ -328,60 +448,81 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
         frame_times = []
         t_prev = t_start = time.perf_counter()
         cpu_start = time.process_time()
-        while not glfw.window_should_close(win):
-            glfw.poll_events()
-            poll_gamepad()
-            inputs.held = key_held | pad_held
-            if loop.tick() and release_later:
-                key_held.difference_update(release_later)
-                release_later.clear()
-            if loop.behind and not ui["told_behind"]:
-                ui["told_behind"] = True
-                n = loop.step_limit
-                print(f"driftframe: the simulation cannot keep real time here (a step takes "
-                      f"{loop.step_cost * 1e3:.1f} ms of wall time for {world.dt * 1e3:.1f} ms simulated): "
-                      f"dropping time to keep the frame rate, at most {n} step{'s' * (n > 1)} a frame "
-                      "(F3 shows the speed)", file=sys.stderr)
-            if interp is not None:
-                interp.alpha = loop.alpha
-            if ui["overlay"]:
-                hud.overlay = overlay_lines(stats, loop)
-            elif loop.behind:
-                hud.overlay = [f"SLOW MOTION {loop.speed:4.2f}x (a step takes {loop.step_cost * 1e3:.1f} ms)"]
-            else:
-                hud.overlay = None
-            world.render()
-            if ui["screenshot"]:
-                ui["screenshot"] = False
-                shots.append(_screenshot(render, name, world.step_count, screenshot_dir))
-            glfw.swap_buffers(win)
-            now = time.perf_counter()
-            stats.frame(now, world)
-            frame_times.append(now - t_prev)
-            t_prev = now
-            if frames is not None and len(frame_times) >= frames:
-                break
+        try:
+            while not glfw.window_should_close(win) and stop.requested is None:
+                glfw.poll_events()
+                poll_gamepad()
+                inputs.held = key_held | pad_held
+                if loop.tick() and release_later:
+                    key_held.difference_update(release_later)
+                    release_later.clear()
+                if loop.behind and not ui["told_behind"]:
+                    ui["told_behind"] = True
+                    n = loop.step_limit
+                    print(f"driftframe: the simulation cannot keep real time here (a step takes "
+                          f"{loop.step_cost * 1e3:.1f} ms of wall time for {world.dt * 1e3:.1f} ms simulated): "
+                          f"dropping time to keep the frame rate, at most {n} step{'s' * (n > 1)} a frame "
+                          "(F3 shows the speed)", file=sys.stderr)
+                if interp is not None:
+                    interp.alpha = loop.alpha
+                if ui["overlay"]:
+                    hud.overlay = overlay_lines(stats, loop)
+                elif loop.behind:
+                    hud.overlay = [f"SLOW MOTION {loop.speed:4.2f}x (a step takes {loop.step_cost * 1e3:.1f} ms)"]
+                else:
+                    hud.overlay = None
+                world.render()
+                if ui["screenshot"]:
+                    ui["screenshot"] = False
+                    shots.append(_screenshot(render, name, world.step_count, screenshot_dir))
+                glfw.swap_buffers(win)
+                now = time.perf_counter()
+                stats.frame(now, world)
+                frame_times.append(now - t_prev)
+                t_prev = now
+                if frames is not None and len(frame_times) >= frames:
+                    break
+        except KeyboardInterrupt as e:          # a second signal, in the middle of a frame: stop at once
+            stopped = getattr(e, "signum", signal.SIGINT)
+        if stopped is None:
+            stopped = stop.requested
         wall = time.perf_counter() - t_start
         summary = _summary(frame_times, wall, world, loop)
         summary["cpu_ms"] = 1e3 * (time.process_time() - cpu_start) / max(1, len(frame_times))
         play.last_run = summary
         print(summary["line"], file=sys.stderr)
-        if save_track:
-            write_track(recorder.to_track(demo=name, seed=int(seed), camera=camera, sky=str(sky)), save_track)
+        flight.keep()
+        if save_track and flight.recorder is not None and not flight.errors:
             print(f"track: {save_track} ({recorder.steps} steps)", file=sys.stderr)
+        if stopped is not None:
+            print(f"driftframe: interrupted ({_signal_name(stopped)}) after {world.step_count} steps; "
+                  f"{flight.where()}", file=sys.stderr)
         if state_out:
             out = state_summary(world)
             out.update(screenshots=shots, fullscreen=ui["fullscreen"], picture=list(target.size),
                        viewport=list(target.viewport), window=list(target.window_size),
                        overlay=hud.last.get("overlay"), frames=summary["frames"], fps=summary["fps"],
                        dropped_steps=loop.dropped_steps)
-            Path(state_out).write_text(json.dumps(out, indent=2))
+            try:
+                write_file(state_out, json.dumps(out, indent=2), overwrite=overwrite, what="state")
+            except OSError as e:
+                flight.errors.append(f"the state {state_out!r} was not written: {e}")
+    except BaseException as e:
+        if not flight.kept:                         # whatever went wrong, the flight so far is kept
+            flight.keep()
+            why = f"interrupted ({_signal_name(e.signum)})" if isinstance(e, KeyboardInterrupt) and \
+                hasattr(e, "signum") else "stopped by an error"
+            if flight.notes:
+                print(f"driftframe: {why} after {world.step_count if world else 0} steps; {flight.where()}",
+                      file=sys.stderr)
+        raise
     finally:
         if world is not None:
             world.close()
         glfw.destroy_window(win)
         glfw.terminate()
-    return 0
+        restore_x()
+    return stopped
 
 
 play.last_run = None

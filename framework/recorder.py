@@ -69,18 +69,15 @@ rendered or stepped.
 """
 from __future__ import annotations
 
-import errno
 import functools
 import io
 import itertools
 import math
 import os
 import queue
-import re
 import shutil
 import signal
 import sys
-import tempfile
 import threading
 import time
 from dataclasses import dataclass
@@ -91,7 +88,7 @@ import numpy as np
 
 from driftframe.framework import warp as time_warp
 from driftframe.framework.output import (OutputExistsError, check_output_file, new_part, no_space, publish,
-                                         remove_stale_parts)
+                                         remove_stale_parts)  # noqa: F401 - remove_stale_parts: public here too
 from driftframe.framework.gl import current
 
 FORMATS = ("mp4", "gif", "png")
