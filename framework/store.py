@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from operator import attrgetter, itemgetter
 
+import esper
 import numpy as np
 
 from driftframe.framework import validate
@@ -441,15 +442,17 @@ class Query:
         self.types = types
         self.optional = optional
         self._list = None
+        self._epoch = -1                    # the world's structure epoch this query was last refreshed at
         self.entities = np.empty(0, np.int64)
         self._rows: dict = {}
         self.version = 0
 
     def refresh(self) -> bool:
-        import esper
-
         world = self.world
         world.sync()
+        if world.epoch == self._epoch:      # no entity gained or lost a component since: same rows
+            return False
+        self._epoch = world.epoch
         lst = esper.get_components(*self.types)
         if lst is self._list:
             return False

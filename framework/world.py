@@ -104,14 +104,26 @@ def _access(system, attr: str) -> tuple:
     return value
 
 
-class _Entry:
-    """One scheduled system: its name, phase, stage and constraints."""
+def _requires(system) -> tuple:
+    """A system's ``requires``: component classes, all of which some entity must have for it to run."""
+    value = _access(system, "requires")
+    for v in value:
+        if not isinstance(v, type):
+            raise TypeError(f"{type(system).__name__}.requires must hold component classes, got {v!r}")
+    return value
 
-    __slots__ = ("system", "name", "phase", "stage", "after", "before", "seq")
+
+class _Entry:
+    """One scheduled system: its name, phase, stage and constraints; and whether, at the structure
+    epoch ``idle_epoch``, it had nothing to do (see ``requires`` in :meth:`World.add_system`)."""
+
+    __slots__ = ("system", "name", "phase", "stage", "after", "before", "seq", "key", "idle_epoch", "idle")
 
     def __init__(self, system, name, phase, stage, after, before, seq):
         self.system, self.name, self.phase, self.stage = system, name, phase, stage
         self.after, self.before, self.seq = after, before, seq
+        self.key = stage or name                     # its line in World.profile
+        self.idle_epoch, self.idle = -1, False
 
 
 class World:
@@ -129,6 +141,9 @@ class World:
         self.step_count = 0
         self._entries: list[_Entry] = []
         self._order: dict[str, list[_Entry]] = {"step": [], "frame": []}
+        # each phase's lines of the profile, all 0.0 (set at the start of each step / frame)
+        self._zero: dict[str, dict[str, float]] = {"step": dict.fromkeys(STEP_STAGES, 0.0),
+                                                    "frame": dict.fromkeys(FRAME_STAGES, 0.0)}
         self._seq = itertools.count()
         #: Seconds each stage (or unstaged system) took in the last step / frame (wall time, profiling only).
         self.profile: dict[str, float] = defaultdict(float, {s: 0.0 for s in STEP_STAGES + FRAME_STAGES})
@@ -146,6 +161,10 @@ class World:
         self._synced: dict[type, list] = {}
         self._probe = None
         self._queries: dict[tuple, Query] = {}
+        #: Bumped whenever an entity gains or loses a component (seen by :meth:`sync`, or made by this
+        #: world): what is cached on "which entities have what" (a Query's rows, an idle system) is
+        #: current while the epoch is the one it was made at.
+        self.epoch = 0
         self.closed = False
         esper.switch_world(self.name)
 
@@ -212,6 +231,7 @@ class World:
     def _own_change(self) -> None:
         # the world's own add/remove keeps its tables right: only esper's own calls need a reconcile
         self._probe = esper.get_component(_Probe)
+        self.epoch += 1
 
     def add_component(self, entity: int, component) -> None:
         """``esper.add_component`` in this world (a component of that type already there is replaced)."""
@@ -291,6 +311,7 @@ class World:
         probe = esper.get_component(_Probe)
         if probe is self._probe:
             return
+        self.epoch += 1
         present = [c for c in esper._components if isinstance(c, type) and issubclass(c, Columnar)]
         for cls in present:
             lst = esper.get_component(cls)
@@ -391,6 +412,14 @@ class World:
         A system with neither a stage nor constraints runs after collision and
         before camera. ``reads`` / ``writes`` are checked to be tuples of
         component classes.
+
+        ``requires`` (optional, a tuple of component classes): the system has
+        nothing to do in a step in which no entity has all of them, so the world
+        does not call its ``process`` then (its profile line reads 0). The
+        world asks esper once each time entities gain or lose components
+        (:attr:`epoch`), so an idle system costs a comparison per step. A
+        system may change its ``requires`` (the gravity system while it holds
+        bodies); the world reads it again at the next change of entities.
         """
         stage = stage if stage is not None else getattr(system, "stage", None)
         if stage is not None and stage not in STEP_STAGES + FRAME_STAGES:
@@ -399,6 +428,7 @@ class World:
             raise TypeError(f"system {system!r} has no process(dt) method")
         _access(system, "reads")
         _access(system, "writes")
+        _requires(system)
         after = self._refs(after if after else getattr(system, "after", ()))
         before = self._refs(before if before else getattr(system, "before", ()))
         if stage is None and not after and not before:
@@ -510,6 +540,7 @@ class World:
                 raise ScheduleError("systems cannot be ordered, they form a cycle: "
                                     + " -> ".join(self._cycle(left, edges, by_seq)))
             self._order[phase] = order
+            self._zero[phase] = dict.fromkeys(stages + tuple(e.key for e in order), 0.0)
 
     @staticmethod
     def _cycle(left, edges, by_seq) -> list[str]:
@@ -554,24 +585,40 @@ class World:
                 out.write(f"  {k:2d}. {e.name:<14} {type(s).__name__:<22} stage: {e.stage or '-'}\n"
                           f"      reads:  {names(_access(s, 'reads'))}\n"
                           f"      writes: {names(_access(s, 'writes'))}\n")
+                if _requires(s):
+                    out.write(f"      runs when an entity has: {names(_requires(s))}\n")
         return out.getvalue()
 
+    def _idle(self, e: _Entry) -> None:
+        """Decide whether ``e``'s system has nothing to do now: it declares ``requires`` and no entity has
+        all of them. Once per structure epoch (an esper query, which esper caches until it changes)."""
+        req = _requires(e.system)
+        e.idle = bool(req) and not esper.get_components(*req)
+        e.idle_epoch = self.epoch
+
     def _run(self, phase: str, dt: float) -> None:
-        self.activate()
+        name = self.name
+        if esper.current_world != name:
+            self.activate()
         esper.clear_dead_entities()
         clock = time.perf_counter
         profile, total = self.profile, self.profile_total
         order = self._order[phase]
-        for key in STEP_STAGES if phase == "step" else FRAME_STAGES:
-            profile[key] = 0.0
+        profile.update(self._zero[phase])
         for e in order:
-            profile[e.stage or e.name] = 0.0
-        for e in order:
-            self.sync()
+            # self.sync()'s fast path, inline (it runs before every system of every step): esper's cache is
+            # clean and holds the probe list of the last sync, so no entity gained or lost a component
+            if esper._cache_dirty or esper._get_component_cache.get(_Probe) is not self._probe \
+                    or esper.current_world != name:
+                self.sync()
+            if e.idle_epoch != self.epoch:
+                self._idle(e)
+            if e.idle:
+                continue
             t0 = clock()
             e.system.process(dt)
             took = clock() - t0
-            key = e.stage or e.name
+            key = e.key
             profile[key] += took
             total[key] += took
         self.sync()

@@ -55,6 +55,7 @@ class RotationAssistSystem(esper.Processor):
     after = ("control",)        # it brakes what the pilot's input left
     reads = (RotationAssist, FlightInput, Transform, AngularVelocity)
     writes = (AngularVelocity,)
+    requires = (RotationAssist, Transform, AngularVelocity)
 
     def process(self, dt: float) -> None:
         for ent, (assist, tf, spin) in esper.get_components(RotationAssist, Transform, AngularVelocity):

@@ -88,6 +88,7 @@ class AutopilotSystem(esper.Processor):
     before = (ControlSystem,)
     reads = (Autopilot, FlightPlan, FlightControl, Transform, Velocity, AngularVelocity, GravityWell)
     writes = (FlightInput, Autopilot, FlightPlan)
+    requires = (Autopilot,)              # (a FlightPlan engages an Autopilot: without one, nothing to do)
 
     def __init__(self):
         self._last_dir: dict[int, np.ndarray] = {}

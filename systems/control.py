@@ -36,6 +36,7 @@ class ControlSystem(esper.Processor):
     stage = "control"
     reads = (FlightInput, FlightControl, Transform, AngularVelocity)
     writes = (Acceleration, AngularVelocity)
+    requires = (FlightInput, FlightControl, Transform, Acceleration, AngularVelocity)
 
     def process(self, dt: float) -> None:
         for _, (inp, ctl, tf, acc, spin) in esper.get_components(

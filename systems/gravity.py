@@ -359,6 +359,12 @@ class GravitySystem(esper.Processor):
     #: (and so skipped by movement) before movement first runs
     before = (MovementSystem,)
 
+    @property
+    def requires(self) -> tuple:
+        """Nothing to do without a well; while it holds bodies it runs, to hand them back to movement
+        when the last well goes (see :meth:`World.add_system`)."""
+        return () if self._wells is not None else (GravityWell, Transform)
+
     def __init__(self):
         self._wells = None
         self._n = 0

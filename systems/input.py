@@ -74,6 +74,9 @@ class InputSystem(esper.Processor):
         return intent
 
     def process(self, dt: float) -> None:
+        if self.track is None and not self.pressed and self.recorder is None \
+                and not esper.get_components(FlightInput, Player):
+            return                                   # no pilot, nothing pressed, nothing to record
         world = self.world
         step = world.step_count
         if self.track is not None:

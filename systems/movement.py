@@ -42,8 +42,12 @@ class MovementSystem(esper.Processor):
     reads = (Velocity, Acceleration, SphereCollider)
     writes = (Transform, Velocity)
 
+    requires = (Transform, Velocity)
+
     def __init__(self):
         self._kept = {}
+        self._plan_key = None
+        self._plan = ()
 
     def _rows(self, q, types, skip):
         """``q.rows(T)`` for each of ``types``, without the bodies that have a class in ``skip``."""
@@ -65,14 +69,27 @@ class MovementSystem(esper.Processor):
         self._kept[q.types] = ((q.version, skip), rows)
         return rows
 
+    def _moves(self, skip: frozenset) -> tuple:
+        """What a step does, as packed rows: ``((t_rows, v_rows), (t_rows, v_rows, a_rows))`` with either
+        left out when it has no body (every body claimed by a collision system: nothing)."""
+        world = self.world
+        moves = []
+        for types in ((Transform, Velocity), (Transform, Velocity, Acceleration)):
+            q = world.query(*types)
+            q.refresh()
+            if len(q):
+                rows = self._rows(q, types, skip)
+                if _some(rows[0]):
+                    moves.append(rows)
+            elif len(types) == 2:
+                break                           # (no body with a Velocity: none with an Acceleration either)
+        return tuple(moves)
+
     def prepare(self) -> None:
         """The packed rows of the current bodies (see :meth:`World.prepare`)."""
         skip = self._skip()
-        for types in ((Transform, Velocity), (Transform, Velocity, Acceleration)):
-            q = self.world.query(*types)
-            q.refresh()
-            if len(q):
-                self._rows(q, types, skip)
+        self._plan = self._moves(skip)
+        self._plan_key = (self.world.epoch, skip)
 
     def _skip(self) -> frozenset:
         skip = self.world.resources.get(SKIP)
@@ -81,23 +98,22 @@ class MovementSystem(esper.Processor):
     def process(self, dt: float) -> None:
         world = self.world
         skip = self._skip()
-        free = world.query(Transform, Velocity)
-        free.refresh()
-        if len(free):
-            t_rows, v_rows = self._rows(free, (Transform, Velocity), skip)
-            if _some(t_rows):               # all claimed (e.g. every body a collider): nothing to move here
-                pos = world.table(Transform).data["position"]
-                vel = world.table(Velocity).data["linear"]
+        # the rows change only when entities gain or lose components (the world's epoch) or a system
+        # claims or frees a class of bodies; a step otherwise reuses them
+        if self._plan_key is None or self._plan_key[0] != world.epoch or self._plan_key[1] != skip:
+            self._plan = self._moves(skip)
+            self._plan_key = (world.epoch, skip)
+        if not self._plan:
+            return
+        pos = world.table(Transform).data["position"]
+        vel = world.table(Velocity).data["linear"]
+        for rows in self._plan:
+            if len(rows) == 2:
+                t_rows, v_rows = rows
                 pos[t_rows] += vel[v_rows] * dt
-
-        acc = world.query(Transform, Velocity, Acceleration)
-        acc.refresh()
-        if len(acc):
-            t_rows, v_rows, a_rows = self._rows(acc, (Transform, Velocity, Acceleration), skip)
-        if len(acc) and _some(t_rows):
-            pos = world.table(Transform).data["position"]
-            vel = world.table(Velocity).data["linear"]
-            a = world.table(Acceleration).data["linear"][a_rows]
-            # the v dt part was added above; add the constant-acceleration term, then update v
-            pos[t_rows] += (0.5 * dt * dt) * a
-            vel[v_rows] += dt * a
+            else:
+                t_rows, v_rows, a_rows = rows
+                a = world.table(Acceleration).data["linear"][a_rows]
+                # the v dt part was added above; add the constant-acceleration term, then update v
+                pos[t_rows] += (0.5 * dt * dt) * a
+                vel[v_rows] += dt * a

@@ -25,6 +25,7 @@ class SpinSystem(esper.Processor):
     stage = "spin"
     reads = (AngularVelocity,)
     writes = (Transform,)
+    requires = (Transform, AngularVelocity)
 
     def __init__(self):
         self._scratch = np.empty((16, 0))    # work rows, reused every step (see _rotate)

@@ -176,3 +176,91 @@ def test_built_in_access_declarations_match_what_the_systems_touch():
                 (type(system).__name__, changed - set(system.writes))
     finally:
         world.close()
+
+
+# -- idle systems: `requires` --------------------------------------------------------------------
+class Needs(Logged):
+    requires = (Transform, Velocity)
+
+
+def test_a_system_no_entity_has_work_for_is_not_called_until_one_has(world):
+    log = []
+    world.add_system(Needs("needs", log, "movement"))
+    world.add_system(Logged("always", log, "spin"))
+    ent = world.create_entity(Transform())
+    world.step(2)
+    assert log == ["always", "always"]
+    assert world.profile["movement"] == 0.0
+    world.add_component(ent, Velocity((1, 0, 0)))
+    world.step()
+    assert log[-2:] == ["needs", "always"]
+    esper.remove_component(ent, Velocity)            # esper's own call: seen at the next sync
+    log.clear()
+    world.step()
+    assert log == ["always"]
+
+
+def test_a_system_made_busy_by_an_earlier_system_of_the_same_step_runs_in_that_step(world):
+    log = []
+    ent = world.create_entity(Transform())
+
+    class Adder(Logged):
+        def process(self, dt):
+            super().process(dt)
+            if esper.try_component(ent, Velocity) is None:
+                esper.add_component(ent, Velocity())
+    world.add_system(Needs("needs", log, "spin"))
+    world.add_system(Adder("adder", log, "movement"))
+    world.step()
+    assert log == ["adder", "needs"]
+
+
+def test_requires_must_hold_component_classes(world):
+    bad = Logged("bad", [], "movement")
+    bad.requires = ("Velocity",)
+    with pytest.raises(TypeError, match="requires must hold component classes, got 'Velocity'"):
+        world.add_system(bad)
+
+
+def test_the_standard_systems_with_nothing_to_do_are_not_called_in_a_scene_of_colliders(monkeypatch):
+    """A head-on pair with the standard systems: only collision (and the cheap input and warp checks)
+    runs; the movement system, whose bodies the collision system all claims, gathers no column."""
+    import numpy as np
+
+    from driftframe.app import simulation_systems
+    from driftframe.components.collision import SphereCollider
+    from driftframe.systems.assist import RotationAssistSystem
+    from driftframe.systems.autopilot import AutopilotSystem
+    from driftframe.systems.control import ControlSystem
+    from driftframe.systems.gravity import GravitySystem
+    from driftframe.systems.spin import SpinSystem
+
+    w = World()
+    try:
+        for s in simulation_systems():
+            w.add_system(s)
+        w.create_entities(Transform.bulk(2, position=np.array([[-2.0, 0, 0], [2.0, 0, 0]])),
+                          Velocity.bulk(2, linear=np.array([[1.0, 0, 0], [-1.0, 0, 0]])),
+                          SphereCollider.bulk(2, radius=np.full(2, 0.5)))
+        w.prepare()
+        called = []
+        for cls in (SpinSystem, ControlSystem, RotationAssistSystem, AutopilotSystem, GravitySystem):
+            monkeypatch.setattr(cls, "process", lambda self, dt, cls=cls: called.append(cls.__name__))
+        movement = w.get_system(MovementSystem)
+        tables, queries = [], []
+        real_table, real_query = w.table, w.query
+        w.table = lambda cls: tables.append(cls) or real_table(cls)
+        w.query = lambda *types, **kw: queries.append(types) or real_query(*types, **kw)
+        try:
+            for _ in range(100):                        # through the contact at 1.5 s
+                w.activate()
+                w.sync()
+                movement.process(w.dt)
+        finally:
+            del w.table, w.query
+        assert tables == [] and queries == []
+        w.step(100)
+        assert called == []
+        assert w.columns(Velocity).linear[:, 0].tolist() == [-1.0, 1.0]
+    finally:
+        w.close()
