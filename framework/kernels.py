@@ -105,12 +105,47 @@ def kernel(fn=None, **options):
 
         from driftframe.framework import kernel_cache
 
+        if not _registry:
+            _blas_without_scipy()
+
         dispatcher = njit(**options)(f)
         dispatcher._cache = kernel_cache.KernelCache(f)   # what njit(cache=True) sets, ours
         _registry.append(dispatcher)
         return dispatcher
 
     return declare(fn) if fn is not None else declare
+
+
+def _blas_without_scipy() -> None:
+    """Spare the first kernel load an import of scipy.linalg (0.17 s of CPU of 0.30 s here).
+
+    numba's CPU target, set up at the first compile or cache load, imports
+    ``numba.np.arraymath``, which imports ``scipy.linalg.cython_blas`` only to
+    learn whether BLAS is there (``_HAVE_BLAS``, which picks how
+    ``np.correlate`` sums). That answer is taken here from whether scipy is
+    installed, without importing it. ``np.dot`` and ``np.linalg`` in a kernel
+    still import it when they are typed (``numba.np.linalg.ensure_blas``,
+    restored below); driftframe's kernels call neither.
+    """
+    if "numba.np.arraymath" in sys.modules:
+        return
+    try:
+        import importlib.util
+
+        import numba.np.linalg as linalg
+        real = linalg.ensure_blas
+    except (ImportError, AttributeError):       # another numba layout: leave it as it is
+        return
+
+    def installed():
+        if importlib.util.find_spec("scipy") is None:
+            raise ImportError("scipy 0.16+ is required for linear algebra")
+
+    linalg.ensure_blas = installed
+    try:
+        import numba.np.arraymath  # noqa: F401  (it binds ensure_blas at import and calls it once)
+    finally:
+        linalg.ensure_blas = real
 
 
 def registry(load: bool = True) -> list:
