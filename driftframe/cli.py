@@ -124,6 +124,17 @@ def _output_file(option: str, path: str | None, overwrite: bool = False) -> None
         raise UsageError(f"{e}{hint}") from None
 
 
+def _output_names(**named) -> None:
+    """A UsageError when an output's name is too long for its file system (before any stat of it fails)."""
+    from driftframe.framework.output import check_name
+    for option, path in named.items():
+        if path is not None:
+            try:
+                check_name(path, f"{option} {path!r}")
+            except OSError as e:
+                raise UsageError(str(e)) from None
+
+
 def _distinct_paths(**named) -> None:
     """A UsageError when two options name one file (``-o out/a.mp4 --hash-log out/a.mp4``)."""
     from driftframe.framework.output import same_paths
@@ -411,6 +422,7 @@ def cmd_record(args) -> int:
     demo = _load_demo(args.demo)
     out = args.output or os.path.join("out", f"{args.demo}.mp4")
     _distinct_paths(**{"-o": out, "--hash-log": args.hash_log, "--track": args.track})
+    _output_names(**{"-o": out, "--hash-log": args.hash_log})
     track = _apply_track(args, demo)
     _output_file("--hash-log", args.hash_log, args.overwrite)
     seconds = args.seconds if args.seconds is not None else demo.SECONDS
@@ -672,6 +684,31 @@ class _CompileProgress:
                         "later runs load them from the cache\n")
 
 
+class _SignalsInterrupt:
+    """SIGTERM and SIGHUP raise an interrupt while a command runs, as Ctrl-C does (where they are not ignored).
+
+    The parts that stop gracefully (recording, playing, compiling) take them
+    over with :class:`~framework.recorder.StopSignals`; anywhere else a signal
+    ends the command with one line and exit status 128 + n instead of
+    killing it without a word.
+    """
+
+    def __enter__(self):
+        import threading
+
+        from driftframe.framework.recorder import STOP_SIGNALS, raise_interrupted
+        self._old = {}
+        if threading.current_thread() is threading.main_thread():
+            for s in STOP_SIGNALS:
+                if signal.getsignal(s) is signal.SIG_DFL:
+                    self._old[s] = signal.signal(s, raise_interrupted)
+        return self
+
+    def __exit__(self, *exc):
+        for s, old in self._old.items():
+            signal.signal(s, old)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -686,7 +723,8 @@ def main(argv: list[str] | None = None) -> int:
     from driftframe.framework.kernels import KernelCompileError
 
     try:
-        return handlers[args.command](args)
+        with _SignalsInterrupt():
+            return handlers[args.command](args)
     except UsageError as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2

@@ -486,13 +486,16 @@ def _play(glfw, demo, flight, stop, name, size, seed, camera, state_out, screens
             stopped = getattr(e, "signum", signal.SIGINT)
         if stopped is None:
             stopped = stop.requested
+        stop.finish()                               # a second signal now must not cut the files being written
         wall = time.perf_counter() - t_start
         summary = _summary(frame_times, wall, world, loop)
         summary["cpu_ms"] = 1e3 * (time.process_time() - cpu_start) / max(1, len(frame_times))
         play.last_run = summary
         print(summary["line"], file=sys.stderr)
         flight.keep()
-        if save_track and flight.recorder is not None and not flight.errors:
+        if stopped is None:
+            stopped = stop.requested                # it came while the flight was being written
+        if stopped is None and save_track and flight.recorder is not None and not flight.errors:
             print(f"track: {save_track} ({recorder.steps} steps)", file=sys.stderr)
         if stopped is not None:
             print(f"driftframe: interrupted ({_signal_name(stopped)}) after {world.step_count} steps; "
@@ -509,6 +512,7 @@ def _play(glfw, demo, flight, stop, name, size, seed, camera, state_out, screens
                 flight.errors.append(f"the state {state_out!r} was not written: {e}")
     except BaseException as e:
         if not flight.kept:                         # whatever went wrong, the flight so far is kept
+            stop.finish()
             flight.keep()
             why = f"interrupted ({_signal_name(e.signum)})" if isinstance(e, KeyboardInterrupt) and \
                 hasattr(e, "signum") else "stopped by an error"

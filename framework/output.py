@@ -37,7 +37,11 @@ class OutputExistsError(FileExistsError):
 
 
 class OutputError(OSError):
-    """An output that cannot be written; the message names the file."""
+    """An output that cannot be written; the message names the file (``errno`` says why, for callers)."""
+
+    def __init__(self, code: int | None, message: str):
+        super().__init__(message)             # one argument: str() is the message alone, no "[Errno 28]"
+        self.errno = code
 
 
 # -- names of part files ------------------------------------------------------------------------
@@ -152,6 +156,16 @@ def _label(option: str | None, path) -> str:
     return f"{option} {str(path)!r}" if option else repr(str(path))
 
 
+def check_name(path, what: str | None = None) -> None:
+    """An :class:`OutputError` when ``path``'s last part is longer than its file system allows (255 bytes)."""
+    path = Path(os.fspath(path))
+    parent = path.parent if str(path.parent) else Path(".")
+    n, most = len(os.fsencode(path.name)), _name_max(parent if parent.is_dir() else Path("."))
+    if n > most:
+        raise OutputError(errno.ENAMETOOLONG, f"cannot write {what or repr(str(path))}: the file name is {n} bytes "
+                          f"long, longer than the {most} the file system allows")
+
+
 def check_output_file(path, *, overwrite: bool = False, option: str | None = None, folder: bool = False,
                       probe: bool = True) -> None:
     """Raise now what writing ``path`` would raise later; leave nothing behind.
@@ -171,10 +185,7 @@ def check_output_file(path, *, overwrite: bool = False, option: str | None = Non
         raise FileNotFoundError(f"cannot write {what}: directory {str(parent)!r} does not exist")
     if not parent.is_dir():
         raise NotADirectoryError(f"cannot write {what}: {str(parent)!r} is not a directory")
-    if len(os.fsencode(path.name)) > _name_max(parent):
-        raise OutputError(errno.ENAMETOOLONG, f"cannot write {what}: the file name is "
-                          f"{len(os.fsencode(path.name))} bytes long, longer than the {_name_max(parent)} "
-                          "the file system allows")
+    check_name(path, what)
     if folder:
         if path.exists() and not path.is_dir():
             raise FileExistsError(f"cannot write {what}: it exists and is not a directory")

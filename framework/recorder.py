@@ -87,7 +87,7 @@ from pathlib import Path
 import numpy as np
 
 from driftframe.framework import warp as time_warp
-from driftframe.framework.output import (OutputExistsError, check_output_file, new_part, no_space, publish,
+from driftframe.framework.output import (OutputExistsError, check_name, check_output_file, new_part, no_space, publish,
                                          remove_stale_parts)  # noqa: F401 - remove_stale_parts: public here too
 from driftframe.framework.gl import current
 
@@ -333,6 +333,10 @@ def _gif_image_block(data: bytes) -> bytes:
             raise ValueError(f"unexpected GIF block 0x{kind:02x}")
 
 
+#: The longest delay one GIF frame holds: a 16-bit count of 1/100 s (655.35 s).
+GIF_MAX_DELAY = 0xFFFF
+
+
 class _GifSink(_Sink):
     """GIF at reduced size, streamed: each frame is quantised, encoded and written as it comes.
 
@@ -386,9 +390,13 @@ class _GifSink(_Sink):
         self._ready = [block, delay]
 
     def _emit(self, block: bytes, delay: int) -> None:
-        # graphics control extension: disposal 1 (keep), the delay in 1/100 s
-        self._fp.write(b"\x21\xf9\x04\x04" + delay.to_bytes(2, "little") + b"\x00\x00" + block)
-        self.delays.append(delay)
+        # graphics control extension: disposal 1 (keep), the delay in 1/100 s. The field is 16 bits: a
+        # picture shown longer than 655.35 s is written as n equal copies (each over 327 s, none too short)
+        n = -(-delay // GIF_MAX_DELAY)
+        for k in range(n):
+            part = delay * (k + 1) // n - delay * k // n
+            self._fp.write(b"\x21\xf9\x04\x04" + part.to_bytes(2, "little") + b"\x00\x00" + block)
+            self.delays.append(part)
 
     def _count_held(self) -> None:
         self.held = (self._shown is not None) + (self._ready is not None)
@@ -532,6 +540,7 @@ def check_output(path, *, overwrite: bool = False, format: str | None = None, pr
     fmt = format or output_format(path)
     path = Path(os.fspath(path))
     parent = path.parent
+    check_name(path)                                  # first: a name too long fails every later stat too
     if not parent.exists():
         raise FileNotFoundError(f"cannot write {str(path)!r}: directory {str(parent)!r} does not exist")
     if not parent.is_dir():
@@ -570,6 +579,17 @@ def _move_into_place(tmp: Path, path: Path, fmt: str, overwrite: bool) -> None:
     publish(tmp, path, overwrite=overwrite or fmt == "png", folder=fmt == "png")
 
 
+def raise_interrupted(signum, frame):
+    """A signal handler: SIGTERM and SIGHUP raise :class:`Interrupted`, as Python's own does for SIGINT.
+
+    The command line holds it from its start, so a signal before or between
+    the parts that stop gracefully (:class:`StopSignals`, which takes over
+    from it) still ends in one line and exit status 128 + n, not a silent
+    death; :class:`StopSignals` treats it as the default.
+    """
+    raise Interrupted(signum)
+
+
 class StopSignals:
     """While active (main thread only), Ctrl-C, SIGTERM and SIGHUP ask the recording to stop.
 
@@ -585,19 +605,25 @@ class StopSignals:
     def __init__(self, enabled: bool):
         self._old: dict = {}
         self.requested: int | None = None
+        self.finishing = False
         self.enabled = enabled and threading.current_thread() is threading.main_thread()
 
     def _handle(self, signum, frame):
-        if self.requested is not None:
+        if self.requested is not None and not self.finishing:
             raise Interrupted(signum)
-        self.requested = signum
+        self.requested = self.requested or signum
+
+    def finish(self) -> None:
+        """From now on every signal only sets :attr:`requested`: the outputs are being written, which is
+        short and bounded, and a second Ctrl-C must not cut the file it is meant to keep."""
+        self.finishing = True
 
     def __enter__(self):
         if self.enabled:
             defaults = {signal.SIGINT: signal.default_int_handler}
             for s in (signal.SIGINT, *STOP_SIGNALS):
                 # only where nobody chose otherwise: under nohup, SIGHUP stays ignored
-                if signal.getsignal(s) is defaults.get(s, signal.SIG_DFL):
+                if signal.getsignal(s) in (defaults.get(s, signal.SIG_DFL), raise_interrupted):
                     self._old[s] = signal.signal(s, self._handle)
         return self
 
@@ -686,6 +712,8 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     if fmt == "mp4" and (size[0] % 2 or size[1] % 2):
         raise ValueError(f"H.264 (yuv420p) needs an even width and height, got {size[0]}x{size[1]}")
     rate = Fraction(fps).limit_denominator(10000)
+    if rate <= 0:     # below 1/20000 fps the rate rounds to 0: every frame time would divide by it
+        raise ValueError(f"fps must be at least 1/10000 (a frame every 2.8 h), got {fps!r}")
     if yuv == "gpu" and (fmt != "mp4" or getattr(target, "is_screen", True) or size[0] % 4):
         raise ValueError(f"yuv='gpu' needs an MP4 output from an off-screen target whose width is a multiple of 4, "
                          f"got {fmt} at {size[0]}x{size[1]}")
