@@ -130,7 +130,7 @@ _INF = math.inf
 
 # Copies are loops, not slice assignments: ``b[:k] = a`` compiles numba's shape check and the string
 # formatting of its error (about 1.5 s of an empty cache; docs/bench/compile.md).
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _grow_f(a, n):
     """A (rows, cols) float array with room for ``n`` rows (at least twice as many), ``a`` copied in."""
     b = np.empty((max(n, 2 * a.shape[0]), a.shape[1]))
@@ -140,7 +140,7 @@ def _grow_f(a, n):
     return b
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _grow_i(a, n, fill):
     """An int64 array of ``max(n, 2 len(a))`` with ``a`` copied in and ``fill`` after it."""
     b = np.empty(max(n, 2 * a.shape[0]), np.int64)
@@ -151,7 +151,7 @@ def _grow_i(a, n, fill):
     return b
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def toi(ex, ey, ez, wx, wy, wz, R, inv_sum, speeds, t, dt):
     """Earliest time of impact in [t, dt] of bodies i, j on paths ``x + u t'``; (-1, 0) when none.
 
@@ -211,7 +211,7 @@ def toi(ex, ey, ez, wx, wy, wz, R, inv_sum, speeds, t, dt):
 # every array a function call receives (an atomic operation, before and after the call), and with
 # four arrays those counts were two thirds of a dense gas's solve. Pair and version are whole
 # numbers held exactly in float64 (below 2^53). Order: by time, then by pair.
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _sift_up(H, k):
     t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
     while k > 0:
@@ -224,7 +224,7 @@ def _sift_up(H, k):
     H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _sift_down(H, k, n):
     t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
     while True:
@@ -242,7 +242,7 @@ def _sift_down(H, k, n):
     H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _pop(H, n):
     """Remove the root of a heap of ``n + 1`` rows (already read): the last row to the root, sifted down."""
     if n > 0:
@@ -250,7 +250,7 @@ def _pop(H, n):
         _sift_down(H, np.int64(0), n)     # np.int64: see _NOT_LITERAL
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _push(H, n, t, p, v, s):
     """Add a row to a heap of ``n`` rows, which has room for it (the caller grows ``H`` before a loop
     of pushes: an array reassigned inside a loop is reference-counted on every pass)."""
@@ -260,7 +260,7 @@ def _push(H, n, t, p, v, s):
 
 # -- dense solve ------------------------------------------------------------------------------
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _kick(b, sg, lam, c, inv, bmark, wave, dv, moved, nm, wn):
     """Add body ``b``'s share ``sg * lam * inv[b]`` of contact ``c``'s impulse along its normal to ``dv``.
 
@@ -327,7 +327,7 @@ def solve_psd(A, y, m, out):
         out[perm[s]] = sol[s]
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
     """Impulses of one island's contacts ``cs[:K]`` (indices into the wave), >= 0, into ``lam``."""
     for a in range(K):
@@ -375,7 +375,7 @@ def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
 
 # -- the step ---------------------------------------------------------------------------------
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _wave_scratch(cap):
     """A wave's arrays for up to ``cap`` contacts: pair, i, j, island root, island members, normal,
     normal velocity, restitution, impulse, stuck; the entries put back (time, pair, version, slack);
@@ -386,7 +386,7 @@ def _wave_scratch(cap):
             np.empty(cap), np.empty(cap))
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _link(p, i, j, head, nxt):
     nxt[2 * p] = head[i]
     head[i] = 2 * p
@@ -394,7 +394,7 @@ def _link(p, i, j, head, nxt):
     head[j] = 2 * p + 1
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _pair_structures(pi, pj, n):
     """Growable copies of the pairs, their adjacency lists (head/nxt), versions and marks."""
     P = pi.shape[0]
@@ -428,7 +428,7 @@ def all_pairs(n):
     return pi, pj
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
     """Every candidate pair's time of impact from t = 0, into a heap; and the overlaps at the start."""
     H = np.empty((max(2 * P, 1024), 4))                   # room for every pair, and as many again
@@ -460,27 +460,23 @@ def _initial(PI, PJ, P, x, u, r, inv, live, spd, dt):
     return H, hn, overlaps, worst, wi_, wj_
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _shift(t, d):
     """``t += d`` in place, element by element (``t - now`` and ``+ now`` without two numpy calls a step)."""
     for k in range(t.shape[0]):
         t[k] += d
 
 
-@kernel(error_model="numpy", inline="always")
-def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst, start, resweep, stick_fn):
-    """The step's event loop, shared by the drivers (:func:`solve_all_pairs`, :func:`solve_listed` and
-    their ``_stick`` variants), which pick its pieces: ``lst`` the neighbour list's arrays (or None),
-    ``start`` and ``resweep`` what the list does at the start and after each wave (:func:`_listed_start`,
-    :func:`_listed_resweep`, or the ``_unlisted`` ones, which do nothing), ``stick_fn`` :func:`_stick` or
-    :func:`_no_stick` (which ends the step with F_AGAIN: the caller runs it again with :func:`_stick`).
-    Inlined into each driver: each is compiled alone, with only the code its scenes run."""
+def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
+    """The step's event loop: the body of every solver (:func:`solve_all_pairs`, :func:`solve_listed`
+    and their ``_stick`` variants), each compiled from it with its own pieces (see :func:`_solver`)."""
+    keep = _keep(x, u, t_last, lst)
     _shift(t_last, -now)
     n = x.shape[0]
     stats = np.zeros(12)
     flags = 0
     # the pair structures (adjacency, versions) are made only when needed: a quiet step makes none
-    n_swept, P, PI, PJ, head, nxt, ver, mark = start(lst, pi, pj, x, u, r, live, dt)
+    n_swept, P, PI, PJ, head, nxt, ver, mark = _start(lst, pi, pj, x, u, r, live, dt)
     early = n_swept > 0
     stats[3] = n_swept
     spd = np.empty(n)
@@ -678,8 +674,8 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst, start,
                     if wstick[cs[a]]:
                         stick = True
             if stick:
-                nm = stick_fn(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head,
-                              nxt, PI, PJ, sseen, squeue)
+                nm = _stick_fn(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head,
+                               nxt, PI, PJ, sseen, squeue)
                 if nm < 0:
                     break                                  # _no_stick: this driver cannot; F_AGAIN below
                 flags |= F_STICK
@@ -756,8 +752,8 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst, start,
             spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
             changed[b] = True
         # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
-        P, PI, PJ, nxt, ver, mark, n_swept, flags = resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt,
-                                                            ver, mark, n_swept, stats, flags)
+        P, PI, PJ, nxt, ver, mark, n_swept, flags = _resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt,
+                                                             ver, mark, n_swept, stats, flags)
         # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
         if hn + P > H.shape[0]:
             H = _grow_f(H, hn + P)
@@ -785,10 +781,12 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst, start,
     stats[1] = ne
     stats[2] = waves
     _shift(t_last, now)
+    if flags & F_AGAIN:
+        _put_back(keep, x, u, t_last, lst)
     return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen,
            queue):
     """Give the touching cluster of an island's bodies one velocity: its centre of mass's, or that of an
@@ -868,7 +866,7 @@ def _stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark,
     return nm
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _has_pair(b, o, head, nxt, PI, PJ):
     node = head[b]
     while node >= 0:
@@ -879,7 +877,7 @@ def _has_pair(b, o, head, nxt, PI, PJ):
     return False
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, order, lo_x, width, start):
     """Add the pairs of swept body b's path box with the listed territories and the other swept boxes."""
     n = swept.shape[0]
@@ -918,7 +916,7 @@ def _sweep(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi, centre, reach, o
 
 # -- the neighbour list's part of a step, and the drivers -----------------------------------------
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _listed_start(lst, pi, pj, x, u, r, live, dt):
     """Bodies swept at the start: their whole path against the territories and each other. Returns the
     count of swept bodies, and the pair structures when there are any (else ``pi``, ``pj`` stand in)."""
@@ -945,13 +943,13 @@ def _listed_start(lst, pi, pj, x, u, r, live, dt):
     return n_swept, P, PI, PJ, head, nxt, ver, mark
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _unlisted_start(lst, pi, pj, x, u, r, live, dt):
     """Every pair a candidate: nobody swept (``pi`` stands in for the pair structures, made later)."""
     return np.int64(0), pi.shape[0], pi, pj, pi, pi, pi, pi
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
     """The moved bodies whose new path leaves their territory (or their swept box) are swept: their new
     pairs are added. Returns the pair structures, the count of swept bodies and the flags."""
@@ -994,107 +992,122 @@ def _listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, m
     return P, PI, PJ, nxt, ver, mark, n_swept, flags
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _unlisted_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
     """Every pair a candidate: nothing to add."""
     return P, PI, PJ, nxt, ver, mark, n_swept, flags
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _no_stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen,
               queue):
     """:func:`_stick`'s stand-in in the drivers without it: -1, the step is to be run again with it."""
     return np.int64(-1)
 
 
-@kernel(error_model="numpy")
-def _copy_into(dst, src):
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _copy_rows(dst, src):
     """``dst[...] = src`` for (n, 3) arrays, as a loop (see _grow_f)."""
     for k in range(src.shape[0]):
         for d in range(3):
             dst[k, d] = src[k, d]
 
 
-# The drivers. Each is one compiled unit with the pieces of _solve its scenes run: a scene of few bodies
-# compiles no neighbour-list code, and no scene compiles the jam path (_stick) until one jams; a step that
-# needs it ends with F_AGAIN, its inputs as they came, and the caller runs it again with the _stick variant
-# (the same result bit for bit as running that variant first). Measured in docs/bench/compile.md.
-
-@kernel(error_model="numpy")
-def solve_all_pairs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
-    """One step of contacts with the candidate pairs ``pi``, ``pj`` (every pair of few bodies); see
-    :func:`solve_listed` for the arguments and the result. Returns ``flags`` with F_AGAIN, and ``x``,
-    ``u``, ``t_last`` as they came, when the step needs the jam path: run
-    :func:`solve_all_pairs_stick` then."""
-    x_in, u_in, t_in = x.copy(), u.copy(), t_last.copy()
-    out = _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                 None, _unlisted_start, _unlisted_resweep, _no_stick)
-    if out[5] & F_AGAIN:
-        _copy_into(x, x_in)
-        _copy_into(u, u_in)
-        for k in range(t_in.shape[0]):
-            t_last[k] = t_in[k]
-    return out
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _keep_pairs(x, u, t_last, lst):
+    """What a step of every pair changes, as it came: for F_AGAIN."""
+    return x.copy(), u.copy(), t_last.copy()
 
 
-@kernel(error_model="numpy")
-def solve_all_pairs_stick(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap):
-    """:func:`solve_all_pairs` with the jam path (:func:`_stick`)."""
-    return _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                  None, _unlisted_start, _unlisted_resweep, _stick)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _put_back_pairs(keep, x, u, t_last, lst):
+    _copy_rows(x, keep[0])
+    _copy_rows(u, keep[1])
+    for k in range(t_last.shape[0]):
+        t_last[k] = keep[2][k]
 
 
-@kernel(error_model="numpy")
-def solve_listed(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                 swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
-    """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _keep_listed(x, u, t_last, lst):
+    """What a step with the list changes, as it came (with the list's swept bodies and boxes): for F_AGAIN."""
+    return x.copy(), u.copy(), t_last.copy(), lst[0].copy(), lst[1].copy(), lst[2].copy()
+
+
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _put_back_listed(keep, x, u, t_last, lst):
+    _copy_rows(x, keep[0])
+    _copy_rows(u, keep[1])
+    _copy_rows(lst[1], keep[4])
+    _copy_rows(lst[2], keep[5])
+    for k in range(t_last.shape[0]):
+        t_last[k] = keep[2][k]
+        lst[0][k] = keep[3][k]
+
+
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _keep_nothing(x, u, t_last, lst):
+    """The variants with the jam path never end a step with F_AGAIN."""
+    return None
+
+
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _put_back_nothing(keep, x, u, t_last, lst):
+    pass
+
+
+def _solver(name, doc, **pieces):
+    """A solver compiled from :func:`_solve` with ``pieces`` for its names ``_start``, ``_resweep``,
+    ``_stick_fn``, ``_keep``, ``_put_back``: one compiled unit each, holding only the code its scenes run
+    (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
+    copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""
+    import types
+    scope = dict(globals(), **pieces)
+    f = types.FunctionType(_solve.__code__, scope, name)
+    f.__qualname__ = name
+    f.__doc__ = doc
+    f.__module__ = __name__
+    return kernel(error_model="numpy")(f)
+
+
+_LISTED_DOC = """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
 
     ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
     per body; ``live``: bodies taking part (False: a body with non-finite
     state, left out); ``t_last``: each body's last contact time in absolute
     seconds (-inf: none), updated in place (the TC model looks back across
     steps); ``now``: the step's start, s (inside, times are relative to it).
-    ``pi``, ``pj``: candidate pairs from a
-    :class:`~driftframe.framework.broadphase.NeighbourList` (``swept``,
-    ``blo``/``bhi`` path boxes of swept bodies, ``centre`` (3, n), ``skin``,
-    ``reach``, ``order``, ``lo_x``, ``width``: its arrays, changed in place for
-    bodies swept here; ``budget``: swept bodies before F_REBUILD): bodies whose
-    path leaves their territory are swept against the others and their new
-    pairs added.
+    ``pi``, ``pj``: candidate pairs, from a
+    :class:`~driftframe.framework.broadphase.NeighbourList` whose arrays
+    ``lst`` holds: ``(swept, blo, bhi, centre, skin, reach, order, lo_x, width,
+    budget, tosweep, newlo, newhi)`` (``blo``/``bhi``: (n, 3) path boxes of
+    swept bodies; ``centre`` (3, n); ``budget``: swept bodies before
+    F_REBUILD; the last three: scratch of n, (n, 3), (n, 3)); ``swept``,
+    ``blo``, ``bhi`` are changed in place for bodies whose path leaves their
+    territory: they are swept against the others and their new pairs added.
 
     Returns ``(changed, events, ev_n, ev_point, stats, flags)``: which bodies'
     velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
     and the contact points on i's and on j's surface (6 numbers); ``stats``
-    (indexed by the S_* constants); ``flags`` (F_* bits). With F_AGAIN the step
-    needs the jam path: every input is as it came; run :func:`solve_listed_stick`.
+    (indexed by the S_* constants); ``flags`` (F_* bits). With F_AGAIN the
+    step needs the jam path: every input is as it came; run
+    :func:`solve_listed_stick` with them.
     """
-    n = x.shape[0]
-    x_in, u_in, t_in = x.copy(), u.copy(), t_last.copy()
-    swept_in, blo_in, bhi_in = swept.copy(), blo.copy(), bhi.copy()
-    lst = (swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget,
-           np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)))
-    out = _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                 lst, _listed_start, _listed_resweep, _no_stick)
-    if out[5] & F_AGAIN:
-        _copy_into(x, x_in)
-        _copy_into(u, u_in)
-        _copy_into(blo, blo_in)
-        _copy_into(bhi, bhi_in)
-        for k in range(n):
-            t_last[k] = t_in[k]
-            swept[k] = swept_in[k]
-    return out
 
-
-@kernel(error_model="numpy")
-def solve_listed_stick(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                       swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget):
-    """:func:`solve_listed` with the jam path (:func:`_stick`)."""
-    n = x.shape[0]
-    lst = (swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget,
-           np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)))
-    return _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap,
-                  lst, _listed_start, _listed_resweep, _stick)
+# The solvers. A scene of few bodies compiles no neighbour-list code, and no scene compiles the jam path
+# (_stick) until one jams: a step that needs it ends with F_AGAIN and its inputs as they came, and the
+# caller runs it again with the _stick variant (the same result, bit for bit, as that variant alone).
+solve_listed = _solver("solve_listed", _LISTED_DOC, _start=_listed_start, _resweep=_listed_resweep,
+                       _stick_fn=_no_stick, _keep=_keep_listed, _put_back=_put_back_listed)
+solve_listed_stick = _solver("solve_listed_stick", ":func:`solve_listed` with the jam path (:func:`_stick`).",
+                             _start=_listed_start, _resweep=_listed_resweep, _stick_fn=_stick,
+                             _keep=_keep_nothing, _put_back=_put_back_nothing)
+solve_all_pairs = _solver("solve_all_pairs", """:func:`solve_listed` with every pair a candidate (few bodies)
+    and ``lst`` None; with F_AGAIN run :func:`solve_all_pairs_stick`.""",
+                          _start=_unlisted_start, _resweep=_unlisted_resweep, _stick_fn=_no_stick,
+                          _keep=_keep_pairs, _put_back=_put_back_pairs)
+solve_all_pairs_stick = _solver("solve_all_pairs_stick", ":func:`solve_all_pairs` with the jam path.",
+                                _start=_unlisted_start, _resweep=_unlisted_resweep, _stick_fn=_stick,
+                                _keep=_keep_nothing, _put_back=_put_back_nothing)
 
 
 @kernel(error_model="numpy")

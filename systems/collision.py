@@ -314,6 +314,9 @@ class CollisionSystem(esper.Processor):
         self._pj = nl.j.astype(np.int64)
         self._blo = np.empty((n, 3))
         self._bhi = np.empty((n, 3))
+        self._tosweep = np.empty(n, np.int64)               # the kernel's scratch for bodies swept mid-step
+        self._newlo = np.empty((n, 3))
+        self._newhi = np.empty((n, 3))
 
     def _now(self) -> float:
         return self.world.time if self.world is not None else 0.0
@@ -399,12 +402,11 @@ class CollisionSystem(esper.Processor):
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
             pi, pj = self._pairs
-            solve = contact.solve_all_pairs_stick if self._stick else contact.solve_all_pairs
-            out = solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, self.max_contacts)
+            args = (x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, self.max_contacts, None)
+            out = contact.solve_all_pairs_stick(*args) if self._stick else contact.solve_all_pairs(*args)
             if out[5] & contact.F_AGAIN:                     # a jam: the variant with the jam path, from now on
                 self._stick = True
-                out = contact.solve_all_pairs_stick(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c,
-                                                    self.max_contacts)
+                out = contact.solve_all_pairs_stick(*args)
         else:
             nl = self._list
             rebuild = self._list_dirty or self._list_layout is not lay or len(nl.radius) != n
@@ -418,7 +420,8 @@ class CollisionSystem(esper.Processor):
                 self.stats["builds"] = 1
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
             args = (x, u, r, inv, e, live, t_last, now, self._pi, self._pj, dt, t_c, self.max_contacts,
-                    nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width), int(nl.budget))
+                    (nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width), int(nl.budget),
+                     self._tosweep, self._newlo, self._newhi))
             out = contact.solve_listed_stick(*args) if self._stick else contact.solve_listed(*args)
             if out[5] & contact.F_AGAIN:                     # a jam: the variant with the jam path, from now on
                 self._stick = True
