@@ -48,7 +48,8 @@ class StopFlag:
     :attr:`event` and :attr:`signum` (runs stop at their next step), a second raises :class:`Aborted`.
 
     A signal whose handler is not the default (SIGHUP ignored under ``nohup``,
-    an application's own) is left alone.
+    an application's own) is left alone; the command line's (which makes
+    SIGTERM and SIGHUP an interrupt) is taken over.
     """
 
     def __init__(self, on_stop=None):
@@ -59,9 +60,10 @@ class StopFlag:
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
+            from driftframe.framework.recorder import raise_interrupted     # the command line's own
             for s in STOP:
                 default = signal.default_int_handler if s == signal.SIGINT else signal.SIG_DFL
-                if signal.getsignal(s) is default:
+                if signal.getsignal(s) in (default, raise_interrupted):
                     self._old[s] = signal.signal(s, self._handler)
         return self
 
@@ -264,6 +266,10 @@ def _worker_main(conn, parent_pid: int, lp_threads) -> None:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, set(STOP))      # blocked since the spawn
     if lp_threads is not None:
         os.environ["LP_NUM_THREADS"] = str(lp_threads)
+    from tqdm import tqdm
+    # tqdm's default lock is a multiprocessing semaphore, which the resource tracker would report as
+    # leaked when this worker is ended by a signal; a worker draws no bar: a thread lock does
+    tqdm.set_lock(threading.RLock())
     stopping = [False]
 
     def should_stop():
@@ -367,7 +373,7 @@ def run_local(specs, jobs: int, lp, done, *, retries: int = 1, note=print) -> in
                             if not w.send(w.busy):
                                 break               # its death is seen below
                     if runner.busy is None and queue:
-                        i = queue.pop()
+                        i = queue.pop() if workers else queue.popleft()     # serial: in order
                         runner.start(i, specs[i])
                 if runner.busy is None and all(w.busy is None for w in workers) and (stopping or not queue):
                     break

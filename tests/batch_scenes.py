@@ -29,3 +29,34 @@ def env_probe(world, rng):
     """Fails on purpose, naming the worker's LP_NUM_THREADS: how a test reads a worker's environment."""
     import os
     raise RuntimeError(f"LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS')}")
+
+
+def die_once(world, rng, marker: str = "", parent: int = 0):
+    """In a pool worker (not the process ``parent``), the first time (no ``marker`` file yet): SIGKILL
+    this process, as the out-of-memory killer would. Otherwise :func:`box`."""
+    import os
+    import signal
+    if os.getpid() != parent and not os.path.exists(marker):
+        open(marker, "w").close()
+        os.kill(os.getpid(), signal.SIGKILL)
+    box(world, rng)
+
+
+def in_c_callback(world, rng, seconds: float = 20.0):
+    """Python called back from C for ``seconds``, as numba's compiler calls back into Python through
+    ctypes: an exception raised in there (a Ctrl-C's KeyboardInterrupt) is printed and dropped by
+    ctypes, and C goes on calling back. Then :func:`box`."""
+    import ctypes
+    import time
+    end = time.monotonic() + seconds
+    compare = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p)
+
+    def cmp(a, b):
+        if time.monotonic() < end:
+            time.sleep(0.01)
+        return 0
+
+    keep = compare(cmp)
+    values = (ctypes.c_int * 4096)()
+    ctypes.CDLL(None).qsort(values, len(values), ctypes.sizeof(ctypes.c_int), keep)
+    box(world, rng)
