@@ -677,8 +677,8 @@ class _CompileProgress:
             return
         seconds, n, m = self.watch.elapsed(), self.watch.n, self.watch.m
         if stopped:
-            self._write(f"\ndriftframe: stopped after {seconds:.0f} s of compiling kernels ({n} of {m} begun): "
-                        "those finished are cached, the rest are compiled on the next run\n")
+            self._write(f"\ndriftframe: stopped after {seconds:.0f} s of compiling kernels: those finished are "
+                        f"cached, the rest are compiled on the next run ({n} of {m} begun)\n")
         else:
             self._write(f"\ndriftframe: compiled {n} kernels in {seconds:.0f} s; "
                         "later runs load them from the cache\n")

@@ -1,5 +1,6 @@
 """The command line, end to end: list, record to MP4 / GIF / PNG, and every user error as one clear line."""
 import os
+import re
 import subprocess
 import sys
 
@@ -261,22 +262,42 @@ def test_record_with_motion_blur(tmp_path):
     assert sharp.read_bytes() != blur.read_bytes()
 
 
-def test_a_first_run_says_it_is_compiling_the_kernels_and_a_warm_run_says_nothing(tmp_path):
-    # an empty numba cache is a machine's first run: the line comes before the wait, the time after
+def test_a_first_run_shows_the_compile_kernel_by_kernel_and_a_warm_run_says_nothing(tmp_path):
+    # an empty cache is a machine's first run: a line before the wait, a progress line rewritten in
+    # place (which kernel, n of m, seconds), then the summary, all before the recording starts
     env = {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}
     args = ("record", "spin", "-o", str(tmp_path / "s.mp4"), "--overwrite", "--seconds", "0.1", "--size", "64x64")
-    cold = run(*args, env=env)
-    assert cold.returncode == 0, cold.stderr
-    notice = [ln for ln in cold.stderr.splitlines() if ln.startswith("driftframe: compil")]
-    assert len(notice) == 2 and "the first run only" in notice[0], cold.stderr
-    assert notice[1].startswith("driftframe: compiled the kernels in ") and notice[1].endswith("from the cache")
-    # the wait comes before the progress bar starts (a scratch world's first step), not at its frame 0
-    assert cold.stderr.index("driftframe: compiling") < cold.stderr.index("recording s.mp4")
-    assert list((tmp_path / "numba").rglob("*.nbi"))                 # numba did write its cache there
+    cold = subprocess.run(EXE + list(args), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=300, env={**os.environ, **env})
+    assert cold.returncode == 0, cold.stdout
+    out = cold.stdout
+    assert out.startswith("driftframe: compiling the physics kernels for this machine: the first run only"), out
+    # (text mode reads each \r as a line end)
+    progress = re.findall(r"^driftframe: compiling (\d+) of (\d+) kernels, (\d+) s: ([\w.]+)", out, re.M)
+    assert progress, out
+    (done,) = re.findall(r"\ndriftframe: compiled (\d+) kernels in \d+ s; later runs load them from the cache\n", out)
+    n, m = map(int, progress[-1][:2])
+    # n of m is honest: it ends at m, and m is the number of kernels numba wrote to the cache
+    saved = {p.name.split("-")[0] for p in (tmp_path / "numba").rglob("*.nbi")}
+    assert n == m == int(done) == len(saved) > 0, (progress, done, saved)
+    assert {name for *_, name in progress} <= saved
+    # the summary comes before the recording starts, and so before its final "wrote ..." line
+    assert out.index("driftframe: compiled") < out.index("recording s.mp4") < out.index("wrote ")
     warm = run(*args, env=env)
     assert warm.returncode == 0 and "compil" not in warm.stderr, warm.stderr
     quiet = run(*args, "--quiet", env={"NUMBA_CACHE_DIR": str(tmp_path / "numba2")})
     assert quiet.returncode == 0 and "compil" not in quiet.stderr, quiet.stderr
+
+
+def test_warm_with_a_warm_cache_loads_every_kernel_quietly_and_names_the_folder(tmp_path):
+    from driftframe.framework import kernels
+    res = run("warm")                     # the suite's own cache: ./run tests warms it before pytest
+    assert res.returncode == 0, res.stderr
+    from test_kernel_cache import uncalled_kernels
+    total, dead = len(kernels.registry()), uncalled_kernels()       # the warm-up reaches every kernel called
+    assert res.stdout.strip() == f"{total - len(dead)} of {total} kernels ready in {kernels.cache_dir()}", res.stdout
+    again = run("warm")
+    assert again.returncode == 0 and "compil" not in again.stderr and again.stdout == res.stdout, again.stderr
 
 
 def test_an_existing_output_is_refused_before_the_kernels_are_compiled(tmp_path):
