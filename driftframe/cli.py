@@ -252,7 +252,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="run on the scheduler that `dask scheduler --scheduler-file FILE` describes")
     batch.add_argument("--resume", action="store_true",
                        help="continue a stopped batch: skip the runs that journal.jsonl in the output folder "
-                            "lists as finished (same spec, output still there)")
+                            "lists as finished (same spec, output still there); with --overwrite, outputs it "
+                            "does not list are replaced")
     batch.add_argument("--retries", type=_retries, default=1, metavar="N",
                        help="run again a run whose worker process died, up to N times (default 1)")
     batch.add_argument("-o", "--output", default=None, metavar="DIR",
@@ -488,6 +489,15 @@ def cmd_play(args) -> int:
     _load_demo(args.demo)
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
+    import tempfile
+
+    from driftframe.framework.output import why_not_writable
+    try:
+        with tempfile.TemporaryFile(dir=args.screenshots):      # (an unnamed file: nothing to clean up)
+            pass
+    except OSError as e:
+        raise UsageError(f"--screenshots: cannot write into {args.screenshots!r} "
+                         f"({why_not_writable(args.screenshots, e)})") from None
     _distinct_paths(**{"--state-out": args.state_out, "--save-track": args.save_track,
                        "--hash-log": args.hash_log, "--bindings": args.bindings})
     for option in ("state_out", "save_track", "hash_log"):     # fail now, not when the session ends
@@ -541,8 +551,6 @@ def cmd_batch(args) -> int:
         raise UsageError("give --scheduler or --scheduler-file, not both")
     if scheduler is None and args.scheduler_file is None and args.jobs is None:
         scheduler = os.environ.get("DASK_SCHEDULER_ADDRESS") or None     # as dask's own Client() reads it
-    if args.resume and args.overwrite:
-        raise UsageError("--resume keeps what a batch wrote, --overwrite replaces it: give one of them")
     out_dir = Path(args.output) if args.output else Path("out") / spec_path.stem
     journal_path = out_dir / batch_report.JOURNAL
     client = None

@@ -21,6 +21,7 @@ ratio: the scene is drawn in the largest centred rectangle of the
 """
 from __future__ import annotations
 
+import io
 import json
 import os
 import signal
@@ -250,6 +251,7 @@ class _Flight:
         self.info = info
         self.recorder = None
         self.log = None
+        self.world = None
         self.kept = False
         #: "the track flight.json (912 steps)", ... once kept.
         self.notes: list[str] = []
@@ -263,6 +265,8 @@ class _Flight:
         self.kept = True
         from driftframe.framework.input import save_track as write_track
         if self.recorder is not None:
+            if self.world is not None:               # a step cut short by an exception is not flown
+                self.recorder.truncate(self.world.step_count)
             try:
                 write_track(self.recorder.to_track(**self.info), self.save_track, overwrite=self.overwrite)
                 self.notes.append(f"the track {self.save_track} ({self.recorder.steps} steps)")
@@ -354,6 +358,7 @@ def _play(glfw, demo, flight, stop, name, size, seed, camera, state_out, screens
         inputs = world.get_system(InputSystem)
         interp = attach_interpolation(world, render) if interpolate else None
         recorder = None
+        flight.world = world
         if save_track:
             recorder = flight.recorder = inputs.recorder = TrackRecorder(world.dt)
         if hash_log:
@@ -550,8 +555,19 @@ def _summary(frame_times, wall, world, loop) -> dict:
 def _screenshot(render, name: str, step: int, folder: str) -> str:
     from PIL import Image
 
+    from driftframe.framework.output import OutputExistsError, write_file
+
     rgba = render.read_rgba()          # RenderTarget clears the window's pending read error itself
-    path = Path(folder) / f"driftframe-{name}-{step:06d}.png"
-    Image.fromarray(np.ascontiguousarray(rgba[:, :, :3])).save(path)
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgba[:, :, :3])).save(buf, format="PNG")
+    # through framework.output: whole files only, never over an existing one (a second F12 in the same
+    # step, or an earlier session's picture, gets the next free name)
+    for k in range(1, 1000):
+        path = Path(folder) / f"driftframe-{name}-{step:06d}{'' if k == 1 else f'-{k}'}.png"
+        try:
+            write_file(path, buf.getvalue(), what="screenshot")
+            break
+        except OutputExistsError:
+            continue
     print(f"screenshot: {path}", file=sys.stderr)
     return str(path)

@@ -283,6 +283,17 @@ class TrackRecorder:
             raise ValueError(f"only {SIM_PRESSED} go into a track, got {action!r}")
         self._presses.append((step, action))
 
+    def truncate(self, steps: int) -> None:
+        """Forget every step from ``steps`` on: a step that never finished (it raised) is not in the flight."""
+        steps = max(0, int(steps))
+        runs = []
+        for first, n, intent in self._runs:
+            if first < steps:
+                runs.append([first, min(n, steps - first), intent])
+        self._runs = runs
+        self._presses = [(k, a) for k, a in self._presses if k < steps]
+        self.steps = min(self.steps, steps)
+
     def to_track(self, **info) -> Track:
         dt = self.dt
         events = []

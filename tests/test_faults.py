@@ -68,12 +68,14 @@ DRIVER = textwrap.dedent(r'''
         output.PartFile.write
 
     class Fault(esper.Processor):
-        """A system that sends the signal to this process in step ``at``."""
-        stage, after, reads, writes = None, ("camera",), (), ()
+        """A system that sends the signal to this process in step ``at`` (signum None: raises instead)."""
+        stage, after, before, reads, writes = None, ("input",), ("camera",), (), ()
         def __init__(self, at, signum):
             self.at, self.signum = at, signum
         def process(self, dt):
             if self.world.step_count + 1 == self.at:
+                if self.signum is None:
+                    raise RuntimeError("a fault injected in step %d" % self.at)
                 os.kill(os.getpid(), self.signum)
 
     for line in sys.stdin:
@@ -90,6 +92,8 @@ DRIVER = textwrap.dedent(r'''
             elif moment == "setup":
                 os.kill(os.getpid(), signum)
                 time.sleep(0.05)
+            elif moment == "error":
+                world.add_system(Fault(case["at"], None))
             elif moment in ("mid", "again") or moment == "end" and case["argv"][0] == "record":
                 world.add_system(Fault(case["at"], signum))
                 if moment == "again" and case["argv"][0] == "record":
@@ -211,6 +215,11 @@ def play_runs(tmp_path_factory, display):
                                    "--frames", "30" if moment == "end" else "100000",
                                    "--screenshots", str(d), "--save-track", str(d / "t.json"),
                                    "--hash-log", str(d / "h.txt"), "--state-out", str(d / "s.json")]})
+    d = root / "error"                   # an exception in step 12, after the input system took its input
+    d.mkdir()
+    cases.append({"id": "error", "moment": "error", "at": 12,
+                  "argv": ["play", "asteroids", "--size", "160x90", "--save-track", str(d / "t.json"),
+                           "--hash-log", str(d / "h.txt")]})
     for which, what, after in (("log", "hash log", 2), ("track", "track", 0)):     # FULL DISK
         d = root / f"full-{which}"
         d.mkdir()
@@ -237,6 +246,17 @@ def test_play_stopped_by_a_signal_keeps_the_flight(play_runs, sig, moment):
     assert f"driftframe: interrupted ({sig}) after {n} steps; wrote the track {d / 't.json'} ({n} steps) " \
            f"and the hash log {d / 'h.txt'} ({n} steps)" in r["err"]
     assert json.loads((d / "s.json").read_text())["steps"] == n
+
+
+@pytest.mark.window
+def test_play_keeps_the_flight_to_the_last_whole_step_when_a_step_raises(play_runs):
+    root, runs = play_runs
+    r, d = runs["error"], root / "error"
+    assert "RuntimeError: a fault injected in step 12" in r["err"]      # a bug is a bug: its traceback shows
+    n = _check_flight(d / "t.json", d / "h.txt")
+    assert n == 11                                                       # step 12 never finished
+    assert f"driftframe: stopped by an error after 11 steps; wrote the track {d / 't.json'} (11 steps)" in r["err"]
+    assert _parts(d) == []
 
 
 def _default_signals():
