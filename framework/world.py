@@ -728,6 +728,9 @@ class World:
                 if callable(prepare):
                     prepare()
                     self.sync()
+        for phase in ("step", "frame"):
+            for e in self._order[phase]:
+                self._idle(e)                   # which systems have nothing to do (see add_system's requires)
 
     def close(self) -> None:
         """Release what every system and resource holds (GL objects included), free the tables,

@@ -114,7 +114,7 @@ class _Layout:
         self.all_m = len(self.m_sel) == n
         # the Transform rows of the bodies that move (have a Velocity), for the write-back
         self.tv_rows = as_index(self.t_idx[self.v_sel]) if len(self.v_sel) else self.t_idx[self.v_sel]
-        self.buffers = None                         # State's arrays for this layout (see State)
+        self.state = None                           # the State of this layout (see State.of)
 
 
 class _WithoutOrbiting:
@@ -145,23 +145,50 @@ class _WithoutOrbiting:
 class State:
     """The colliders' start-of-step state, gathered in packed order (ascending entity id) in one
     compiled pass (:func:`~driftframe.framework.contact.gather_bodies`), with the solver's copies
-    ``x`` (= ``x0``) and ``u`` (the step's mean velocity ``v0 + a dt/2``)."""
+    ``x`` (= ``x0``) and ``u`` (the step's mean velocity ``v0 + a dt/2``).
 
-    def __init__(self, world, lay: _Layout, dt: float):
+    One per layout (:meth:`of`): its arrays are made once and refilled by :meth:`gather` every step."""
+
+    def __init__(self, world, lay: _Layout):
         n = lay.n
-        if lay.buffers is None:                     # made once per layout, refilled every step
-            lay.buffers = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)) if len(lay.a_sel) else None,
-                           np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
-                           np.empty(n, np.bool_))
-        self.x0, self.v0, self.a, self.inv, self.r, self.e, self.x, self.u, self.live = lay.buffers
-        acc = world.table(Acceleration).data["linear"] if self.a is not None else _NO_N3
-        col = world.table(SphereCollider).data
-        self.n_bad, self.moving = contact.gather_bodies(
-            world.table(Transform).data["position"], world.table(Velocity).data["linear"], acc,
-            world.table(Mass).data["kg"], col["radius"], col["restitution"],
-            lay.t_idx, lay.v_idx, lay.a_idx, lay.m_idx, lay.c_idx, float(dt),
-            self.x0, self.v0, self.a if self.a is not None else _NO_N3, self.inv, self.r, self.e,
-            self.x, self.u, self.live)
+        self.x0, self.v0, self.inv, self.r, self.e = np.empty((n, 3)), np.empty((n, 3)), np.empty(n), \
+            np.empty(n), np.empty(n)
+        self.a = np.empty((n, 3)) if len(lay.a_sel) else None
+        self.x, self.u, self.live = np.empty((n, 3)), np.empty((n, 3)), np.empty(n, np.bool_)
+        self.n_bad, self.moving = 0, False
+        self._world = world
+        self._epoch = -1
+        self._args = None
+
+    @staticmethod
+    def of(world, lay: _Layout) -> "State":
+        """The layout's state (made on first use)."""
+        st = lay.state
+        if st is None:
+            st = lay.state = State(world, lay)
+        return st
+
+    def columns(self, lay: _Layout) -> tuple:
+        """The world's columns the gather reads and the end of step writes, and the gather's arguments.
+        A table's arrays are replaced only when rows are added (its entities change): kept for the
+        world's structure epoch."""
+        world = self._world
+        if self._epoch != world.epoch or self._args is None:
+            pos, vel = world.table(Transform).data["position"], world.table(Velocity).data["linear"]
+            acc = world.table(Acceleration).data["linear"] if self.a is not None else _NO_N3
+            col = world.table(SphereCollider).data
+            self._args = (pos, vel, acc, world.table(Mass).data["kg"], col["radius"], col["restitution"],
+                          lay.t_idx, lay.v_idx, lay.a_idx, lay.m_idx, lay.c_idx)
+            self._out = (self.x0, self.v0, self.a if self.a is not None else _NO_N3, self.inv, self.r, self.e,
+                         self.x, self.u, self.live)
+            self._epoch = world.epoch
+        return self._args
+
+    def gather(self, lay: _Layout, dt: float) -> "State":
+        """Fill the arrays with the start of this step (see the class docstring)."""
+        args = self.columns(lay)
+        self.n_bad, self.moving = contact.gather_bodies(*args, float(dt), *self._out)
+        return self
 
     def end_of_step(self, lay: _Layout, dt: float):
         """x1, v1 of every body as the movement system computes them (no contact)."""
@@ -239,6 +266,7 @@ class CollisionSystem(esper.Processor):
         self.max_contacts = int(max_contacts)
         self._world = None
         self._layout: _Layout | None = None
+        self._layout_epoch = -1
         self._list = bp.NeighbourList(skin_steps, "grid" if broadphase in ("auto", "all") else broadphase)
         self._list_layout = None
         self._list_dirty = True
@@ -274,14 +302,19 @@ class CollisionSystem(esper.Processor):
 
     # -- bookkeeping ----------------------------------------------------------
     def _refresh(self) -> _Layout:
-        q = self.world.query(Transform, SphereCollider, optional=(Velocity, Mass, Acceleration))
+        world = self.world
+        world.sync()
+        lay = self._layout
+        if lay is not None and self._layout_epoch == world.epoch:
+            return lay                              # no entity gained or lost a component since
+        q = world.query(Transform, SphereCollider, optional=(Velocity, Mass, Acceleration))
         q.refresh()
-        orbiting = self.world.query(Orbiting)
+        orbiting = world.query(Orbiting)
         orbiting.refresh()
         version = (q.version, orbiting.version) if len(orbiting) else q.version
-        lay = self._layout
         if lay is None or lay.version != version:
             lay = self._layout = _Layout(_WithoutOrbiting(q, orbiting) if len(orbiting) else q)
+        self._layout_epoch = world.epoch
         return lay
 
     def prepare(self) -> None:
@@ -292,9 +325,17 @@ class CollisionSystem(esper.Processor):
         lay = self._refresh()
         if not lay.n:
             return
-        st = State(self.world, lay, self.world.dt)      # (it makes the layout's buffers the first time)
-        if self._uses_list(lay.n) and lay.n >= 2 and st.bad(lay) is None:
-            self._build_list(lay, st, self.world.dt)
+        dt = self.world.dt
+        st = State.of(self.world, lay).gather(lay, dt)
+        n = lay.n
+        if not self._uses_list(n):
+            if self._pairs_n != n:
+                self._pairs = contact.all_pairs(n)
+                self._pairs_n = n
+        elif n >= 2 and st.bad(lay) is None:
+            self._build_list(lay, st, dt)
+        self._t_last_of(lay)
+        self._unchanged(n)
 
     def _uses_list(self, n: int) -> bool:
         """Whether a step of ``n`` colliders takes its candidate pairs from the neighbour list."""
@@ -331,7 +372,7 @@ class CollisionSystem(esper.Processor):
         self.stats.update(_ZERO_STATS)
         if lay.n == 0:
             return
-        st = State(self.world, lay, dt)
+        st = State.of(self.world, lay).gather(lay, dt)
         if self.method == "articles":
             from driftframe.systems.collision_baseline import articles_step
             x, v, events = articles_step(st, lay, dt, self._now(), self.events, self.world.step_count)
@@ -358,9 +399,17 @@ class CollisionSystem(esper.Processor):
 
     def _finish(self, lay: _Layout, st: State, changed: np.ndarray, dt: float) -> None:
         """The continuous solver's end of step into the columns (one compiled pass)."""
-        contact.scatter_bodies(self.world.table(Transform).data["position"],
-                               self.world.table(Velocity).data["linear"], lay.t_idx, lay.v_idx, st.x0, st.v0,
+        pos, vel = st.columns(lay)[:2]
+        contact.scatter_bodies(pos, vel, lay.t_idx, lay.v_idx, st.x0, st.v0,
                                st.a if st.a is not None else _NO_N3, st.x, st.u, changed, float(dt))
+
+    def _t_last_of(self, lay: _Layout) -> np.ndarray:
+        """The last contact of each body of the layout (absolute time, s; -inf: none yet), kept across
+        steps for the TC model; new for a new layout."""
+        if self._t_last_layout is not lay:
+            self._t_last = np.full(lay.n, -math.inf)
+            self._t_last_layout = lay
+        return self._t_last
 
     def _unchanged(self, n: int) -> np.ndarray:
         """All False, n long (read only): one array kept."""
@@ -392,10 +441,7 @@ class CollisionSystem(esper.Processor):
         t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
         # last contact of each body (absolute time), for the TC model across steps
         now = self._now()
-        if self._t_last_layout is not lay:
-            self._t_last = np.full(n, -math.inf)
-            self._t_last_layout = lay
-        t_last = self._t_last                              # absolute: the kernel makes it relative to now
+        t_last = self._t_last_of(lay)                      # absolute: the kernel makes it relative to now
 
         if not self._uses_list(n):
             if self._pairs_n != n:                           # every pair (kept for this n only)

@@ -73,6 +73,10 @@ class InputSystem(esper.Processor):
             intent[name] = max(-1.0, min(1.0, intent[name] + float(value)))
         return intent
 
+    def prepare(self) -> None:
+        """esper's cached list of the pilots, which every step asks for (see :meth:`World.prepare`)."""
+        esper.get_components(FlightInput, Player)
+
     def process(self, dt: float) -> None:
         if self.track is None and not self.pressed and self.recorder is None \
                 and not esper.get_components(FlightInput, Player):
