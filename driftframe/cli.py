@@ -5,7 +5,10 @@ path, an existing output, no display) ends in one line on stderr and exit
 status 2, never a traceback. A write that fails while recording (a full
 disk) is one line and exit status 1. A recording stopped by Ctrl-C, SIGTERM
 or SIGHUP keeps the frames written so far and exits with 128 + the signal's
-number (130, 143, 129), as the shell reports a process the signal killed.
+number (130, 143, 129), as the shell reports a process the signal killed;
+``play`` keeps its track and hash log the same way (and exits 1 when the X
+server goes away). Every output is written whole or not at all
+(:mod:`framework.output`) and checked before the costly part starts.
 """
 from __future__ import annotations
 

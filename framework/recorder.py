@@ -56,7 +56,7 @@ later frame are the same as without blur. Integer averaging: deterministic.
 
 Safety: the output goes to a temporary name beside the target
 (``.NAME.<pid>.<random>.part...``) and is moved into place only when
-complete. An existing output is refused unless ``overwrite=True``.
+complete (:mod:`framework.output`, shared by everything that writes). An existing output is refused unless ``overwrite=True``.
 Ctrl-C, SIGTERM and SIGHUP stop rendering at the end of the frame being made
 (a second one at once), finish a valid, shorter file and report
 ``interrupted=True`` with the signal's number in ``signal`` (and say so on
