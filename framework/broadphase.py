@@ -359,7 +359,23 @@ class NeighbourList:
         return cand[keep]
 
 
-@kernel
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _bisect(a, v, right):
+    """``np.searchsorted(a, v, side="right" if right else "left")`` for a sorted 1-d array (NaN last):
+    the first index whose element is above ``v`` (right) or not below it (left). numba's searchsorted
+    compiles comparisons for every dtype, complex included (docs/bench/compile.md)."""
+    lo = 0
+    hi = a.shape[0]
+    while lo < hi:
+        m = (lo + hi) >> 1
+        if a[m] < v or (right and a[m] == v):
+            lo = m + 1
+        else:
+            hi = m
+    return lo
+
+
+@kernel(no_cfunc_wrapper=True)
 def argsort_stable(a, m):
     """The order that sorts ``a[:m]`` ascending, ties in index order: what ``np.argsort(a[:m],
     kind="stable")`` gives (NaN last). Merge sort of insertion-sorted runs of 16; its compile costs a
@@ -412,7 +428,7 @@ def argsort_stable(a, m):
     return idx
 
 
-@kernel
+@kernel(no_cfunc_wrapper=True)
 def median(a):
     """``np.median`` of a 1-d float array (the mean of the middle two for an even count; NaN when
     empty), by :func:`argsort_stable`: numba's median compiles a partition for every dtype."""
@@ -426,15 +442,15 @@ def median(a):
     return a[o[h]]
 
 
-@kernel
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
     """Compiled :meth:`NeighbourList.territories`: listed bodies whose territory box meets ``[lo, hi]``.
 
     ``order``, ``lo_x``, ``width``, ``centre`` (3, n), ``reach``, ``swept``: the list's arrays
     (:meth:`NeighbourList.kernel_arrays`). Used by the contact kernel for bodies swept mid-step.
     """
-    a = np.searchsorted(lo_x, lo[0] - width, side="left")
-    b = np.searchsorted(lo_x, hi[0], side="right")
+    a = _bisect(lo_x, lo[0] - width, np.bool_(False))     # np.bool_: see contact's _NOT_LITERAL
+    b = _bisect(lo_x, hi[0], np.bool_(True))
     out = np.empty(max(b - a, 0), np.int64)
     m = 0
     for q in range(a, b):
@@ -453,7 +469,7 @@ def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
     return out[:m]
 
 
-@kernel
+@kernel(no_cfunc_wrapper=True)
 def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     """Mark as swept every listed body whose path ``x + u t``, 0 <= t <= dt, leaves its territory
     (either end at its skin's distance or more from its build centre; a ball is convex).
@@ -484,7 +500,7 @@ def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     return new, total
 
 
-@kernel
+@kernel(no_cfunc_wrapper=True)
 def _within(c, reach, i, j):
     """Which candidate pairs (i, j) have ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n))."""
     out = np.empty(i.shape[0], np.bool_)
@@ -521,7 +537,7 @@ def _grid_build(c, reach, swept, n_slow):
 _KEY_SPAN = 2_000_000
 
 
-@kernel
+@kernel(no_cfunc_wrapper=True)
 def _grid_setup(c, reach, swept):
     """Cell side ``h``, the largest ordinary reach ``hh``, low corner and cells per axis.
 
@@ -562,7 +578,7 @@ def _grid_setup(c, reach, swept):
     return h, hh, lo[0], lo[1], lo[2], dims[0], dims[1], dims[2]
 
 
-@kernel
+@kernel(no_cfunc_wrapper=True)
 def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
 
@@ -598,7 +614,9 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                 start[cell[k] + 1] += 1
         for q in range(ncell):
             start[q + 1] += start[q]
-        fill = start[:-1].copy()
+        fill = np.empty(ncell, np.int64)
+        for q in range(ncell):
+            fill[q] = start[q]
         for k in range(n):
             q = cell[k]
             if q >= 0:
@@ -617,7 +635,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                 keys[j] = cell[k]
                 idx[j] = k
                 j += 1
-        order = argsort_stable(keys, m)
+        order = argsort_stable(keys, keys.shape[0])     # (not m: see contact._NOT_LITERAL)
         nu = 0
         for s in range(m):
             body[s] = idx[order[s]]
@@ -665,7 +683,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
             else:
                 b0 = 0
                 b1 = 0
-                kk = np.searchsorted(ukey, q)
+                kk = _bisect(ukey, q, np.bool_(False))
                 if kk < nu and ukey[kk] == q:
                     b0 = ustart[kk]
                     b1 = ustart[kk + 1]
@@ -688,7 +706,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                 else:
                     b0 = 0
                     b1 = 0
-                    kk = np.searchsorted(ukey, qq)
+                    kk = _bisect(ukey, qq, np.bool_(False))
                     if kk < nu and ukey[kk] == qq:
                         b0 = ustart[kk]
                         b1 = ustart[kk + 1]
@@ -727,7 +745,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                     else:
                         b0 = 0
                         b1 = 0
-                        kk = np.searchsorted(ukey, qq)
+                        kk = _bisect(ukey, qq, np.bool_(False))
                         if kk < nu and ukey[kk] == qq:
                             b0 = ustart[kk]
                             b1 = ustart[kk + 1]
@@ -747,7 +765,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     return p
 
 
-@kernel
+@kernel(no_cfunc_wrapper=True)
 def _territory(r, d, skin_steps):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
@@ -758,25 +776,37 @@ def _territory(r, d, skin_steps):
     n = r.shape[0]
     skin = np.empty(n)
     swept = np.zeros(n, np.bool_)
+    reach = np.empty(n)
     if n == 0:
-        return skin, swept, r + skin
+        return skin, swept, reach
     floor_ = max(median(d), 1e-6 * median(r))
     for k in range(n):
         skin[k] = skin_steps * max(d[k], floor_)
-    limit = 8.0 * median(skin) + 4.0 * r.max()
+    big = r[0]
+    for k in range(n):
+        big = max(big, r[k])
+    limit = 8.0 * median(skin) + 4.0 * big
     for k in range(n):
         swept[k] = skin[k] > limit
-    return skin, swept, r + skin
+    for k in range(n):
+        reach[k] = r[k] + skin[k]
+    return skin, swept, reach
 
 
-@kernel
+@kernel(no_cfunc_wrapper=True)
 def _x_order(c, reach, swept):
     """The territories' low ends in x, sorted (a stable sort), their order, and twice the largest
     listed reach: what :meth:`NeighbourList.territories` and :func:`territory_query` search."""
-    lo_x = c[0] - reach
+    n = reach.shape[0]
+    lo_x = np.empty(n)
+    for k in range(n):
+        lo_x[k] = c[0, k] - reach[k]
     order = argsort_stable(lo_x, lo_x.shape[0])
     width = 0.0
     for k in range(reach.shape[0]):
         if not swept[k]:
             width = max(width, 2.0 * reach[k])
-    return order, lo_x[order], width
+    lo_sorted = np.empty(n)
+    for k in range(n):
+        lo_sorted[k] = lo_x[order[k]]
+    return order, lo_sorted, width

@@ -280,7 +280,7 @@ def _kick(b, sg, lam, c, inv, bmark, wave, dv, moved, nm, wn):
     return nm
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cfunc_wrapper=True)
 def solve_psd(A, y, m, out):
     """Solve ``A[:m, :m] out = y[:m]`` for a symmetric positive semi-definite A (A and y are overwritten).
 
@@ -373,6 +373,103 @@ def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
             return
 
 
+# Pieces of a wave, each its own small kernel: called once per wave (their arrays' reference counts cost
+# nothing next to the wave), they keep _solve's body, which numba types as a whole, smaller (see
+# docs/bench/compile.md).
+
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, we):
+    """Each contact's restitution ``we``: the pair's, or the TC model's / the bounds'; ``wstick``: the
+    contacts whose island sticks. Returns the flags raised and whether any island sticks."""
+    flags = 0
+    stick_any = False
+    for k in range(K):
+        i, j = wi[k], wj[k]
+        ee = min(e[i], e[j])
+        gi = t - t_last[i]
+        gj = t - t_last[j]
+        bi = burst[i] + 1 if gi <= t_c else 1
+        bj = burst[j] + 1 if gj <= t_c else 1
+        # TC: a repeat within t_c, but not the same instant (a wave chain is bounded by the burst)
+        rapid = (same < gi <= t_c) or (same < gj <= t_c)
+        worn = ee < 1.0 and (count[i] >= cap or count[j] >= cap)
+        wstick[k] = bi > 2 * JAM or bj > 2 * JAM or (ee < 1.0 and (count[i] >= 2 * cap or count[j] >= 2 * cap))
+        if wstick[k]:
+            stick_any = True
+            ee = 0.0
+        elif bi > JAM or bj > JAM:
+            ee = 0.0
+            flags |= F_JAM
+        elif worn:
+            ee = 0.0
+            flags |= F_CAP
+        elif ee < 1.0 and rapid:
+            ee = 1.0                                   # TC model: a rapid repeat is elastic
+            flags |= F_TC
+        we[k] = ee
+    return flags, stick_any
+
+
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _islands(K, wi, wj, inv, parent, ustamp, waves, wroot):
+    """Union-find over the movable bodies of the wave: each contact's island root into ``wroot``."""
+    for k in range(K):
+        for b in (wi[k], wj[k]):
+            if ustamp[b] != waves:
+                ustamp[b] = waves
+                parent[b] = b
+    for k in range(K):
+        i, j = wi[k], wj[k]
+        if inv[i] > 0.0 and inv[j] > 0.0:
+            a = i
+            while parent[a] != a:
+                parent[a] = parent[parent[a]]
+                a = parent[a]
+            b = j
+            while parent[b] != b:
+                parent[b] = parent[parent[b]]
+                b = parent[b]
+            if a != b:
+                if a < b:
+                    parent[b] = a
+                else:
+                    parent[a] = b
+    for k in range(K):
+        a = wi[k] if inv[wi[k]] > 0.0 else wj[k]
+        while parent[a] != a:
+            a = parent[a]
+        wroot[k] = a
+
+
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam, moved, nm):
+    """An island of more than DENSE_MAX contacts, contact by contact in pair order, each on the bodies'
+    current velocities. Returns the new count of moved bodies."""
+    n = u.shape[0]
+    keys = np.empty(m, np.int64)
+    for a in range(m):
+        keys[a] = wi[cs[a]] * n + wj[cs[a]]
+    ko = bp.argsort_stable(keys, m)
+    for a in range(m):
+        c = cs[ko[a]]
+        i, j = wi[c], wj[c]
+        vn = 0.0
+        for d in range(3):
+            ud = u[j, d] - u[i, d]
+            if bmark[j] == waves:
+                ud += dv[j, d]
+            if bmark[i] == waves:
+                ud -= dv[i, d]
+            vn += wn[c, d] * ud
+        if not (vn < -APPROACH * (spd[i] + spd[j])):
+            continue
+        lam = -(1.0 + we[c]) * vn / (inv[i] + inv[j])
+        wlam[c] = lam
+        nm = _kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+        nm = _kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+    return nm
+
+
 # -- the step ---------------------------------------------------------------------------------
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
@@ -413,7 +510,7 @@ def _pair_structures(pi, pj, n):
     return P, PI, PJ, head, nxt, ver, mark
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cfunc_wrapper=True)
 def all_pairs(n):
     """Every pair i < j of n bodies, in lexicographic order."""
     P = n * (n - 1) // 2
@@ -545,7 +642,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
             wcap = max(2 * wcap, need)
             wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = \
                 _wave_scratch(wcap)
-        K = 0
+        K = np.int64(0)                                    # see _NOT_LITERAL
         nb = 0
         horizon = t0 + SLACK_MAX * dt
         cand_p = p0
@@ -598,59 +695,10 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
             continue
         waves += 1
         t = t0
-        # -- restitution of each contact: the pair's, or the TC model / the bounds --
-        stick_any = False
-        for k in range(K):
-            i, j = wi[k], wj[k]
-            ee = min(e[i], e[j])
-            gi = t - t_last[i]
-            gj = t - t_last[j]
-            bi = burst[i] + 1 if gi <= t_c else 1
-            bj = burst[j] + 1 if gj <= t_c else 1
-            # TC: a repeat within t_c, but not the same instant (a wave chain is bounded by the burst)
-            rapid = (same < gi <= t_c) or (same < gj <= t_c)
-            worn = ee < 1.0 and (count[i] >= cap or count[j] >= cap)
-            wstick[k] = bi > 2 * JAM or bj > 2 * JAM or (ee < 1.0 and (count[i] >= 2 * cap or count[j] >= 2 * cap))
-            if wstick[k]:
-                stick_any = True
-                ee = 0.0
-            elif bi > JAM or bj > JAM:
-                ee = 0.0
-                flags |= F_JAM
-            elif worn:
-                ee = 0.0
-                flags |= F_CAP
-            elif ee < 1.0 and rapid:
-                ee = 1.0                                   # TC model: a rapid repeat is elastic
-                flags |= F_TC
-            we[k] = ee
-        # -- islands: union-find over the movable bodies of the wave --
-        for k in range(K):
-            for b in (wi[k], wj[k]):
-                if ustamp[b] != waves:
-                    ustamp[b] = waves
-                    parent[b] = b
-        for k in range(K):
-            i, j = wi[k], wj[k]
-            if inv[i] > 0.0 and inv[j] > 0.0:
-                a = i
-                while parent[a] != a:
-                    parent[a] = parent[parent[a]]
-                    a = parent[a]
-                b = j
-                while parent[b] != b:
-                    parent[b] = parent[parent[b]]
-                    b = parent[b]
-                if a != b:
-                    if a < b:
-                        parent[b] = a
-                    else:
-                        parent[a] = b
-        for k in range(K):
-            a = wi[k] if inv[wi[k]] > 0.0 else wj[k]
-            while parent[a] != a:
-                a = parent[a]
-            wroot[k] = a
+        # -- restitution of each contact: the pair's, or the TC model / the bounds; islands --
+        fl, stick_any = _restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, we)
+        flags |= fl
+        _islands(K, wi, wj, inv, parent, ustamp, waves, wroot)
         for k in range(K):
             rhs[k] = -(1.0 + we[k]) * wvn[k]
             wlam[k] = 0.0
@@ -697,28 +745,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                     nm = _kick(wj[c], 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
             else:
                 stats[8] += 1
-                # contact by contact in pair order, each on the bodies' current velocities
-                keys = np.empty(m, np.int64)
-                for a in range(m):
-                    keys[a] = wi[cs[a]] * n + wj[cs[a]]
-                ko = bp.argsort_stable(keys, m)
-                for a in range(m):
-                    c = cs[ko[a]]
-                    i, j = wi[c], wj[c]
-                    vn = 0.0
-                    for d in range(3):
-                        ud = u[j, d] - u[i, d]
-                        if bmark[j] == waves:
-                            ud += dv[j, d]
-                        if bmark[i] == waves:
-                            ud -= dv[i, d]
-                        vn += wn[c, d] * ud
-                    if not (vn < -APPROACH * (spd[i] + spd[j])):
-                        continue
-                    lam = -(1.0 + we[c]) * vn / (inv[i] + inv[j])
-                    wlam[c] = lam
-                    nm = _kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-                    nm = _kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                nm = _island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam, moved, nm)
             s = f
         if nm < 0:
             flags |= F_AGAIN
@@ -1110,7 +1137,7 @@ solve_all_pairs_stick = _solver("solve_all_pairs_stick", ":func:`solve_all_pairs
                                 _keep=_keep_nothing, _put_back=_put_back_nothing)
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cfunc_wrapper=True)
 def gather_bodies(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,
                   x0, v0, a, inv, r, e, x, u, live):
     """The colliders' start-of-step state from the world's columns, in one pass (a scene of a few
@@ -1165,7 +1192,7 @@ def gather_bodies(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_id
     return bad, moving
 
 
-@kernel(error_model="numpy")
+@kernel(error_model="numpy", no_cfunc_wrapper=True)
 def scatter_bodies(pos, vel, t_idx, v_idx, x0, v0, a, x, u, changed, dt):
     """Write the end of the step into the columns: a body whose velocity the solver changed ends at
     ``x + u dt`` with ``u`` (plus the second ``a dt/2``), any other at ``x0 + v0 dt + a dt^2/2`` with

@@ -43,7 +43,7 @@ def test_no_kernel_is_compiled_for_a_literal_argument():
     kernels = dict(_kernels())
     called = {name: k for name, k in kernels.items() if k.signatures}
     assert "driftframe.framework.contact.solve_all_pairs" in called     # the scenes reached both solver paths
-    assert "driftframe.framework.contact.solve_step" in called
+    assert "driftframe.framework.contact.solve_listed" in called
     for name, k in called.items():
         options = {o: v for o, v in k.targetoptions.items() if o not in ("cache", "nopython")}   # njit's own
         copy = numba.njit(cache=False, **options)(k.py_func)
