@@ -5,6 +5,7 @@ behaviour, not the speed, is tested; speed lives in benchmarks/batch_scaling.py.
 """
 import os
 import pickle
+import re
 import signal
 import subprocess
 import sys
@@ -507,3 +508,203 @@ def test_existing_outputs_are_refused_before_any_run_unless_overwrite(tmp_path):
     res = subprocess.run(base + ["--overwrite"], capture_output=True, text=True, timeout=120, cwd=HERE)
     assert res.returncode == 0, res.stderr
     assert (out / "box-1.gif").read_bytes()[:6] == b"GIF89a"
+
+
+# -- issue 21: bounded inputs, nothing escapes, resume, owned workers, cluster basics ----------------
+def test_size_as_a_toml_pair_is_one_size(tmp_path):
+    specs = batch_file.grid({"demo": "cradle", "size": [640, 360], "output": "{width}x{height}.mp4"}, tmp_path)
+    assert [s.size for s in specs] == [(640, 360)] and specs[0].output.endswith("640x360.mp4")
+    two = batch_file.grid({"demo": "cradle", "size": [[64, 64], "128x96"], "output": "{size}.gif"}, tmp_path)
+    assert [s.size for s in two] == [(64, 64), (128, 96)]
+
+
+@pytest.mark.parametrize("text,message", [
+    ('demo = "cradle"\nseconds = 1e300\n', "seconds 1e+300 is 6e+301 fixed steps"),
+    ('demo = "cradle"\nseconds = 200000\n', "a run may have at most 10,000,000 steps"),
+    ('demo = "cradle"\nseconds = 1e300\noutput = "{seed}.gif"\n', "a run may have at most 10,000,000 steps"),
+    ('demo = "cradle"\nseconds = 20000\noutput = "{seed}.gif"\n', "is 1.2e+06 frames"),
+])
+def test_batch_lengths_have_the_limits_of_record(tmp_path, text, message, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(text)
+    assert cli.main(["batch", str(spec), "-o", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1, err
+
+
+def test_a_million_runs_are_checked_in_linear_time(tmp_path):
+    spec = tmp_path / "big.toml"
+    spec.write_text('demo = "cradle"\nseeds = "0..999999"\nseconds = 0.1\n')
+    out = tmp_path / "o"
+    t0 = time.process_time()
+    specs = batch_file.prepare(batch_file.load(spec, out, check=False), out)
+    took = time.process_time() - t0
+    assert len(specs) == 1_000_000 and specs[-1].seed == 999_999 and specs[-1].seconds == 0.1
+    assert took < 10.0, f"{took:.1f} s of CPU to check 10^6 runs"
+
+
+def test_a_batch_file_over_the_cap_is_refused(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text('demo = "cradle"\n' + "# padding\n" * 200_000)
+    assert cli.main(["batch", str(spec), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"{spec}: the batch file is 1.91 MiB; the limit is 1 MiB" in err and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("name,message", [
+    ("../../ESCAPED", "leaves the output folder"),
+    ("/tmp/driftframe-escaped-abs", "leaves the output folder"),
+    ("link/x", "leaves the output folder"),                           # a folder that is a symlink out
+    ("n" * 230, "the limit here is 215"),
+])
+def test_no_output_escapes_the_output_folder(tmp_path, name, message, capsys):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    out = tmp_path / "a" / "b" / "o"
+    out.mkdir(parents=True)
+    (out / "link").symlink_to(outside)
+    spec = tmp_path / "s.toml"
+    spec.write_text(f'scene = "batch_scenes:box"\nseconds = 0.1\nsize = "64x64"\noutput = "{{name}}.gif"\n'
+                    f'[overrides]\nname = "{name}"\n')
+    assert cli.main(["batch", str(spec), "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in out.iterdir()) == ["link"] and not list(outside.iterdir())
+    assert not (tmp_path / "ESCAPED.gif").exists() and not Path("/tmp/driftframe-escaped-abs.gif").exists()
+
+
+def test_an_existing_output_that_links_out_of_the_folder_is_refused(tmp_path, capsys):
+    out, victim = tmp_path / "o", tmp_path / "victim.gif"
+    out.mkdir()
+    victim.write_bytes(b"not ours")
+    (out / "box-0.gif").symlink_to(victim)
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "batch_scenes:box"\nseconds = 0.1\nsize = "64x64"\noutput = "box-{seed}.gif"\n')
+    assert cli.main(["batch", str(spec), "-o", str(out), "--quiet", "--overwrite"]) == 2
+    assert "is a link to" in capsys.readouterr().err and victim.read_bytes() == b"not ours"
+
+
+def test_modules_in_the_working_folder_do_not_shadow_installed_ones(tmp_path):
+    # a tqdm.py and an av.py lying where the command runs: the batch must use the installed packages,
+    # and still find the scene's own module there
+    for mod in ("tqdm", "av"):
+        (tmp_path / f"{mod}.py").write_text(f"open({str(tmp_path / (mod + '.RAN'))!r}, 'w').close()\n"
+                                            f"raise SystemExit('the {mod}.py in the working folder ran')\n")
+    (tmp_path / "myscenes.py").write_text((HERE / "batch_scenes.py").read_text())
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "myscenes:box"\nseconds = 0.05\nsize = "64x64"\noutput = "b.mp4"\n')
+    script = Path(sys.executable).with_name("driftframe")
+    res = subprocess.run([str(script), "batch", str(spec), "-j", "1", "-o", str(tmp_path / "o"), "--quiet"],
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert not list(tmp_path.glob("*.RAN")) and (tmp_path / "o" / "b.mp4").stat().st_size > 0
+
+
+def test_resume_skips_journalled_runs_and_a_journal_needs_resume_or_overwrite(tmp_path, capsys):
+    spec, out = tmp_path / "s.toml", tmp_path / "o"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..2"\nseconds = 0.1\nsize = "64x64"\nfps = 30\n'
+                    'output = "box-{seed}.gif"\n')
+    base = ["batch", str(spec), "-o", str(out), "--quiet", "-j", "1"]
+    assert cli.main(base) == 0
+    first = (out / "summary.csv").read_text()
+    journal = (out / "journal.jsonl").read_text().splitlines()
+    assert len(journal) == 3
+    capsys.readouterr()
+    assert cli.main(base) == 2
+    assert "journal.jsonl exists: a batch ran into" in capsys.readouterr().err
+    # a torn last line (a kill mid-write) and a deleted output: those two runs, and only them, run again
+    (out / "journal.jsonl").write_text("\n".join(journal[:2]) + "\n" + journal[2][:20])
+    (out / "box-0.gif").unlink()
+    stamp = (out / "box-1.gif").stat().st_mtime_ns
+    assert cli.main(base + ["--resume"]) == 2           # box-2.gif is there, but not in the journal
+    assert "box-2.gif' exists already; pass --overwrite" in capsys.readouterr().err
+    assert cli.main(base + ["--resume", "--overwrite"]) == 0
+    assert "resuming: 1 of 3 runs are done already" in capsys.readouterr().err
+    assert (out / "box-1.gif").stat().st_mtime_ns == stamp and (out / "box-0.gif").exists()
+    again = (out / "summary.csv").read_text().splitlines()
+    hashes = [r.split(",")[COL_HASH] for r in again[1:]]
+    assert hashes == [r.split(",")[COL_HASH] for r in first.splitlines()[1:]]
+    # a changed spec (another length) matches no journal row: it runs
+    spec.write_text(spec.read_text().replace("seconds = 0.1", "seconds = 0.2"))
+    assert cli.main(base + ["--resume"]) == 2           # its outputs exist: written by the other spec
+    assert cli.main(base + ["--overwrite"]) == 0
+    assert len((out / "journal.jsonl").read_text().splitlines()) == 3
+
+
+def test_a_dead_worker_is_reported_once_its_run_retried_and_no_other_run_failed(tmp_path):
+    specs = [headless(s) for s in range(4)]
+    specs[0] = Spec(scene="batch_scenes:die_once", seed=0, seconds=0.2,
+                    overrides={"marker": str(tmp_path / "died"), "parent": os.getpid()})
+    notes = []
+    out = batch.run_all(specs, jobs=2, progress=False, note=notes.append)
+    assert [type(r) for r in out.results] == [Result] * 4 and out.exit_status == 0
+    assert len(notes) == 1 and "killed by SIGKILL" in notes[0] and "running it again (1 of 1" in notes[0], notes
+    (tmp_path / "died").unlink()
+    notes.clear()
+    out = batch.run_all(specs, jobs=2, progress=False, note=notes.append, retries=0)
+    assert isinstance(out.results[0], Failure) and out.results[0].error.startswith("WorkerDied: a worker (pid ")
+    assert [type(r) for r in out.results[1:]] == [Result] * 3 and out.exit_status == 1
+    assert len(notes) == 1 and "no retries left" in notes[0]
+
+
+def test_a_non_dask_address_is_one_line(tmp_path, capsys, monkeypatch):
+    import socket
+    import threading
+
+    need_distributed()
+    monkeypatch.setattr(batch_exec, "CONNECT_TIMEOUT", 2.0)
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+
+    def answer():                                # an HTTP server's answer: not Dask's framing
+        for _ in range(4):
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            with conn:
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" + b"\xff" * 64)
+
+    threading.Thread(target=answer, daemon=True).start()
+    spec = tmp_path / "s.toml"
+    spec.write_text('demo = "cradle"\nseconds = 0.1\n')
+    port = server.getsockname()[1]
+    try:
+        for address in (f"tcp://127.0.0.1:{port}", "ucx://127.0.0.1:1"):
+            rc = cli.main(["batch", str(spec), "--scheduler", address, "-o", str(tmp_path / "o"), "--quiet"])
+            err = capsys.readouterr().err
+            assert rc == 2 and err.startswith(f"driftframe: error: scheduler {address!r} ") and err.count("\n") == 1, err
+    finally:
+        server.close()
+
+
+def test_the_cluster_is_found_from_the_environment_or_a_scheduler_file(tmp_path, cluster, monkeypatch, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "batch_scenes:box"\nseeds = "0..1"\nseconds = 0.1\n')
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", cluster.scheduler.address)
+    assert cli.main(["batch", str(spec), "-o", str(tmp_path / "a"), "--quiet"]) == 0
+    assert f"on cluster {cluster.scheduler.address}" in capsys.readouterr().out
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
+    info = tmp_path / "scheduler.json"
+    info.write_text('{"address": "%s", "type": "Scheduler", "services": {}}' % cluster.scheduler.address)
+    assert cli.main(["batch", str(spec), "--scheduler-file", str(info), "-o", str(tmp_path / "b"), "--quiet"]) == 0
+    assert f"on cluster {cluster.scheduler.address}" in capsys.readouterr().out
+
+
+def test_cluster_tasks_have_retries_and_the_versions_are_checked_first(cluster, monkeypatch):
+    seen = []
+    submit = cluster.submit
+
+    def spy(*args, **kw):
+        seen.append(kw.get("retries"))
+        return submit(*args, **kw)
+
+    monkeypatch.setattr(cluster, "submit", spy)
+    out = batch.run_all([headless(0)], scheduler=cluster, progress=False, retries=3)
+    assert seen == [3] and isinstance(out.results[0], Result)
+    here = batch.versions()
+    batch.check_versions(cluster, here)
+    with pytest.raises(SpecError, match=r"other versions than this client: numpy " + re.escape(here["numpy"]) +
+                       r" on tcp://127\.0\.0\.1:\d+ \(here 0\.0\.1\)"):
+        batch.check_versions(cluster, {**here, "numpy": "0.0.1"})
