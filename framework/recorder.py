@@ -783,6 +783,7 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
                 stopped_by = getattr(e, "signum", signal.SIGINT)
             finally:
                 bar.close()
+            stop.finish()                                  # a second signal must not cut the file being finished
             writer.close()
             done = sink.count                              # what reached the output, to the frame
             if done == 0:

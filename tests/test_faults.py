@@ -33,8 +33,8 @@ from driftframe.framework.input import load_track
 
 SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
 #: compile: while the kernels load; setup: while the world is built; mid: at step 12; end: in the last
-#: frame (record) or while the flight is written (play); again: at step 12, then once more at once
-#: (record: in the next step; play: while the flight is written).
+#: frame and again while the video is finished (record), while the flight is written (play); again: at
+#: step 12, then once more at once (record: in the next step; play: while the flight is written).
 MOMENTS = ("compile", "setup", "mid", "end", "again")
 
 
@@ -60,12 +60,13 @@ DRIVER = textwrap.dedent(r'''
     import driftframe.app as app
     import driftframe.cli as cli
     import driftframe.window as window
-    from driftframe.framework import output
+    from driftframe.framework import output, recorder
 
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):   # a test runner may have them ignored
         signal.signal(s, signal.default_int_handler if s == signal.SIGINT else signal.SIG_DFL)
     real_make, real_load, real_keep, real_write = app.make_world, app.load_kernels, window._Flight.keep, \
         output.PartFile.write
+    real_finish = recorder._H264Sink.finish
 
     class Fault(esper.Processor):
         """A system that sends the signal to this process in step ``at`` (signum None: raises instead)."""
@@ -84,6 +85,7 @@ DRIVER = textwrap.dedent(r'''
         moment = case.get("moment")
         app.make_world, app.load_kernels, window._Flight.keep = real_make, real_load, real_keep
         output.PartFile.write = real_write
+        recorder._H264Sink.finish = real_finish
 
         def make_world(*a, **k):
             world, demo = real_make(*a, **k)
@@ -105,6 +107,11 @@ DRIVER = textwrap.dedent(r'''
                 os.kill(os.getpid(), signum)
                 time.sleep(0.3)
             app.load_kernels = load
+        if moment == "end" and case["argv"][0] == "record":
+            def finish(self):                # a second signal while the video is being finished
+                os.kill(os.getpid(), signum)
+                return real_finish(self)
+            recorder._H264Sink.finish = finish
         if moment in ("end", "again") and case["argv"][0] == "play":
             def keep(self):                  # the signal arrives while the flight is being written
                 os.kill(os.getpid(), signum)
