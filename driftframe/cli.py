@@ -721,13 +721,17 @@ class _SignalsInterrupt:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
-        return 0
-    from driftframe.framework.gl import GLUnavailableError
-    from driftframe.framework.recorder import RecordingError
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help()
+            return 0
+        from driftframe.framework.gl import GLUnavailableError
+        from driftframe.framework.recorder import RecordingError
+    except KeyboardInterrupt:              # Ctrl-C while the modules load: nothing touched yet, no traceback
+        print("driftframe: interrupted (SIGINT)", file=sys.stderr)
+        return 128 + signal.SIGINT
 
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
                 "diverge": cmd_diverge, "batch": cmd_batch, "warm": cmd_warm}
