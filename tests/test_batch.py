@@ -708,3 +708,20 @@ def test_cluster_tasks_have_retries_and_the_versions_are_checked_first(cluster, 
     with pytest.raises(SpecError, match=r"other versions than this client: numpy " + re.escape(here["numpy"]) +
                        r" on tcp://127\.0\.0\.1:\d+ \(here 0\.0\.1\)"):
         batch.check_versions(cluster, {**here, "numpy": "0.0.1"})
+
+
+def test_the_dashboard_link_is_given_when_the_scheduler_serves_one(cluster, tmp_path, capsys):
+    info = cluster.scheduler_info()
+    port = info["services"]["dashboard"]                    # the test cluster serves one on the default port
+    assert batch.dashboard(cluster) == f"http://127.0.0.1:{port}/status"
+    spec = tmp_path / "s.toml"
+    spec.write_text('scene = "batch_scenes:box"\nseconds = 0.1\n')
+    assert cli.main(["batch", str(spec), "--scheduler", cluster.scheduler.address, "-o", str(tmp_path / "o"),
+                     "--quiet"]) == 0
+    assert f"driftframe: dashboard: http://127.0.0.1:{port}/status" in capsys.readouterr().err
+
+    class NoDashboard:
+        def scheduler_info(self):
+            return {"services": {}}
+
+    assert batch.dashboard(NoDashboard()) is None
