@@ -231,9 +231,11 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
     demo = demos.load(name)
     flight = _Flight(save_track, overwrite, dict(demo=name, seed=int(seed), camera=camera, sky=str(sky)))
     with StopSignals(handle_signals) as stop:
-        stopped = _play(glfw, demo, flight, stop, name, size, seed, camera, state_out, screenshot_dir, bindings,
-                        save_track, hash_log, frames, overlay, interpolate, loop_options, setup, quiet, sky,
-                        overwrite)
+        stopped = _play(glfw, demo, flight, stop, name=name, size=size, seed=seed, camera=camera,
+                        state_out=state_out, screenshot_dir=screenshot_dir, bindings=bindings,
+                        save_track=save_track, hash_log=hash_log, frames=frames, overlay=overlay,
+                        interpolate=interpolate, loop_options=loop_options, setup=setup, quiet=quiet, sky=sky,
+                        overwrite=overwrite)
     if flight.errors:
         for line in flight.errors:
             print(f"driftframe: error: {line}", file=sys.stderr)
@@ -328,7 +330,7 @@ def _on_lost_display(glfw, flight):
     return restore
 
 
-def _play(glfw, demo, flight, stop, name, size, seed, camera, state_out, screenshot_dir, bindings, save_track,
+def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, screenshot_dir, bindings, save_track,
           hash_log, frames, overlay, interpolate, loop_options, setup, quiet, sky, overwrite):
     """:func:`play`'s body, under its signal handlers; returns the signal that stopped it, or None."""
     from driftframe.app import attach_rendering, make_world
