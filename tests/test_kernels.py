@@ -5,21 +5,52 @@ or ``k = 0`` and then ``f(k)``) as a literal, Literal[int](0), and compiles the
 callee for it besides the plain int64 it compiles later: on a machine's first
 run each such call costs a second compile (solve_step's took about 15 s).
 
-A kernel loaded from numba's cache does not say what it calls, so the test
-compiles a fresh, uncached copy of each kernel the scenes called from Python,
-for the same argument types: typing the copy makes every kernel it calls
-resolve its arguments again, and a literal one shows among that callee's
-signatures. Where the cache is cold (a fresh clone, CI) every level is
-compiled and checked; with a warm one, the kernels called from Python and
-those they call. The scenes run every solver path (all pairs, the grid with
-swept bodies, cradle contacts, gravity).
+Typing a kernel resolves every kernel it calls, and a literal argument shows
+among that callee's signatures. A kernel compiled in this process was typed;
+one loaded from numba's cache was not, and does not say what it calls. So the
+test types (numba's front end and type inference, no code generation) a fresh
+copy of each kernel the cache gave, for the same argument types, until no
+newly loaded kernel is left: every level is checked, cold cache or warm. The
+scenes run every solver path (all pairs, the grid with swept bodies, cradle
+contacts, gravity).
 """
+import importlib
+import os
+import subprocess
 import sys
 
 import numba
 from numba.core import types
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
+from numba.core.compiler_machinery import FunctionPass, register_pass
+from numba.core.typed_passes import NopythonTypeInference
 
 from driftframe.app import make_world
+
+
+class _Typed(Exception):
+    """Raised by the pass after type inference: the copy was typed, and nothing more is needed of it."""
+
+
+@register_pass(mutates_CFG=False, analysis_only=True)
+class _StopAfterTyping(FunctionPass):
+    _name = "driftframe_stop_after_typing"
+
+    def __init__(self):
+        FunctionPass.__init__(self)
+
+    def run_pass(self, state):
+        raise _Typed
+
+
+class _TypeOnly(CompilerBase):
+    """numba's nopython pipeline up to and including type inference (lowering and LLVM are most of a compile)."""
+
+    def define_pipelines(self):
+        pm = DefaultPassBuilder.define_nopython_pipeline(self.state)
+        pm.add_pass_after(_StopAfterTyping, NopythonTypeInference)
+        pm.finalize()
+        return [pm]
 
 
 def _kernels():
@@ -35,77 +66,54 @@ def _literal_signatures(kernels):
             for name, k in kernels.items() if any(isinstance(a, types.Literal) for sig in k.signatures for a in sig)}
 
 
+def _type_cached_signatures(kernels, done):
+    """Type an uncached copy of each kernel for each signature the cache gave it and not yet in ``done``."""
+    todo = [(name, k, sig) for name, k in kernels.items() for sig in k.stats.cache_hits if (name, sig) not in done]
+    for name, k, sig in todo:
+        options = {o: v for o, v in k.targetoptions.items() if o not in ("cache", "nopython")}   # njit's own
+        copy = numba.njit(cache=False, pipeline_class=_TypeOnly, **options)(k.py_func)
+        try:
+            copy.compile(sig)
+        except _Typed:
+            done.add((name, sig))
+        else:
+            raise AssertionError(f"{name}{sig}: the copy was compiled, not stopped after typing")
+    return len(todo)
+
+
 def test_no_kernel_is_compiled_for_a_literal_argument():
     for demo in ("billiards", "asteroids", "cradle", "orbit", "swarm"):
         world, _ = make_world(demo, seed=1)
         for _ in range(120):
             world.step()
-    kernels = dict(_kernels())
-    called = {name: k for name, k in kernels.items() if k.signatures}
+    called = {name: k for name, k in _kernels() if k.signatures}
     assert "driftframe.framework.contact.solve_all_pairs" in called     # the scenes reached both solver paths
     assert "driftframe.framework.contact.solve_listed" in called
-    for name, k in called.items():
-        options = {o: v for o, v in k.targetoptions.items() if o not in ("cache", "nopython")}   # njit's own
-        copy = numba.njit(cache=False, **options)(k.py_func)
-        for sig in list(k.signatures):
-            copy.compile(sig)
+    done = set()
+    while _type_cached_signatures(dict(_kernels()), done):    # typing a copy may load more kernels from the cache
+        pass
     assert _literal_signatures(dict(_kernels())) == {}
 
 
-def _clump(n, stick_from_start, steps=12):
-    """Inelastic spheres converging at 5 m/s, at most one bouncing contact per body per step: their
-    clusters stick (the jam path) within a few steps."""
-    import warnings
-
-    import numpy as np
-
-    from driftframe.components.body import Mass, Transform, Velocity
-    from driftframe.components.collision import SphereCollider
-    from driftframe.framework import placement
-    from driftframe.framework.world import World
-    from driftframe.systems.collision import CollisionSystem
-
-    rng = np.random.default_rng(6)
-    r = np.full(n, 0.5)
-    x = placement.place(rng, r, placement.in_shell(0.0, (n * 1.1 ** 3) ** (1 / 3)), gap=0.02)
-    v = -5.0 * x / np.linalg.norm(x, axis=1, keepdims=True)
-    with World() as w, warnings.catch_warnings(record=True) as rec:
-        warnings.simplefilter("always")
-        cs = w.add_system(CollisionSystem(max_contacts=1))
-        ids = w.create_entities(Transform.bulk(n, position=x), Velocity.bulk(n, linear=v), Mass.bulk(n, kg=np.ones(n)),
-                                SphereCollider.bulk(n, radius=r, restitution=np.zeros(n)))
-        cs._stick = stick_from_start
-        switched = None
-        for k in range(steps):
-            w.step()
-            if switched is None and cs._stick:
-                switched = k
-        pos, vel = w.columns(Transform, ids).position.copy(), w.columns(Velocity, ids).linear.copy()
-    return pos, vel, switched, any("centre-of-mass velocity" in str(m.message) for m in rec)
-
-
-def test_a_step_that_needs_the_jam_path_is_run_again_with_it_and_gives_the_same_bits():
-    # solve_all_pairs / solve_listed have no jam path (_stick): a step that needs it ends with F_AGAIN and
-    # its inputs as they came, and is run again by the _stick variant; from then on the system uses that
-    for n in (24, 120):                                    # every pair; the neighbour list
-        pos, vel, switched, stuck = _clump(n, False)
-        assert stuck and switched is not None and switched > 0
-        pos2, vel2, _, stuck2 = _clump(n, True)
-        assert stuck2
-        assert pos.tobytes() == pos2.tobytes() and vel.tobytes() == vel2.tobytes()
-
-
-def test_argsort_stable_and_median_match_numpy():
-    import numpy as np
-
-    from driftframe.framework import broadphase as bp
-
-    rng = np.random.default_rng(3)
-    for n in (0, 1, 2, 15, 16, 17, 33, 100, 1000):
-        for a in (rng.integers(0, 7, n).astype(np.int64), rng.random(n), np.round(rng.random(n), 1)):
-            for m in sorted({0, n // 2, n}):
-                assert np.array_equal(bp.argsort_stable(a, m), np.argsort(a[:m], kind="stable"))
-            if n and a.dtype == np.float64:
-                assert bp.median(a) == np.median(a)
-    a = np.array([3.0, np.nan, 1.0, 2.0, np.nan, 0.5])
-    assert np.array_equal(bp.argsort_stable(a, 6), np.argsort(a, kind="stable"))
+def test_the_typing_copy_finds_a_literal_in_a_callee_loaded_from_the_cache(tmp_path, monkeypatch):
+    """The check itself: a caller loaded from the cache, typed again, shows the literal it passes its callee."""
+    cache = str(tmp_path / "cache")
+    monkeypatch.setattr(numba.config, "CACHE_DIR", cache)     # numba read NUMBA_CACHE_DIR at import: this one's
+    src = tmp_path / "literal_pair.py"
+    src.write_text("import numba\n\n"
+                   "@numba.njit(cache=True)\n"
+                   "def callee(k):\n    return k + 1\n\n"
+                   "@numba.njit(cache=True)\n"
+                   "def caller(x):\n    return callee(0) + x\n")
+    # compile and cache both in another process, so that this one loads the caller from the cache
+    subprocess.run([sys.executable, "-c", f"import sys; sys.path.insert(0, {str(tmp_path)!r}); "
+                    "import literal_pair; literal_pair.caller(1)"], check=True,
+                   env={**os.environ, "NUMBA_CACHE_DIR": cache})
+    monkeypatch.syspath_prepend(str(tmp_path))
+    mod = importlib.import_module("literal_pair")
+    monkeypatch.setitem(sys.modules, "literal_pair", mod)      # (so that the undo removes it after the test)
+    assert mod.caller(1) == 2
+    assert dict(mod.caller.stats.cache_hits) and not mod.callee.signatures   # loaded: the callee never typed
+    kernels = {"caller": mod.caller, "callee": mod.callee}
+    assert _type_cached_signatures(kernels, set()) == 1
+    assert _literal_signatures(kernels) == {"callee": ["Literal[int](0)"]}
