@@ -413,10 +413,19 @@ def _compile(task, quiet: bool = False) -> None:
         raise failed[0]
 
 
-def _load_kernels(name: str, seed: int, quiet: bool = False) -> None:
-    """:func:`driftframe.app.load_kernels` through :func:`_compile`."""
+def _load_kernels(name: str, seed: int, quiet: bool = False, nv12: bool = False) -> None:
+    """:func:`driftframe.app.load_kernels` through :func:`_compile`; ``nv12``: the MP4 writer's
+    colour conversion kernel too (else a first run compiles it at frame 0, under the progress bar)."""
     from driftframe.app import load_kernels
-    _compile(lambda watch: load_kernels(name, seed=seed), quiet)
+
+    def task(watch):
+        load_kernels(name, seed=seed)
+        if nv12:
+            import numpy as np
+
+            from driftframe.framework.yuv import rgba_to_nv12
+            rgba_to_nv12(np.zeros((2, 2, 4), np.uint8), 2, 2)
+    _compile(task, quiet)
 
 
 def cmd_record(args) -> int:
@@ -452,7 +461,7 @@ def cmd_record(args) -> int:
     log = None
     try:
         check_output(out, overwrite=args.overwrite, format=fmt)    # before the costly part: build, compile
-        _load_kernels(args.demo, args.seed, args.quiet)     # a first run's compiling, before the progress bar
+        _load_kernels(args.demo, args.seed, args.quiet, nv12=fmt == "mp4")   # a first run's compiling, before the bar
         world, demo = make_world(args.demo, seed=args.seed, track=track)
         try:
             attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
