@@ -56,9 +56,6 @@ _RANGE = re.compile(r"^\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*$")
 MAX_RUNS = 1_000_000
 #: Longest batch file read (bytes): a grid is a few lines; 1 MiB holds an explicit list of 10^5 seeds.
 MAX_FILE_BYTES = 1 << 20
-#: Bytes a file name may have beyond the output's own: the recorder writes ``.NAME.<pid>.<random>.part.mp4``
-#: first, 32 bytes more than NAME with a 7-digit pid.
-_PART_EXTRA = 40
 
 
 def parse_seeds(value, where: str = "seeds") -> list[int]:
@@ -225,8 +222,7 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
 class _Inside:
     """Where an output name goes, after every substitution: a path inside the output folder, or a
     SpecError. Refused: an absolute name, a ``..`` part, a folder that resolves (through a symbolic
-    link) outside the output folder, a name part too long for the file system once the recorder's
-    temporary suffix is added. The resolved folders are remembered: each is looked at once."""
+    link) outside the output folder, a name part longer than the file system allows. The resolved folders are remembered: each is looked at once."""
 
     def __init__(self, out_dir: Path):
         self.out_dir = out_dir
@@ -248,10 +244,9 @@ class _Inside:
             raise SpecError(f"{where}: output {filled!r} leaves the output folder {str(self.out_dir)!r} "
                             "(an absolute path or '..' after the fields were filled in)")
         for part in parts:
-            if len(os.fsencode(part)) > self.name_max - _PART_EXTRA:
+            if len(os.fsencode(part)) > self.name_max:      # (the part file's name is cut to fit)
                 raise SpecError(f"{where}: output name part {part[:40]!r}... is {len(os.fsencode(part))} bytes; "
-                                f"the limit here is {self.name_max - _PART_EXTRA} (the file system's "
-                                f"{self.name_max}, less the recorder's temporary suffix)")
+                                f"the file system here allows {self.name_max}")
         full = os.path.join(self.out_dir, filled)
         folder = os.path.dirname(full)
         ok = self.folders.get(folder)

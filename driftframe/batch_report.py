@@ -17,7 +17,6 @@ import json
 import math
 import os
 import statistics
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -68,17 +67,14 @@ def _g(v) -> str:
 
 
 def _atomic_write(path: Path, write) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        mask = os.umask(0o022)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """``write(file)`` into memory, then the bytes to ``path`` whole or not at all (:mod:`framework.output`:
+    a part file beside it, moved into place, the umask's permissions). The summary is the batch's own:
+    replaced on each run (a journal from an earlier batch needs --resume or --overwrite first)."""
+    from driftframe.framework.output import write_file
+
+    buf = io.BytesIO()
+    write(buf)
+    write_file(path, buf.getvalue(), overwrite=True, what="batch summary")
 
 
 def write_csv(outcome: Outcome, path: Path) -> Path:
