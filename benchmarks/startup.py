@@ -19,7 +19,8 @@ so nothing one measurement loads is already loaded for the next:
   *To the first step* counts from the process's start (its CPU clock starts
   at zero with the process; wall from the parent's ``time.time()`` just
   before it started the child).
-* ``import driftframe``, and ``python -c pass`` (the interpreter alone).
+* ``import driftframe``, ``python -c pass`` (the interpreter alone), and
+  ``import numpy`` then ``import numba`` (what building a world imports first).
 * ``driftframe record spin --seconds 1 --size 320x180``, warm: the command
   as a user types it (off-screen GL, x264 in the process). *First frame*:
   from the process's start to the moment the first frame has been rendered,
@@ -96,6 +97,14 @@ print(json.dumps(marks))
 """
 
 PASS_CHILD = _MARK + r"""
+print(json.dumps(marks))
+"""
+
+LIBS_CHILD = _MARK + r"""
+import numpy
+mark("numpy")
+import numba
+mark("numba")
 print(json.dumps(marks))
 """
 
@@ -188,8 +197,14 @@ def have_pybullet() -> bool:
     return importlib.util.find_spec("pybullet") is not None
 
 
+def _ms(seconds: float) -> str:
+    """Milliseconds to 3 significant digits, whole numbers from 100 up (no exponent)."""
+    v = seconds * 1e3
+    return f"{v:,.0f}" if abs(v) >= 100 else f"{v:.3g}"
+
+
 def ms(pair: tuple[float, float]) -> list[str]:
-    return [f"{pair[0] * 1e3:.3g}", f"{pair[1] * 1e3:.3g}"]
+    return [_ms(pair[0]), _ms(pair[1])]
 
 
 def main(argv=None) -> None:
@@ -214,20 +229,26 @@ def main(argv=None) -> None:
             for _ in range(2):
                 before = resource.getrusage(resource.RUSAGE_CHILDREN)
                 t0 = time.perf_counter()
-                rc = subprocess.call([sys.executable, "-m", "driftframe", "warm", "--quiet"], cwd=ROOT,
-                                     env=dict(os.environ, NUMBA_CACHE_DIR=os.path.join(tmp, "cache-all")),
-                                     stdout=subprocess.DEVNULL)
+                done = subprocess.run([sys.executable, "-m", "driftframe", "warm", "--quiet"], cwd=ROOT,
+                                      env=dict(os.environ, NUMBA_CACHE_DIR=os.path.join(tmp, "cache-all")),
+                                      capture_output=True, text=True)
                 after = resource.getrusage(resource.RUSAGE_CHILDREN)
                 runs.append((after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime,
-                             time.perf_counter() - t0, rc))
-            warm_all = runs if all(r[2] == 0 for r in runs) else None
+                             time.perf_counter() - t0))
+                if done.returncode != 0:          # an older tree without the command: its rows are left out
+                    print(f"[{NAME}] driftframe warm failed (exit status {done.returncode}), its rows are left "
+                          f"out: {done.stderr.strip().splitlines()[-1:]}", flush=True)
+                    break
+            else:
+                warm_all = runs
             if warm_all:
                 print(f"[{NAME}] driftframe warm: {warm_all[0][0]:.1f} s CPU on an empty cache, "
                       f"{warm_all[1][0]:.2f} s CPU again", flush=True)
-        interp, imports, records, bullets = [], [], [], []
+        interp, imports, libs, records, bullets = [], [], [], [], []
         for k in range(rounds):
             interp.append(child(PASS_CHILD))
             imports.append(child(IMPORT_CHILD))
+            libs.append(child(LIBS_CHILD))
             for d in demos:
                 warm[d].append(child(DEMO_CHILD, d, cache=os.path.join(tmp, f"cache-{d}")))
             spin_cache = os.path.join(tmp, "cache-spin")
@@ -241,7 +262,6 @@ def main(argv=None) -> None:
     demo_rows, chart_cold, chart_warm = [], {}, {}
     for d in demos:
         c_first = span(cold[d], "start", "step1")
-        c_step = span(cold[d], "prepare", "step1")
         w = warm[d]
         imp = med(w, lambda m: span(m, "start", "import"))
         build = med(w, lambda m: span(m, "import", "build"))
@@ -251,20 +271,25 @@ def main(argv=None) -> None:
         s12 = med(w, lambda m: tuple(a - b for a, b in zip(span(m, "prepare", "step1"), span(m, "step1", "step2"))))
         kl = med(w, lambda m: tuple(a - b for a, b in zip(span(m, "build", "step1"), span(m, "build2", "step1b"))))
         to_first = med(w, lambda m: tuple(m["step1"]))                 # marks count from the start
+        compile_cpu = c_first[0] - to_first[0]
         chart_cold[d] = c_first
         chart_warm[d] = (to_first, kl)
-        demo_rows.append([d, f"{c_first[0]:.1f}", f"{c_first[1]:.1f}", f"{c_step[0]:.1f}",
+        demo_rows.append([d, f"{c_first[0]:.1f}", f"{c_first[1]:.1f}", f"{compile_cpu:.1f}",
                           f"{(imp[0] + build[0]) * 1e3:.0f}", f"{prep[0] * 1e3:.1f}", f"{s1[0] * 1e3:.1f}",
                           f"{s2[0] * 1e3:.2f}", f"{s12[0] * 1e3:.1f}", f"{kl[0] * 1e3:.0f}", *ms(to_first)])
 
     py = med(interp, lambda m: m["proc"])
     imp = med(imports, lambda m: span(m, "start", "import"))
     imp_proc = med(imports, lambda m: m["proc"])
+    np_imp = med(libs, lambda m: span(m, "start", "numpy"))
+    nb_imp = med(libs, lambda m: span(m, "numpy", "numba"))
     rec_first = med(records, lambda m: tuple(m["frame1"]))
     rec_done = med(records, lambda m: m["proc"])
     other = [["`python -c pass` (the interpreter alone, whole process)", *ms(py)],
              ["`import driftframe` (in the process)", *ms(imp)],
              ["`import driftframe`, whole process", *ms(imp_proc)],
+             ["`import numpy` (in the process)", *ms(np_imp)],
+             ["`import numba` after it (in the process)", *ms(nb_imp)],
              ["`driftframe record spin --seconds 1 --size 320x180`: first frame handed to the encoder, "
               "from the process's start", *ms(rec_first)],
              ["the same: whole command (60 frames, file finished)", *ms(rec_done)]]
@@ -282,22 +307,25 @@ def main(argv=None) -> None:
                   ["pybullet: to the first step done, from the process's start", *ms(bullet_first)]]
     if warm_all:
         other += [["`driftframe warm` on an empty cache (every kernel compiled), whole process",
-                   f"{warm_all[0][0] * 1e3:.0f}", f"{warm_all[0][1] * 1e3:.0f}"],
+                   *ms(warm_all[0][:2])],
                   ["`driftframe warm` again (every kernel loaded from the cache), whole process",
-                   f"{warm_all[1][0] * 1e3:.0f}", f"{warm_all[1][1] * 1e3:.0f}"]]
+                   *ms(warm_all[1][:2])]]
 
     # -- chart ------------------------------------------------------------------------------------------------
-    fig, (ax, bx) = figure(1, 2, figsize=(12, 4.8))
-    y = range(len(demos))
-    ax.barh([i - 0.2 for i in y], [chart_cold[d][0] for d in demos], 0.4, label="CPU", color="C3")
-    ax.barh([i + 0.2 for i in y], [chart_cold[d][1] for d in demos], 0.4, label="wall", color="C3", alpha=0.4)
-    for i, d in enumerate(demos):
-        ax.text(chart_cold[d][0], i - 0.2, f" {chart_cold[d][0]:.1f}", va="center", fontsize=7)
-    ax.set_yticks(list(y), demos)
+    fig, (ax, bx) = figure(1, 2, figsize=(12, 5.2))
+    cold_bars = {d: chart_cold[d] for d in demos}
+    if warm_all:
+        cold_bars["driftframe warm:\nevery kernel"] = warm_all[0][:2]
+    y = range(len(cold_bars))
+    ax.barh([i - 0.2 for i in y], [v[0] for v in cold_bars.values()], 0.4, label="CPU", color="C3")
+    ax.barh([i + 0.2 for i in y], [v[1] for v in cold_bars.values()], 0.4, label="wall", color="C3", alpha=0.4)
+    for i, v in enumerate(cold_bars.values()):
+        ax.text(v[0], i - 0.2, f" {v[0]:.1f}", va="center", fontsize=7)
+    ax.set_yticks(list(y), list(cold_bars), fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel("seconds from the process's start to the first step done")
+    ax.set_xlabel("seconds from the process's start to the first step done (warm: to its exit)")
     ax.set_title("Cold: an empty kernel cache (one run each)", fontsize=10)
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=8, loc="upper right")
     labels = [f"{d}: to the first step" for d in demos] + ["record spin: first frame"]
     cpu = [chart_warm[d][0][0] for d in demos] + [rec_first[0]]
     wall = [chart_warm[d][0][1] for d in demos] + [rec_first[1]]
@@ -335,7 +363,7 @@ def main(argv=None) -> None:
         "which stretches the wall times more than the CPU.",
         "",
         "**Per demo.** *Cold, to the first step*: CPU and wall from the process's start to its first step "
-        "done, the compile included; *cold step*: the first step (after `world.prepare()`) alone. Warm: "
+        "done, the compile included; *compile*: that CPU minus the warm one (the last columns). Warm: "
         "*import + build* (`from driftframe.app import make_world`, `make_world(demo)`), `prepare()`, the "
         "first and second step after it and their difference, *kernel load*: `prepare()` + first step of "
         "this world minus the same of a second world of the demo built next in the same process (numba "
@@ -343,7 +371,7 @@ def main(argv=None) -> None:
         "system's gather and pair list), and the CPU and wall from the process's start to the first step "
         "done. All warm columns are CPU.",
         "",
-        table(["demo", "cold: to 1st step, CPU s", "wall s", "cold step, CPU s", "warm: import + build, CPU ms",
+        table(["demo", "cold: to 1st step, CPU s", "wall s", "compile, CPU s", "warm: import + build, CPU ms",
                "prepare, ms", "1st step, ms", "2nd step, ms", "1st - 2nd step, ms", "kernel load, ms",
                "to 1st step, CPU ms", "wall ms"], demo_rows),
         "",
@@ -351,7 +379,8 @@ def main(argv=None) -> None:
         "",
         table(["measurement", "CPU ms", "wall ms"], other),
         "",
-        f"A demo's first run on a machine costs {min(cold_cpu):.1f}-{max(cold_cpu):.1f} s of CPU (the compile); "
+        f"A demo's first run on a machine costs {min(cold_cpu):.1f}-{max(cold_cpu):.1f} s of CPU to its first step "
+        "(the compile included); "
         f"once its kernels are cached, {min(warm_first) * 1e3:.0f}-{max(warm_first) * 1e3:.0f} ms from the "
         "process's start to the first step done",
     ]
@@ -360,6 +389,16 @@ def main(argv=None) -> None:
                       f"spheres, first step), {min(warm_first) / bullet_first[0]:.1f}-"
                       f"{max(warm_first) / bullet_first[0]:.1f}x, in the same run")
     lines[-1] += "."
+    loads = [chart_warm[d][1][0] for d in demos]
+    lines[-1] += (f" Of the warm figure, `import numba` is {nb_imp[0] * 1e3:.0f} ms and loading the cached "
+                  f"kernels {min(loads) * 1e3:.0f}-{max(loads) * 1e3:.0f} ms; the rest is the interpreter, "
+                  "numpy, esper, the systems' modules and building the scene. `driftframe record spin` hands "
+                  f"its first frame to the encoder {rec_first[0] * 1e3:.0f} ms of CPU after it starts "
+                  f"({rec_first[1] * 1e3:.0f} ms wall).")
+    if warm_all:
+        lines[-1] += (f" `driftframe warm` compiles every kernel in {warm_all[0][0]:.1f} s of CPU, once per "
+                      "machine and driftframe version; the demos' cold figures overlap (each compiles the "
+                      "kernels it shares with others again).")
     write_section(NAME, "Start-up: compile, import, kernel load, first step, first frame", "\n".join(lines),
                   quick=args.quick, started=started)
 
