@@ -29,6 +29,13 @@ _HOMES = {
     "RotationAssistSystem": "systems.assist", "CameraSystem": "systems.camera", "CollisionSystem": "systems.collision",
     "ControlSystem": "systems.control", "GravitySystem": "systems.gravity", "InputSystem": "systems.input",
     "MovementSystem": "systems.movement", "SpinSystem": "systems.spin",
+    # the first program's names: one import (docs/GUIDE.md) instead of ten lines from nine modules
+    "simulation_systems": "app", "attach_rendering": "app", "make_world": "app", "load_scene": "app",
+    "declare_variant": "app", "declare_model_file": "app", "play": "window", "record": "framework.recorder",
+    "look_rotation": "framework.frame", "save_track": "framework.input", "load_track": "framework.input",
+    "Autopilot": "components.autopilot", "FlightPlan": "components.autopilot", "Orbiting": "components.gravity",
+    "AutopilotSystem": "systems.autopilot", "WarpGovernorSystem": "systems.warp",
+    "orbit": "systems.readouts", "closest_approach": "systems.readouts", "predicted_orbit": "systems.readouts",
 }
 
 
@@ -52,4 +59,7 @@ __all__ = [
     "Camera", "ModelRef", "Player", "FlightInput", "FlightControl", "RotationAssist",
     "InputSystem", "ControlSystem", "RotationAssistSystem", "MovementSystem", "SpinSystem",
     "CollisionSystem", "CameraSystem", "GravityWell", "NBody", "SurfaceContact", "GravitySystem",
+    "simulation_systems", "attach_rendering", "make_world", "load_scene", "declare_variant", "declare_model_file",
+    "play", "record", "look_rotation", "save_track", "load_track", "Autopilot", "FlightPlan", "Orbiting",
+    "AutopilotSystem", "WarpGovernorSystem", "orbit", "closest_approach", "predicted_orbit",
 ]

@@ -39,16 +39,90 @@ def simulation_systems(track=None, *, collision: str = "continuous") -> list:
             MovementSystem(), SpinSystem(), CollisionSystem(method=collision), WarpGovernorSystem()]
 
 
+class SceneError(ValueError):
+    """A ``module:function`` scene that cannot be used: it does not import, is no function, or raised."""
+
+
+class Scene:
+    """A user's scene function ``build(world, rng)`` seen as a demo: what play, record and batch need.
+
+    Its module may set ``TITLE``, ``SECONDS`` (default recording length,
+    10 s), ``DT`` (the fixed step, 1/60 s) and ``SCRIPT`` (an input
+    :class:`~framework.input.Track` that ``record`` flies); a demo module
+    has the same names.
+    """
+
+    def __init__(self, path: str, func):
+        module = __import__("sys").modules.get(getattr(func, "__module__", ""), None)
+        self.NAME = path
+        self.TITLE = getattr(module, "TITLE", path)
+        self.DESCRIPTION = (func.__doc__ or "").strip().split("\n")[0] or path
+        self.SECONDS = float(getattr(module, "SECONDS", 10.0))
+        self.DT = float(getattr(module, "DT", 1.0 / 60.0))
+        self.SCRIPT = getattr(module, "SCRIPT", None)
+        self.SEEDED = getattr(module, "SEEDED", True)
+        self.function = func
+
+    def build(self, world, rng) -> None:
+        try:
+            self.function(world, rng)
+        except Exception as e:     # noqa: BLE001 - the user's code: one line naming the scene, the error, where
+            raise SceneError(f"scene {self.NAME!r} raised {type(e).__name__}: {e}{_where(e)}") from e
+
+
+def _where(e: BaseException) -> str:
+    """`` (at mygame/scene.py:12)``: the innermost frame of the traceback outside driftframe, if any."""
+    import os
+    import traceback
+
+    frames = traceback.extract_tb(e.__traceback__)
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    own = [f for f in frames if not os.path.abspath(f.filename).startswith(here + os.sep)] or frames
+    if not own:
+        return ""
+    f = own[-1]
+    name = os.path.relpath(f.filename) if not os.path.relpath(f.filename).startswith("..") else f.filename
+    return f" (at {name}:{f.lineno})"
+
+
+def is_scene_path(name) -> bool:
+    """True for ``"module:function"`` (a user's scene), False for a demo name."""
+    return isinstance(name, str) and ":" in name
+
+
+def load_scene(name: str):
+    """Demo ``name``, or the user's scene ``"package.module:function"`` as a :class:`Scene`.
+
+    A scene is imported as ``driftframe batch`` imports one
+    (:mod:`driftframe.batch_spec`); a module that does not import (whatever it
+    raised), a name that is missing or not callable is a :class:`SceneError`
+    saying which, in one line.
+    """
+    if not is_scene_path(name):
+        from driftframe import demos
+        return demos.load(name)
+    from driftframe.batch_spec import _scene_function
+    try:
+        func = _scene_function(name, SceneError)
+    except SceneError:
+        raise
+    except Exception as e:         # noqa: BLE001 - a module that raised while importing (SyntaxError, NameError)
+        mod = name.split(":")[0]
+        raise SceneError(f"scene {name!r}: importing module {mod!r} raised {type(e).__name__}: {e}"
+                         f"{_where(e)}") from None
+    return Scene(name, func)
+
+
 def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous", track=None):
     """A world with the standard systems and demo ``name``'s entities; returns ``(world, demo)``.
 
-    ``scripted``: drive the player with the demo's input track (recordings,
-    tests); False leaves input to the keyboard. ``track``: a
-    :class:`~framework.input.Track` to fly instead of the demo's (a saved flight).
+    ``name``: a demo (``driftframe list``) or a scene of your own,
+    ``"package.module:function"`` (:func:`load_scene`). ``scripted``: drive
+    the player with the demo's input track (recordings, tests); False leaves
+    input to the keyboard. ``track``: a :class:`~framework.input.Track` to fly
+    instead of the demo's (a saved flight).
     """
-    from driftframe import demos
-
-    demo = demos.load(name)
+    demo = load_scene(name)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be an int >= 0, got {seed!r}")
     world = World(dt=getattr(demo, "DT", 1.0 / 60.0))

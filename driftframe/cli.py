@@ -161,7 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the demos, one line each")
 
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("demo", metavar="DEMO", help=f"one of: {', '.join(demos.NAMES)}")
+    common.add_argument("demo", metavar="SCENE",
+                        help=f"a demo, one of: {', '.join(demos.NAMES)}; or your own scene as module:function "
+                             "(e.g. mygame.scene:build), imported from here or from an installed package")
     common.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH",
                         help="frame size in pixels (default 1280x720)")
     common.add_argument("--seed", type=_seed, default=DEFAULT_SEED, metavar="N",
@@ -301,12 +303,28 @@ def cmd_list(args) -> int:
     return 0
 
 
-def _load_demo(name):
-    from driftframe import demos
+def _load_demo(name, seed=None, sky: str = "lines"):
+    """Demo ``name`` or the scene ``module:function`` (:func:`driftframe.app.load_scene`); a UsageError
+    otherwise. ``seed``: the --seed given; a demo that takes none says so (stderr) instead of ignoring it."""
+    from driftframe.app import is_scene_path, load_scene
+    if is_scene_path(name):
+        _scenes_here()
     try:
-        return demos.load(name)
-    except LookupError as e:
+        demo = load_scene(name)
+    except (LookupError, ValueError) as e:
         raise UsageError(str(e)) from None
+    if seed is not None and seed is not DEFAULT_SEED and not getattr(demo, "SEEDED", True):
+        what = "only the starfield sky" if sky == "starfield" else "nothing"
+        print(f"driftframe: note: the {name} demo takes no seed (it is the same every run); "
+              f"--seed {seed} changes {what}", file=sys.stderr)
+    return demo
+
+
+def _scenes_here() -> None:
+    """Scenes are named by import path ('mygame.scene:build'), found in the current folder too, as `python -m`
+    would; but after the installed packages: a tqdm.py or av.py lying here must not replace the real one."""
+    here = os.getcwd()
+    sys.path[:] = [p for p in sys.path if p not in ("", here)] + [here]
 
 
 def steps_per_frame(fps: float, dt: float) -> int:
@@ -432,8 +450,8 @@ def cmd_record(args) -> int:
     from driftframe.app import attach_rendering, make_world
     from driftframe.framework.recorder import X264_PRESET, OutputExistsError, check_output, output_format, record
 
-    demo = _load_demo(args.demo)
-    out = args.output or os.path.join("out", f"{args.demo}.mp4")
+    demo = _load_demo(args.demo, args.seed, args.sky)
+    out = args.output or os.path.join("out", f"{_file_stem(args.demo)}.mp4")
     _distinct_paths(**{"-o": out, "--hash-log": args.hash_log, "--track": args.track})
     _output_names(**{"-o": out, "--hash-log": args.hash_log})
     track = _apply_track(args, demo)
@@ -490,6 +508,11 @@ def cmd_record(args) -> int:
     return 128 + result.signal if result.interrupted else 1 if failed else 0
 
 
+def _file_stem(name: str) -> str:
+    """A file name for demo or scene ``name``: ``mygame.scene:build`` -> ``mygame.scene-build``."""
+    return name.replace(":", "-")
+
+
 def demo_dt(demo) -> float:
     """The fixed step of a demo module (1/60 s unless it says otherwise)."""
     return getattr(demo, "DT", 1.0 / 60.0)
@@ -498,7 +521,7 @@ def demo_dt(demo) -> float:
 def cmd_play(args) -> int:
     from driftframe.framework.bindings import load_bindings
     from driftframe.window import PlayError, check_display, play
-    _load_demo(args.demo)
+    _load_demo(args.demo, args.seed, args.sky)
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
     import tempfile
@@ -729,6 +752,14 @@ class _SignalsInterrupt:
             signal.signal(s, old)
 
 
+def _shell_words(e) -> str:
+    """A library message in the command line's words: the library says ``pass overwrite=True (--overwrite)``
+    for both; on the command line only the option means anything."""
+    return (str(e).replace("pass overwrite=True (--overwrite)", "pass --overwrite")
+            .replace("pass --overwrite (overwrite=True)", "pass --overwrite")
+            .replace("pass overwrite=True", "pass --overwrite"))
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
@@ -750,17 +781,17 @@ def main(argv: list[str] | None = None) -> int:
         with _SignalsInterrupt():
             return handlers[args.command](args)
     except UsageError as e:
-        print(f"driftframe: error: {e}", file=sys.stderr)
+        print(f"driftframe: error: {_shell_words(e)}", file=sys.stderr)
         return 2
     except (RecordingError, KernelCompileError) as e:
-        print(f"driftframe: error: {e}", file=sys.stderr)
+        print(f"driftframe: error: {_shell_words(e)}", file=sys.stderr)
         return 1
     except GLUnavailableError as e:
         print(f"driftframe: error: {e}", file=sys.stderr)
         return 2
     except (ValueError, LookupError, OSError) as e:
         # raised by the library's own input checks: they name the bad value; no traceback needed
-        print(f"driftframe: error: {e}", file=sys.stderr)
+        print(f"driftframe: error: {_shell_words(e)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:
         # Ctrl-C, or SIGTERM / SIGHUP turned into an interrupt by the recorder: exit as the signal would

@@ -197,12 +197,18 @@ def overlay_lines(stats, loop) -> list[str]:
     return out
 
 
-def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
+def play(name, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
          state_out: str | None = None, screenshot_dir: str = ".", bindings=None, save_track: str | None = None,
          hash_log: str | None = None, frames: int | None = None, overlay: bool = False, interpolate: bool = True,
          loop_options: dict | None = None, setup=None, quiet: bool = False, sky: str = "lines",
          overwrite: bool = False, handle_signals: bool = True) -> int:
-    """Open a window and fly demo ``name`` until Esc, the window is closed, or ``frames`` frames.
+    """Open a window and fly ``name`` until Esc, the window is closed, or ``frames`` frames.
+
+    ``name``: a demo (``"asteroids"``), your scene as ``"module:function"``
+    (built here with the standard systems and ``seed``), or a
+    :class:`~framework.world.World` you built yourself (``df.play(world)``:
+    its own systems, with an :class:`~systems.input.InputSystem` added if it
+    has none; rendering is attached here, and the world is closed at the end).
 
     Returns the exit status: 0; 128 + the signal's number when Ctrl-C,
     SIGTERM or SIGHUP ended the flight (``handle_signals``, main thread
@@ -225,11 +231,25 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
     """
     from driftframe.framework.bindings import Bindings
 
+    from driftframe.app import load_scene
+    from driftframe.framework.world import World
+
     bindings = bindings or Bindings()
+    if isinstance(name, World):
+        if name.closed:
+            raise ValueError("play: the world is closed")
+        if "render_target" in name.resources:
+            raise ValueError("play: the world has rendering attached already; play attaches its own "
+                             "(call play(world) on a world without attach_rendering)")
+        demo = _OwnWorld(name)
+        info = dict(seed=int(name.resources.get("seed", seed)), camera=camera, sky=str(sky))
+    else:
+        if not isinstance(name, str):
+            raise TypeError(f"play: give a demo name, 'module:function' or a World, got {type(name).__name__}")
+        demo = load_scene(name)
+        info = dict(demo=name, seed=int(seed), camera=camera, sky=str(sky))
     glfw = _glfw()
-    from driftframe import demos
-    demo = demos.load(name)
-    flight = _Flight(save_track, overwrite, dict(demo=name, seed=int(seed), camera=camera, sky=str(sky)))
+    flight = _Flight(save_track, overwrite, info)
     with StopSignals(handle_signals) as stop:
         stopped = _play(glfw, demo, flight, stop, name=name, size=size, seed=seed, camera=camera,
                         state_out=state_out, screenshot_dir=screenshot_dir, bindings=bindings,
@@ -242,6 +262,16 @@ def play(name: str, *, size=(1280, 720), seed: int = 0, camera: str | None = Non
     if stopped is not None:
         return 128 + stopped
     return 1 if flight.errors else 0
+
+
+class _OwnWorld:
+    """A world the caller built, standing where a demo module would (``play(world)``)."""
+
+    NAME = "world"
+    TITLE = "your world"
+
+    def __init__(self, world):
+        self.world = world
 
 
 class _Flight:
@@ -345,6 +375,7 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
     from driftframe.systems.input import InputSystem
     from driftframe.systems.interpolation import attach_interpolation
 
+    label = demo.NAME if isinstance(demo, _OwnWorld) else name
     win = open_window(glfw, size, f"driftframe - {demo.TITLE}")
     restore_x = _on_lost_display(glfw, flight)
     world = None
@@ -353,7 +384,12 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
     try:
         pads = Gamepads(glfw, bindings.mappings)
         ctx = wrap_current_context()
-        world, demo = make_world(name, seed=seed, scripted=False)
+        if isinstance(demo, _OwnWorld):
+            world = demo.world
+            if world.get_system(InputSystem) is None:     # the keys reach the pilot through it
+                world.add_system(InputSystem())
+        else:
+            world, demo = make_world(name, seed=seed, scripted=False)
         target = LetterboxTarget.for_window(ctx, glfw.get_framebuffer_size(win), size[0] / size[1])
         render = attach_rendering(world, ctx, target=target, camera=camera, sky=sky)
         hud = world.get_system(HudSystem)
@@ -449,7 +485,7 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
         glfw.set_key_callback(win, on_key)
         glfw.set_framebuffer_size_callback(win, on_resize)
         if not quiet:
-            print(f"playing {name}: Esc quits, P pauses, C switches camera, F11 fullscreen, F3 overlay "
+            print(f"playing {label}: Esc quits, P pauses, C switches camera, F11 fullscreen, F3 overlay "
                   "(`driftframe keys` lists them all)", file=sys.stderr)
         stats = FrameStats()
         frame_times = []
@@ -481,7 +517,7 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
                 world.render()
                 if ui["screenshot"]:
                     ui["screenshot"] = False
-                    shots.append(_screenshot(render, name, world.step_count, screenshot_dir))
+                    shots.append(_screenshot(render, label.replace(":", "-"), world.step_count, screenshot_dir))
                 glfw.swap_buffers(win)
                 now = time.perf_counter()
                 stats.frame(now, world)

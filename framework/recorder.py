@@ -698,7 +698,7 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         raise ValueError(f"yuv must be one of {', '.join(map(repr, YUV_PATHS))}, got {yuv!r}")
     target = world.resources.get("render_target")
     if target is None:
-        raise LookupError("record: the world has no render target; call systems.render.attach(world, ...) first")
+        raise LookupError("record: the world has no rendering; call driftframe.attach_rendering(world) first")
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"path must be a str or os.PathLike, got {path!r}")
     if format is None:
@@ -709,6 +709,9 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         raise ValueError(f"format must be one of {', '.join(FORMATS)} or None, got {format!r}")
     path = Path(os.fspath(path))
     size = tuple(target.size)
+    if not path.parent.exists():
+        # record(world, "out/mine.mp4") in a new folder: the output's folder is made, as -o's default is
+        path.parent.mkdir(parents=True, exist_ok=True)
     if fmt == "mp4" and (size[0] % 2 or size[1] % 2):
         raise ValueError(f"H.264 (yuv420p) needs an even width and height, got {size[0]}x{size[1]}")
     rate = Fraction(fps).limit_denominator(10000)

@@ -535,5 +535,5 @@ def read_rgba(world) -> np.ndarray:
     try:
         target = world.resources["render_target"]
     except KeyError:
-        raise LookupError("no render target: call systems.render.attach(world, ...) first") from None
+        raise LookupError("no rendering: call driftframe.attach_rendering(world) first") from None
     return target.read_rgba()

@@ -78,7 +78,7 @@ class SkyboxSystem(esper.Processor):
         r = self.render
         if r.frame == self._drawn_frame:
             raise RuntimeError("SkyboxSystem must run after its RenderSystem in the render stage "
-                               "(systems.render.attach adds them in that order)")
+                               "(driftframe.attach_rendering adds them in that order)")
         self._drawn_frame = r.frame
         vp = r.projection @ r.view_rotation_only @ np.diag([*self.scale, 1.0])
         self._prog["u_view_proj"].write(vp.astype(np.float32).T.tobytes())
@@ -267,7 +267,7 @@ class StarfieldSystem(esper.Processor):
         r = self.render
         if r.frame == self._drawn_frame:
             raise RuntimeError("StarfieldSystem must run after its RenderSystem in the render stage "
-                               "(systems.render.attach adds them in that order)")
+                               "(driftframe.attach_rendering adds them in that order)")
         self._drawn_frame = r.frame
         # texels per pixel mid-screen: (size/2) / f_px, f_px = projection[1, 1] h/2 pixels per unit.
         # Magnified (< 1, a 1280x720 frame): plain bilinear; minified (small previews): mipmaps, so
