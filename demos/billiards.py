@@ -10,6 +10,7 @@ from driftframe.framework.model_cache import declare_variant
 
 TITLE = "Billiards"
 DESCRIPTION = "a perfectly elastic break: cue ball into a 15-ball triangle, on a table, overhead camera"
+SEEDED = False     # build() draws nothing from rng: every seed gives the same scene (the CLI says so)
 SECONDS = 6.0
 SCRIPT = Track(())
 R = 0.5            # ball radius, m

@@ -6,6 +6,7 @@ from driftframe.framework.input import Track
 
 TITLE = "Newton's cradle"
 DESCRIPTION = "five touching balls and a striker: the impulse passes through and only the last ball leaves"
+SEEDED = False     # build() draws nothing from rng: every seed gives the same scene (the CLI says so)
 SECONDS = 5.0
 SCRIPT = Track(())
 R = 0.5

@@ -11,6 +11,7 @@ from driftframe.framework.model_cache import declare_variant
 
 TITLE = "Orbit"
 DESCRIPTION = "Hohmann transfer to a station and a rendezvous, flown by the autopilot, with time warp"
+SEEDED = False     # build() draws nothing from rng: every seed gives the same scene (the CLI says so)
 SECONDS = 80.0
 
 # A game-sized planet (1 km, low orbit 100 m up: 58 m/s, 2 minutes a lap), a moon, a station at 1.6 km.

@@ -4,6 +4,7 @@ from driftframe.framework.input import Hold, Track
 
 TITLE = "Rotation"
 DESCRIPTION = "direct control: the ship turns only while a key is held; velocity persists"
+SEEDED = False     # build() draws nothing from rng: every seed gives the same scene (the CLI says so)
 SECONDS = 12.0
 
 # yaw right, burn, pitch up while drifting, burn again, roll, brake by thrusting backwards

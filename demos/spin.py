@@ -4,6 +4,7 @@ from driftframe.framework.input import Hold, Track
 
 TITLE = "Spin"
 DESCRIPTION = "momentum control: spin accumulates and persists until the kill-rotation assist takes it out"
+SEEDED = False     # build() draws nothing from rng: every seed gives the same scene (the CLI says so)
 SECONDS = 14.0
 
 SCRIPT = Track((

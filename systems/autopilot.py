@@ -148,7 +148,10 @@ class AutopilotSystem(esper.Processor):
     def process(self, dt: float) -> None:
         t0 = self.world.step_count * dt
         self._follow_plans(t0, dt)
-        for ent, (ap, ctl, inp) in esper.get_components(Autopilot, FlightControl, FlightInput):
+        flown = esper.get_components(Autopilot, FlightControl, FlightInput)
+        if len(flown) != len(esper.get_component(Autopilot)):
+            self._name_the_unflyable({ent for ent, _ in flown})
+        for ent, (ap, ctl, inp) in flown:
             if ap.mode == "off":
                 self._last_dir.pop(ent, None)
                 continue
@@ -169,6 +172,19 @@ class AutopilotSystem(esper.Processor):
             inp.pitch, inp.yaw, inp.roll = pitch, yaw, roll
             inp.throttle = float(min(max(throttle, 0.0), 1.0))
 
+    def _name_the_unflyable(self, flyable: set) -> None:
+        """A ValueError naming the first engaged Autopilot that cannot fly: it flies through the ship's own
+        FlightInput and FlightControl (and reads its Transform, Velocity, AngularVelocity), so without one of
+        them it would do nothing, without a word."""
+        for ent, ap in sorted(esper.get_component(Autopilot), key=lambda p: p[0]):
+            if ent in flyable or ap.mode == "off":
+                continue
+            missing = [c.__name__ for c in (FlightInput, FlightControl)
+                       if not esper.has_component(ent, c)]
+            raise ValueError(f"Autopilot {ap.mode} of entity {ent} cannot fly it: it has no "
+                             f"{' and no '.join(missing)} (the autopilot flies through the ship's own "
+                             "FlightInput, with its FlightControl's thrust and angular_accel)")
+
     def _task(self, ent, ap: Autopilot, ctl, x, v, t0, dt, q):
         """(wanted nose direction or None to hold still, throttle in [0, 1]) for the aid engaged."""
         mode = ap.mode
@@ -178,7 +194,7 @@ class AutopilotSystem(esper.Processor):
             ap.status = mode.replace("_", " ")
             return self.direction(ent, mode, ap, x, v), 0.0
         if ctl.thrust <= 0:
-            raise ValueError(f"Autopilot {mode} of entity {ent}: FlightControl.thrust is {ctl.thrust!r}, "
+            raise ValueError(f"Autopilot {mode} of entity {ent}: FlightControl.thrust is {float(ctl.thrust):g}, "
                              f"so no burn can reach it (an unreachable target)")
         full = ctl.thrust * dt                      # m/s one step at full throttle gives
         if ap.done and mode != "flip_and_burn":     # flip-and-burn keeps station once there

@@ -242,8 +242,8 @@ class _Wells:
             for j in range(i + 1, len(order)):
                 d = float(np.linalg.norm(pos[i] - pos[j]))
                 if d < self.radius[i] + self.radius[j]:
-                    raise ValueError(f"GravityWell of entity {self.ents[j]} (radius {self.radius[j]!r} m) is "
-                                     f"{d!r} m from well {self.ents[i]} (radius {self.radius[i]!r} m): "
+                    raise ValueError(f"GravityWell of entity {self.ents[j]} (radius {float(self.radius[j]):g} m) "
+                                     f"is {d:g} m from well {self.ents[i]} (radius {float(self.radius[i]):g} m): "
                                      f"a well inside another's surface")
 
     def __len__(self):
@@ -361,9 +361,12 @@ class GravitySystem(esper.Processor):
 
     @property
     def requires(self) -> tuple:
-        """Nothing to do without a well; while it holds bodies it runs, to hand them back to movement
-        when the last well goes (see :meth:`World.add_system`)."""
-        return () if self._wells is not None else (GravityWell, Transform)
+        """Nothing to do without a well or an NBody body; while it holds bodies it runs, to hand them back
+        to movement when the last well goes (see :meth:`World.add_system`). (Read once per structure
+        epoch: the NBody look-up is esper's cached query.)"""
+        if self._wells is not None or esper.get_component(NBody):
+            return ()
+        return (GravityWell, Transform)
 
     def __init__(self):
         self._wells = None
@@ -454,7 +457,7 @@ class GravitySystem(esper.Processor):
             if inside.any():
                 k = int(np.flatnonzero(inside)[0])
                 raise ValueError(f"entity {int(self.ents[k])} starts {float(d[k])!r} m from the centre of "
-                                 f"well {wells.ents[i]}, inside its surface (radius {wells.radius[i]!r} m)")
+                                 f"well {wells.ents[i]}, inside its surface (radius {float(wells.radius[i]):g} m)")
 
     def _build_obstacles(self, oq) -> None:
         """The colliders gravity does not move (not bodies of this system, not wells: ``Mass(inf)``,
@@ -493,6 +496,37 @@ class GravitySystem(esper.Processor):
         common, new_i, old_i = np.intersect1d(self.ents, ents, assume_unique=True, return_indices=True)
         for k, arr in arrays.items():
             getattr(self, k)[new_i] = arr[old_i]
+
+    def _pull_without_wells(self, dt: float) -> None:
+        """A scene with ``NBody`` bodies and no well: they attract each other all the same.
+
+        Each step kicks every NBody body's velocity by the pull of the others,
+        ``v += dt * sum_j G m_j (x_j - x_i) / |x_j - x_i|^3`` (positions at the
+        step's start), and leaves the drift to the movement system, which runs
+        next (``x += v dt``): symplectic Euler, first order, energy bounded; the
+        collision system meets them as any other bodies. A body of infinite
+        (or no) mass pulls nothing and is not kicked. With a well in the scene
+        they are this system's own, on the leapfrog above.
+        """
+        q = self.world.query(NBody, Transform, Velocity, Mass)
+        q.refresh()
+        if len(q) < 2:
+            return
+        world = self.world
+        t_rows, v_rows = to_indices(q.rows(Transform)), to_indices(q.rows(Velocity))
+        kg = world.table(Mass).data["kg"][to_indices(q.rows(Mass))]
+        live = np.isfinite(kg)
+        if np.count_nonzero(live) < 2:
+            return
+        t_rows, v_rows, gm = t_rows[live], v_rows[live], G * kg[live]
+        x = world.table(Transform).data["position"][t_rows]
+        d = x[None, :, :] - x[:, None, :]                       # d[i, j] = x_j - x_i, m
+        r2 = np.einsum("ijk,ijk->ij", d, d)
+        np.fill_diagonal(r2, np.inf)                            # no self-pull
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = gm[None, :] / (r2 * np.sqrt(r2))                # G m_j / r^3, 1/s^2
+        w[~np.isfinite(w)] = 0.0                                # two bodies at one point: no kick
+        world.table(Velocity).data["linear"][v_rows] += dt * np.einsum("ij,ijk->ik", w, d)
 
     def reference(self, entity: int):
         """The well ``entity`` moves about now, as ``(well entity, mu, radius, X, V)`` (its centre's
@@ -782,6 +816,7 @@ class GravitySystem(esper.Processor):
         if not len(wq):
             if self._wells is not None:               # the last well went: hand the bodies back to movement
                 self._release()
+            self._pull_without_wells(dt)
             return
         bq = world.query(Transform, Velocity, optional=(Acceleration, Mass))
         if bq.refresh() or changed or self._wells is None:
