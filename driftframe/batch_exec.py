@@ -320,9 +320,10 @@ class _Worker:
         """Ask it to exit (SIGTERM: a run stops at its next step, deleting its temporary file); kill it
         if it has not after ``timeout`` s."""
         if self.proc.is_alive():
-            self.send(None)
-            with contextlib.suppress(OSError):
-                self.proc.terminate() if self.busy is not None else None
+            self.send(None)                     # an idle worker reads it and exits
+            if self.busy is not None:
+                with contextlib.suppress(OSError):
+                    self.proc.terminate()
             self.proc.join(timeout)
             if self.proc.is_alive():
                 self.proc.kill()
@@ -395,13 +396,16 @@ def run_local(specs, jobs: int, lp, done, *, retries: int = 1, note=print) -> in
                     w.proc.join()
                     workers.remove(w)
                     w.conn.close()
-                    if w.busy is None or stopping:
+                    if w.busy is None:
                         continue
                     i, spec = w.busy
-                    if spec.output is not None:
+                    if spec.output is not None:             # what a killed worker could not clean up
                         _remove_parts(spec.output, w.proc.pid)
+                    if stopping:
+                        continue
                     deaths[i] = deaths.get(i, 0) + 1
-                    why = f"a worker (pid {w.proc.pid}) {_exit_words(w.proc.exitcode)} during {spec.where or spec.label}"
+                    why = (f"a worker (pid {w.proc.pid}) {_exit_words(w.proc.exitcode)} during "
+                           f"{spec.where or spec.label}")
                     if deaths[i] <= retries:
                         note(f"{why}; running it again ({deaths[i]} of {retries} retries)")
                         queue.appendleft(i)

@@ -222,7 +222,8 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
 class _Inside:
     """Where an output name goes, after every substitution: a path inside the output folder, or a
     SpecError. Refused: an absolute name, a ``..`` part, a folder that resolves (through a symbolic
-    link) outside the output folder, a name part longer than the file system allows. The resolved folders are remembered: each is looked at once."""
+    link) outside the output folder, a name part longer than the file system allows. The resolved
+    folders are remembered: each is looked at once."""
 
     def __init__(self, out_dir: Path):
         self.out_dir = out_dir

@@ -674,7 +674,8 @@ def test_a_non_dask_address_is_one_line(tmp_path, capsys, monkeypatch):
         for address in (f"tcp://127.0.0.1:{port}", "ucx://127.0.0.1:1"):
             rc = cli.main(["batch", str(spec), "--scheduler", address, "-o", str(tmp_path / "o"), "--quiet"])
             err = capsys.readouterr().err
-            assert rc == 2 and err.startswith(f"driftframe: error: scheduler {address!r} ") and err.count("\n") == 1, err
+            assert rc == 2 and err.count("\n") == 1, err
+            assert err.startswith(f"driftframe: error: scheduler {address!r} "), err
     finally:
         server.close()
 

@@ -64,7 +64,7 @@ def _alive(pids) -> list[int]:
     return out
 
 
-def _wait_for(cond, proc, timeout=90.0, what=""):
+def _wait_for(cond, proc, timeout=240.0, what=""):
     deadline = time.monotonic() + timeout
     seen: set[int] = set()
     while not cond():
