@@ -267,6 +267,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="replace outputs that exist already (default: refuse them before any run starts)")
     batch.add_argument("--quiet", action="store_true", help="no progress bar")
 
+    new = sub.add_parser("new", help="start a game of your own: a folder with a scene, components, systems, tests",
+                         description="Write the folder NAME: pyproject.toml, NAME/scene.py (the scene, "
+                                     "`driftframe play NAME.scene:build`), NAME/components.py, NAME/systems.py "
+                                     "(one example system) and tests/test_scene.py. Refuses a folder that exists.")
+    new.add_argument("name", metavar="NAME", help="the game's name: a Python identifier (its package's name)")
+
     warm = sub.add_parser("warm", help="compile (or load) every physics kernel now, into the kernel cache",
                           description="Compile every numba kernel for this machine, or load it from the cache "
                                       "if it is there, so that the next play, record or batch starts at once. "
@@ -616,11 +622,12 @@ def cmd_batch(args) -> int:
     from tqdm import tqdm
 
     todo = [i for i in range(len(specs)) if i not in skip]
+    from driftframe import warmup
     from driftframe.framework import kernels
     if client is None and batch.plan_jobs(specs, args.jobs)[0] > 1 and not kernels.is_warm():
         # once, before the workers start: each then loads the kernels instead of all compiling them at
         # the same time into one cache (numba's cache is not safe against concurrent writers)
-        _compile(kernels.warm, args.quiet)
+        _compile(warmup.warm, args.quiet)
     journal = batch_report.Journal(out_dir, append=args.resume)
     if skip:
         tqdm.write(f"driftframe: resuming: {len(skip)} of {len(specs)} runs are done already (journal.jsonl)",
@@ -663,11 +670,23 @@ def cmd_batch(args) -> int:
     return outcome.exit_status
 
 
+def cmd_new(args) -> int:
+    from driftframe.scaffold import ScaffoldError, new
+    try:
+        root = new(args.name)
+    except ScaffoldError as e:
+        raise UsageError(str(e)) from None
+    print(f"wrote {root}/. Fly it:\n    cd {root}\n    driftframe play {args.name}.scene:build\n"
+          f"    driftframe record {args.name}.scene:build -o out/{args.name}.mp4\n    python -m pytest")
+    return 0
+
+
 def cmd_warm(args) -> int:
+    from driftframe import warmup
     from driftframe.framework import kernels
 
     missed: list = []
-    _compile(lambda watch: missed.extend(kernels.warm(watch)), args.quiet)
+    _compile(lambda watch: missed.extend(warmup.warm(watch)), args.quiet)
     total = len(kernels.registry(load=False))
     if missed:
         print(f"driftframe: warning: the warm-up did not reach {len(missed)} of {total} kernels "
@@ -774,7 +793,8 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + signal.SIGINT
 
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
-                "diverge": cmd_diverge, "batch": cmd_batch, "warm": cmd_warm}
+                "diverge": cmd_diverge, "batch": cmd_batch, "warm": cmd_warm,
+                "new": cmd_new}
     from driftframe.framework.kernels import KernelCompileError
 
     try:

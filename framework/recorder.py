@@ -709,9 +709,6 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
         raise ValueError(f"format must be one of {', '.join(FORMATS)} or None, got {format!r}")
     path = Path(os.fspath(path))
     size = tuple(target.size)
-    if not path.parent.exists():
-        # record(world, "out/mine.mp4") in a new folder: the output's folder is made, as -o's default is
-        path.parent.mkdir(parents=True, exist_ok=True)
     if fmt == "mp4" and (size[0] % 2 or size[1] % 2):
         raise ValueError(f"H.264 (yuv420p) needs an even width and height, got {size[0]}x{size[1]}")
     rate = Fraction(fps).limit_denominator(10000)
@@ -724,6 +721,15 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
 
     from tqdm import tqdm
 
+    check_name(path)                                  # (a name too long: refused before any folder is made)
+    if not path.parent.exists() and not path.parent.is_symlink():
+        # record(world, "out/mine.mp4") in a new folder makes the folder (after every other check, so a
+        # refused call leaves nothing), as the command line makes its default out/
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise type(e)(f"cannot write {str(path)!r}: cannot create its directory "
+                          f"{str(path.parent)!r} ({e.strerror})") from None
     # from the first file made to the last: SIGTERM / SIGHUP become an interrupt, never debris
     with StopSignals(handle_signals) as stop:
         tmp = _prepare_path(path, fmt, bool(overwrite))

@@ -170,13 +170,23 @@ def test_failure_leaves_nothing_behind(scene, tmp_path):
     assert good.read_bytes() == before and listing(tmp_path) == ["keep.mp4"]
 
 
+def test_record_makes_the_outputs_folder(scene, tmp_path):
+    # issue 23: the GUIDE's first program records to out/mine.mp4 in a new folder; it failed with
+    # "directory 'out' does not exist"
+    w = scene()
+    out = tmp_path / "new" / "deeper" / "clip.gif"
+    res = record(w, out, frames=2, progress=False)
+    assert res.path == out and out.stat().st_size > 0
+    w.close()
+
+
 def test_bad_paths_and_formats_fail_before_anything_is_rendered(scene, tmp_path):
     w = scene()
     (tmp_path / "a_file").write_text("x")
     cases = [
         (tmp_path / "clip.avi", ValueError, r"unknown output format '.avi'.*use .mp4, .gif, or a directory"),
         (tmp_path / "still.png", ValueError, "a .png path is a single image"),
-        (tmp_path / "missing" / "clip.mp4", FileNotFoundError, "does not exist"),
+        (tmp_path / "a_file" / "sub" / "clip.mp4", OSError, "cannot create its directory"),
         (tmp_path / "a_file" / "clip.mp4", NotADirectoryError, "is not a directory"),
         (str(tmp_path / "a_file") + "/", FileExistsError, "exists and is not a directory"),
     ]
