@@ -94,7 +94,7 @@ def test_prepare_builds_the_systems_caches_and_changes_nothing():
             before = w.state_hash()
             w.prepare()
             assert w.state_hash() == before
-            assert cs._layout is not None and cs._layout.buffers is not None     # built at load, not in step 1
+            assert cs._layout is not None and cs._layout.state is not None       # built at load, not in step 1
             assert cs._list_layout is cs._layout                                   # and the neighbour list
         w.step()
         first_builds = cs.stats["builds"]
