@@ -100,7 +100,10 @@ def load_scene(name: str):
     """
     if not is_scene_path(name):
         from driftframe import demos
-        return demos.load(name)
+        try:
+            return demos.load(name)
+        except LookupError as e:
+            raise LookupError(f"{e}; or your own scene as module:function (e.g. mygame.scene:build)") from None
     from driftframe.batch_spec import _scene_function
     try:
         func = _scene_function(name, SceneError)
