@@ -430,16 +430,39 @@ def argsort_stable(a, m):
 
 @kernel(no_cfunc_wrapper=True)
 def median(a):
-    """``np.median`` of a 1-d float array (the mean of the middle two for an even count; NaN when
-    empty), by :func:`argsort_stable`: numba's median compiles a partition for every dtype."""
+    """``np.median`` of a 1-d float array without NaN (the mean of the middle two for an even count; NaN
+    when empty) by Wirth's selection, O(n): numba's median compiles a partition for every dtype, complex
+    included (see docs/bench/compile.md). The order statistics are unique, so the bits are numpy's."""
     n = a.shape[0]
     if n == 0:
         return np.nan
-    o = argsort_stable(a, n)
+    w = a.copy()
     h = n >> 1
-    if n & 1 == 0:
-        return (a[o[h - 1]] + a[o[h]]) / 2
-    return a[o[h]]
+    lo = 0
+    hi = n - 1
+    while lo < hi:                     # Wirth: w[h] the h-th smallest, w[:h] <= w[h] <= w[h + 1:]
+        x = w[h]
+        i = lo
+        j = hi
+        while i <= j:
+            while w[i] < x:
+                i += 1
+            while x < w[j]:
+                j -= 1
+            if i <= j:
+                w[i], w[j] = w[j], w[i]
+                i += 1
+                j -= 1
+        if j < h:
+            lo = i
+        if h < i:
+            hi = j
+    if n & 1:
+        return w[h]
+    below = w[0]
+    for k in range(1, h):
+        below = max(below, w[k])
+    return (below + w[h]) / 2
 
 
 @kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)

@@ -377,7 +377,7 @@ def _island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
 # nothing next to the wave), they keep _solve's body, which numba types as a whole, smaller (see
 # docs/bench/compile.md).
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, we):
     """Each contact's restitution ``we``: the pair's, or the TC model's / the bounds'; ``wstick``: the
     contacts whose island sticks. Returns the flags raised and whether any island sticks."""
@@ -410,7 +410,7 @@ def _restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, 
     return flags, stick_any
 
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _islands(K, wi, wj, inv, parent, ustamp, waves, wroot):
     """Union-find over the movable bodies of the wave: each contact's island root into ``wroot``."""
     for k in range(K):
@@ -595,6 +595,8 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
 
     # -- per body bookkeeping --
     changed = np.zeros(n, np.bool_)
+    x_in = np.empty((n, 3))
+    u_in = np.empty((n, 3))
     burst = np.zeros(n, np.int64)
     count = np.zeros(n, np.int64)
     bmark = np.full(n, -1, np.int64)
@@ -773,6 +775,10 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
         # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
         for a in range(nm):
             b = moved[a]
+            if not changed[b]:                             # its x and u as they came (for F_AGAIN)
+                for d in range(3):
+                    x_in[b, d] = x[b, d]
+                    u_in[b, d] = u[b, d]
             for d in range(3):
                 u[b, d] += dv[b, d]
                 x[b, d] -= dv[b, d] * t
@@ -809,7 +815,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
     stats[2] = waves
     _shift(t_last, now)
     if flags & F_AGAIN:
-        _put_back(keep, x, u, t_last, lst)
+        _put_back(keep, x, u, t_last, lst, changed, x_in, u_in)
     return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
 
 
@@ -976,7 +982,7 @@ def _unlisted_start(lst, pi, pj, x, u, r, live, dt):
     return np.int64(0), pi.shape[0], pi, pj, pi, pi, pi, pi
 
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
     """The moved bodies whose new path leaves their territory (or their swept box) are swept: their new
     pairs are added. Returns the pair structures, the count of swept bodies and the flags."""
@@ -1019,7 +1025,7 @@ def _listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, m
     return P, PI, PJ, nxt, ver, mark, n_swept, flags
 
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _unlisted_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
     """Every pair a candidate: nothing to add."""
     return P, PI, PJ, nxt, ver, mark, n_swept, flags
@@ -1032,43 +1038,43 @@ def _no_stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bma
     return np.int64(-1)
 
 
+# F_AGAIN: a step is run again from its inputs as they came. What it changes: x and u of the bodies it
+# moved (_solve keeps their rows before it first changes them: O(moved), not O(n) a step), t_last (shifted
+# in place: (t - now) + now is not t in every bit, so a copy) and, with the list, swept. blo and bhi need
+# none: the rows of bodies swept at the start are made again from x and u, the others are not read.
+
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def _copy_rows(dst, src):
-    """``dst[...] = src`` for (n, 3) arrays, as a loop (see _grow_f)."""
-    for k in range(src.shape[0]):
-        for d in range(3):
-            dst[k, d] = src[k, d]
+def _put_rows(x, u, changed, x_in, u_in):
+    for b in range(changed.shape[0]):
+        if changed[b]:
+            for d in range(3):
+                x[b, d] = x_in[b, d]
+                u[b, d] = u_in[b, d]
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _keep_pairs(x, u, t_last, lst):
-    """What a step of every pair changes, as it came: for F_AGAIN."""
-    return x.copy(), u.copy(), t_last.copy()
+    return t_last.copy()
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def _put_back_pairs(keep, x, u, t_last, lst):
-    _copy_rows(x, keep[0])
-    _copy_rows(u, keep[1])
+def _put_back_pairs(keep, x, u, t_last, lst, changed, x_in, u_in):
+    _put_rows(x, u, changed, x_in, u_in)
     for k in range(t_last.shape[0]):
-        t_last[k] = keep[2][k]
+        t_last[k] = keep[k]
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _keep_listed(x, u, t_last, lst):
-    """What a step with the list changes, as it came (with the list's swept bodies and boxes): for F_AGAIN."""
-    return x.copy(), u.copy(), t_last.copy(), lst[0].copy(), lst[1].copy(), lst[2].copy()
+    return t_last.copy(), lst[0].copy()
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def _put_back_listed(keep, x, u, t_last, lst):
-    _copy_rows(x, keep[0])
-    _copy_rows(u, keep[1])
-    _copy_rows(lst[1], keep[4])
-    _copy_rows(lst[2], keep[5])
+def _put_back_listed(keep, x, u, t_last, lst, changed, x_in, u_in):
+    _put_rows(x, u, changed, x_in, u_in)
     for k in range(t_last.shape[0]):
-        t_last[k] = keep[2][k]
-        lst[0][k] = keep[3][k]
+        t_last[k] = keep[0][k]
+        lst[0][k] = keep[1][k]
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
@@ -1078,7 +1084,7 @@ def _keep_nothing(x, u, t_last, lst):
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def _put_back_nothing(keep, x, u, t_last, lst):
+def _put_back_nothing(keep, x, u, t_last, lst, changed, x_in, u_in):
     pass
 
 

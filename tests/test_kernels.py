@@ -172,7 +172,7 @@ def test_argsort_stable_and_median_match_numpy():
         for a in (rng.integers(0, 7, n).astype(np.int64), rng.random(n), np.round(rng.random(n), 1)):
             for m in sorted({0, n // 2, n}):
                 assert np.array_equal(bp.argsort_stable(a, m), np.argsort(a[:m], kind="stable"))
-            if n and a.dtype == np.float64:
+            if n and a.dtype == np.float64 and not np.isnan(a).any():
                 assert bp.median(a) == np.median(a)
     a = np.array([3.0, np.nan, 1.0, 2.0, np.nan, 0.5])
     assert np.array_equal(bp.argsort_stable(a, 6), np.argsort(a, kind="stable"))
