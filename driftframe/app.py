@@ -139,6 +139,9 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
         raise
     world.resources["demo"] = demo
     world.resources["seed"] = int(seed)        # later generation steps (the starfield's texture) derive from it
+    # how to build it again: a save names it, and World.load rebuilds the systems from it
+    world.resources["make_world"] = {"name": name, "seed": int(seed), "scripted": bool(scripted),
+                                     "collision": collision, "track": track is not None}
     return world, demo
 
 

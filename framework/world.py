@@ -714,6 +714,26 @@ class World:
                     h.update(_describe(esper.component_for_entity(e, cls)).encode())
         return h.hexdigest()
 
+    # -- saves ----------------------------------------------------------------------
+    def save(self, path, *, overwrite: bool = False) -> str:
+        """Write this world to ``path`` (a ``.npz``: columns, plus a JSON manifest), atomically; an
+        existing file is refused unless ``overwrite``. See :mod:`driftframe.framework.save`."""
+        from driftframe.framework import save
+        return save.save(self, path, overwrite=overwrite)
+
+    @classmethod
+    def load(cls, path, build=None) -> "World":
+        """The world saved in ``path``: rebuilt (``make_world`` of the scene the save names, or
+        ``build()``, which returns a world with its systems), then its entities, step count, resources
+        and systems' state replaced by the saved ones; it steps on bit-identically."""
+        from driftframe.framework import save
+        return save.load(path, build=build)
+
+    def restore(self, path) -> None:
+        """Replace this world's state with the save in ``path`` (quick-load: this world keeps its systems)."""
+        from driftframe.framework import save
+        save.restore(self, path)
+
     def prepare(self) -> None:
         """Do now the one-time work the first step would do: reconcile the tables with esper and let
         every system that has a ``prepare()`` build what it caches for the current entities (packed

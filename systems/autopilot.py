@@ -93,6 +93,15 @@ class AutopilotSystem(esper.Processor):
     def __init__(self):
         self._last_dir: dict[int, np.ndarray] = {}
 
+    def state(self):
+        """What a save keeps of this system (see framework/save.py): each ship's wanted direction of the
+        last step (the turn rate of the direction is measured against it)."""
+        return {"last_dir": {int(e): np.array(d, float) for e, d in self._last_dir.items()}}
+
+    def restore(self, state) -> None:
+        """Take back :meth:`state` (a load)."""
+        self._last_dir = {int(e): np.array(d, float) for e, d in state["last_dir"].items()}
+
     # -- where things are -----------------------------------------------------------------------
     def _state(self, ent: int, what: str):
         tf = esper.try_component(ent, Transform)

@@ -405,11 +405,31 @@ class CollisionSystem(esper.Processor):
 
     def _t_last_of(self, lay: _Layout) -> np.ndarray:
         """The last contact of each body of the layout (absolute time, s; -inf: none yet), kept across
-        steps for the TC model; new for a new layout."""
+        steps for the TC model; new for a new layout (from a restored save's, by entity, after a load)."""
         if self._t_last_layout is not lay:
             self._t_last = np.full(lay.n, -math.inf)
             self._t_last_layout = lay
+            saved, self._saved = getattr(self, "_saved", None), None
+            if saved is not None and lay.n:
+                ents, t_last = np.asarray(saved[0], np.int64), np.asarray(saved[1], float)
+                _, new_i, old_i = np.intersect1d(lay.entities, ents, assume_unique=True, return_indices=True)
+                self._t_last[new_i] = t_last[old_i]
         return self._t_last
+
+    def state(self):
+        """What a save keeps of this system (see framework/save.py): the TC model's last contact time of
+        each collider (it damps the next contact's restitution) and whether a jam switched the solver."""
+        lay = self._t_last_layout
+        if lay is None:
+            return {"entities": [], "t_last": [], "stick": self._stick}
+        return {"entities": [int(e) for e in lay.entities], "t_last": self._t_last.copy(), "stick": self._stick}
+
+    def restore(self, state) -> None:
+        """Take back :meth:`state` (a load): the layout is rebuilt at the next step and takes the times."""
+        self._saved = (state["entities"], state["t_last"])
+        self._stick = bool(state["stick"])
+        self._layout = self._t_last_layout = None
+        self._list_dirty = True
 
     def _unchanged(self, n: int) -> np.ndarray:
         """All False, n long (read only): one array kept."""

@@ -497,6 +497,22 @@ class GravitySystem(esper.Processor):
         for k, arr in arrays.items():
             getattr(self, k)[new_i] = arr[old_i]
 
+    def state(self):
+        """What a save keeps of this system (see framework/save.py): each body's epoch on rails (the
+        state its conic is evaluated from) and what it last wrote, by entity; None before the first step."""
+        if self._wells is None:
+            return None
+        wells, ents, arrays = self._carry()
+        return {"wells": [int(e) for e in wells], "bodies": [int(e) for e in ents],
+                "epochs": {k: v.copy() for k, v in arrays.items()}}
+
+    def restore(self, state) -> None:
+        """Take back :meth:`state` (a load): the bodies are gathered again at the next step and take
+        their saved epochs (bodies about other wells than saved start new ones)."""
+        self._wells = None
+        self._saved = None if state is None else (state["wells"], np.asarray(state["bodies"], np.int64),
+                                                  dict(state["epochs"]))
+
     def _pull_without_wells(self, dt: float) -> None:
         """A scene with ``NBody`` bodies and no well: they attract each other all the same.
 
@@ -822,7 +838,8 @@ class GravitySystem(esper.Processor):
         if bq.refresh() or changed or self._wells is None:
             # any structural change anywhere gives esper new lists: rebuild, but keep the epochs of the
             # bodies that are still here about the same wells (so nothing is re-anchored for nothing)
-            old = self._carry() if self._wells is not None else None
+            old = self._carry() if self._wells is not None else getattr(self, "_saved", None)
+            self._saved = None
             self._wells = _Wells(world, wq)
             self._build_bodies(bq)
             if old is not None and old[0] == self._wells.ents:
