@@ -419,9 +419,10 @@ class CollisionSystem(esper.Processor):
     def state(self):
         """What a save keeps of this system (see framework/save.py): the TC model's last contact time of
         each collider (it damps the next contact's restitution) and whether a jam switched the solver."""
-        lay = self._t_last_layout
-        if lay is None:
-            return {"entities": [], "t_last": [], "stick": self._stick}
+        lay, saved = self._t_last_layout, getattr(self, "_saved", None)
+        if lay is None:                                 # (a load not stepped yet: what it restored)
+            ents, t_last = saved if saved is not None else ([], np.empty(0))
+            return {"entities": [int(e) for e in ents], "t_last": np.array(t_last, float), "stick": self._stick}
         return {"entities": [int(e) for e in lay.entities], "t_last": self._t_last.copy(), "stick": self._stick}
 
     def restore(self, state) -> None:

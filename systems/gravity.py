@@ -500,9 +500,10 @@ class GravitySystem(esper.Processor):
     def state(self):
         """What a save keeps of this system (see framework/save.py): each body's epoch on rails (the
         state its conic is evaluated from) and what it last wrote, by entity; None before the first step."""
-        if self._wells is None:
+        saved = getattr(self, "_saved", None)
+        if self._wells is None and saved is None:
             return None
-        wells, ents, arrays = self._carry()
+        wells, ents, arrays = self._carry() if self._wells is not None else saved   # (a load not stepped yet)
         return {"wells": [int(e) for e in wells], "bodies": [int(e) for e in ents],
                 "epochs": {k: v.copy() for k, v in arrays.items()}}
 
@@ -1161,8 +1162,10 @@ class GravitySystem(esper.Processor):
                                          float(-un[j])))
         self.ep_r[hit], self.ep_v[hit], self.ep_t[hit] = rc, uc, tc
         self.ep_chi[hit] = 0.0
-        # the next contact of the new epoch (an outbound body: after its next periapsis dip, if any)
-        nxt = kepler.time_to_radius(rc * (1.0 + 1e-12), uc, mu, R, np.inf)
+        # the next contact of the new epoch (an outbound body: after its next periapsis dip, if any), on
+        # this very conic: time_to_radius takes a body on the surface moving out (no nudge of rc, which
+        # moved the conic: 8e-9 s late a bounce on a radial line, the body then 5e-5 m inside, missed next)
+        nxt = kepler.time_to_radius(rc, uc, mu, R, np.inf)
         self.ep_contact[hit] = tc + nxt
 
     # -- sphere-sphere contacts along the conics ------------------------------------------------

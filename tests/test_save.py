@@ -1,0 +1,299 @@
+"""Saves (framework/save.py): a world saved and loaded steps on to the same state hash as the run that
+never stopped; a bad file is one clear error naming the file and the field."""
+from __future__ import annotations
+
+import io
+import json
+import os
+import zipfile
+
+import numpy as np
+import pytest
+
+from driftframe import demos
+from driftframe.app import make_world, simulation_systems
+from driftframe.components.body import Transform, Velocity
+from driftframe.framework import __version__, save, warp
+from driftframe.framework.inputfile import InputFileError
+from driftframe.framework.output import OutputExistsError
+from driftframe.framework.world import World
+
+
+def _run(name, steps):
+    w, _ = make_world(name)
+    w.step(steps)
+    return w
+
+
+# short runs: k steps, save, n more (the demos' first contacts fall in the first second)
+_SHORT = {"rotation": (20, 30), "spin": (20, 30), "asteroids": (30, 40), "billiards": (40, 40),
+          "cradle": (40, 40), "swarm": (20, 20)}
+
+
+@pytest.mark.parametrize("name", [n for n in demos.NAMES if n != "orbit"])
+def test_demo_continues_bit_identically(name, tmp_path):
+    k, n = _SHORT[name]
+    never = _run(name, k + n)                       # the run that never stopped (nor saved)
+    expected = never.state_hash()
+    never.close()
+    a = _run(name, k)
+    path = a.save(tmp_path / f"{name}.npz")
+    h_saved = a.state_hash()
+    a.step(n)
+    assert a.state_hash() == expected               # saving changes nothing
+    a.close()
+    b = World.load(path)
+    assert b.state_hash() == h_saved and b.step_count == k
+    b.step(n)
+    assert b.state_hash() == expected
+    b.close()
+
+
+def test_orbit_continues_through_a_burn_and_under_warp(tmp_path):
+    """The orbit demo: saved in its first burn (step 722: thrust, the autopilot turning) and under warp
+    x10 (step 1000); each load steps on to the uninterrupted run's hash, and the warp comes back."""
+    a = _run("orbit", 722)
+    a.save(tmp_path / "burn.npz")
+    a.step(1000 - 722)
+    assert warp.of(a).requested == 10 and a.resources["warp"].factor == 10
+    a.save(tmp_path / "warp.npz")
+    a.step(150)
+    expected = a.state_hash()
+    a.close()
+    for slot in ("burn", "warp"):
+        b = World.load(tmp_path / f"{slot}.npz")
+        b.step(1150 - b.step_count)
+        assert b.state_hash() == expected, slot
+        assert warp.of(b).requested == 10
+        b.close()
+
+
+def test_saving_twice_gives_the_same_bytes_apart_from_nothing(tmp_path):
+    a = _run("asteroids", 10)
+    a.save(tmp_path / "one.npz")
+    b = World.load(tmp_path / "one.npz")
+    b.save(tmp_path / "two.npz")
+    m1, m2 = (save.SaveFile(tmp_path / f"{s}.npz") for s in ("one", "two"))
+    assert m1.manifest == m2.manifest
+    a.close()
+    b.close()
+
+
+def test_existing_file_refused_without_overwrite_and_nothing_left_behind(tmp_path):
+    a = _run("spin", 5)
+    path = tmp_path / "slot.npz"
+    a.save(path)
+    before = path.read_bytes()
+    a.step()
+    with pytest.raises(OutputExistsError, match="slot.npz"):
+        a.save(path)
+    assert path.read_bytes() == before
+    a.save(path, overwrite=True)
+    assert World.load(path).step_count == 6
+    assert sorted(os.listdir(tmp_path)) == ["slot.npz"]       # no part file
+    a.close()
+
+
+def test_unsavable_resource_is_left_to_the_rebuild_and_a_component_is_an_error(tmp_path):
+    a = _run("spin", 1)
+    a.resources["callback"] = print                     # code: rebuilt, not saved
+    a.resources["score"] = (3, np.float64(0.5), [float("inf"), -0.0])
+    a.resources["rng"] = np.random.default_rng(7)
+    a.resources["rng"].random(5)
+    a.save(tmp_path / "s.npz")
+    m = save.SaveFile(tmp_path / "s.npz").manifest
+    assert "callback" in m["rebuilt_resources"] and "demo" in m["rebuilt_resources"]
+    b = World.load(tmp_path / "s.npz")
+    score = b.resources["score"]
+    assert score == (3, 0.5, [float("inf"), 0.0]) and type(score[1]) is np.float64
+    assert np.copysign(1.0, score[2][1]) == -1.0
+    assert b.resources["rng"].random() == a.resources["rng"].random()       # the random state
+    b.close()
+
+    class Handle:
+        __slots__ = ("fd",)
+    ent = a.create_entity(Transform())
+    a.add_component(ent, Handle())
+    with pytest.raises(save.SaveError, match=f"Handle of entity {ent}"):
+        a.save(tmp_path / "t.npz")
+    assert not (tmp_path / "t.npz").exists()
+    a.close()
+
+
+def test_own_world_loads_with_build_and_subscriptions_are_checked(tmp_path):
+    from driftframe.components.collision import CollisionEvent
+
+    def build(subscribe=True):
+        w = World()
+        for s in simulation_systems():
+            w.add_system(s)
+        if subscribe:
+            w.subscribe(CollisionEvent, on_hit)
+        return w
+
+    def on_hit(event):
+        pass
+
+    a = build()
+    a.create_entity(Transform(position=(1, 2, 3)), Velocity((1, 0, 0)))
+    a.step(3)
+    a.save(tmp_path / "own.npz")
+    with pytest.raises(save.SaveError, match="own.npz: field 'scene' names no scene"):
+        World.load(tmp_path / "own.npz")
+    with pytest.raises(save.SaveError, match="own.npz: field 'subscriptions'"):
+        World.load(tmp_path / "own.npz", build=lambda: build(False))
+    b = World.load(tmp_path / "own.npz", build=build)
+    a.step(5)
+    b.step(5)
+    assert a.state_hash() == b.state_hash()
+    a.close()
+    b.close()
+
+
+def test_quick_load_into_the_running_world(tmp_path):
+    a = _run("billiards", 30)
+    h = a.state_hash()
+    a.save(tmp_path / "q.npz")
+    a.step(40)
+    a.restore(tmp_path / "q.npz")
+    assert a.state_hash() == h and a.step_count == 30
+    a.step(40)
+    b = _run("billiards", 70)
+    assert a.state_hash() == b.state_hash()
+    a.close()
+    b.close()
+
+
+# -- bad files: one line naming the file and the member or field --------------------------------------
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    w = _run("cradle", 5)
+    path = tmp_path_factory.mktemp("good") / "good.npz"
+    w.save(path)
+    w.close()
+    return path.read_bytes()
+
+
+def _rewrite(data: bytes, edit) -> bytes:
+    """The save ``data`` with ``edit(name, bytes) -> (name, bytes) | None`` applied to each member."""
+    src = zipfile.ZipFile(io.BytesIO(data))
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        for info in src.infolist():
+            got = edit(info.filename, src.read(info.filename))
+            if got is not None:
+                z.writestr(got[0], got[1])
+    return out.getvalue()
+
+
+def _load_error(tmp_path, data: bytes) -> str:
+    path = tmp_path / "bad.npz"
+    path.write_bytes(data)
+    with pytest.raises((save.SaveError, InputFileError)) as e:
+        World.load(path)
+    msg = str(e.value)
+    assert str(path) in msg and "\n" not in msg
+    return msg
+
+
+def test_truncated_file(tmp_path, good):
+    for cut in (10, len(good) // 2, len(good) - 30):
+        assert "not a complete zip" in _load_error(tmp_path, good[:cut]) or "damaged" in \
+            _load_error(tmp_path, good[:cut])
+
+
+def test_flipped_byte_in_a_column_names_the_member(tmp_path, good):
+    z = zipfile.ZipFile(io.BytesIO(good))
+    info = z.getinfo("columns/driftframe.components.body:Transform/position.npy")
+    data = bytearray(good)
+    at = info.header_offset + 30 + len(info.filename) + info.file_size - 3     # a byte of the last float
+    data[at] ^= 0x10
+    msg = _load_error(tmp_path, bytes(data))
+    assert "Transform/position.npy" in msg and "damaged" in msg
+
+
+def test_flipped_byte_in_the_manifest(tmp_path, good):
+    z = zipfile.ZipFile(io.BytesIO(good))
+    info = z.getinfo(save.MANIFEST)
+    data = bytearray(good)
+    data[info.header_offset + 30 + len(info.filename) + 40] ^= 0x01
+    assert "manifest.json" in _load_error(tmp_path, bytes(data))
+
+
+def test_renamed_field(tmp_path, good):
+    def rename(name, raw):
+        if name == save.MANIFEST:
+            m = json.loads(raw)
+            layout = m["columnar"]["driftframe.components.body:Velocity"]
+            layout["speed"] = layout.pop("linear")
+            return name, json.dumps(m)
+        return name.replace("Velocity/linear", "Velocity/speed"), raw
+    msg = _load_error(tmp_path, _rewrite(good, rename))
+    assert "columnar/driftframe.components.body:Velocity" in msg and "'speed'" in msg
+
+
+def test_missing_member_and_wrong_shape(tmp_path, good):
+    msg = _load_error(tmp_path, _rewrite(good, lambda n, r: None if n.endswith("Mass/kg.npy") else (n, r)))
+    assert "Mass/kg.npy" in msg and "missing" in msg
+
+    def reshape(name, raw):
+        if name.endswith("Transform/position.npy"):
+            out = io.BytesIO()
+            np.save(out, np.zeros((3, 2)))
+            return name, out.getvalue()
+        return name, raw
+    assert "Transform/position" in _load_error(tmp_path, _rewrite(good, reshape))
+
+
+def test_foreign_files(tmp_path):
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        z.writestr("hello.txt", "hi")
+    assert "not a driftframe save" in _load_error(tmp_path, out.getvalue())
+    out = io.BytesIO()
+    np.savez(out, manifest=np.arange(3))
+    assert "no manifest.json" in _load_error(tmp_path, out.getvalue())
+    assert "not a complete zip" in _load_error(tmp_path, b"P5\n2 2\n255\n" + bytes(4))
+
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        z.writestr(save.MANIFEST, json.dumps({"format": "someone-else", "format_version": 1}))
+    assert "field 'format'" in _load_error(tmp_path, out.getvalue())
+
+
+def test_another_version(tmp_path, good):
+    def version(fmt, pkg):
+        def edit(name, raw):
+            if name == save.MANIFEST:
+                m = json.loads(raw)
+                m["format_version"], m["driftframe_version"] = fmt, pkg
+                return name, json.dumps(m)
+            return name, raw
+        return _rewrite(good, edit)
+    msg = _load_error(tmp_path, version(save.FORMAT_VERSION + 1, "9.9.9"))
+    assert "'format_version'" in msg and "9.9.9" in msg and __version__ in msg
+    assert f"save format {save.FORMAT_VERSION + 1}" in msg and f"save format {save.FORMAT_VERSION}" in msg
+    path = tmp_path / "same_format.npz"
+    path.write_bytes(version(save.FORMAT_VERSION, "9.9.9"))       # another package, the same format: loads
+    w = World.load(path)
+    assert w.step_count == 5
+    w.close()
+
+
+def test_size_cap(tmp_path, good, monkeypatch):
+    monkeypatch.setattr(save, "SAVE_CAP", len(good) - 1)
+    msg = _load_error(tmp_path, good)
+    assert "the limit is" in msg
+    assert save.SAVE_CAP < 1 << 30
+
+
+def test_tagged_values_round_trip():
+    values = [(1, (2.5, "x")), [np.int32(3), np.float32(0.1)], {"a": None, 5: frozenset({1, 2})},
+              np.arange(6, dtype=np.int16).reshape(2, 3), float("nan"), -0.0, True]
+    back = save.decode(json.loads(json.dumps(save.encode(values))))
+    assert repr(back[:2]) == repr(values[:2]) and type(back[1][1]) is np.float32
+    assert back[2] == values[2] and back[3].dtype == np.int16 and (back[3] == values[3]).all()
+    assert np.isnan(back[4]) and np.copysign(1, back[5]) == -1 and back[6] is True
+    with pytest.raises(save.SaveError, match="here: unknown tag"):
+        save.decode({"$pickle": "x"}, "here")
