@@ -8,6 +8,11 @@ and contacts when they were collected), one histogram per group of runs
 holds the runs that kept energy to the last bit. It needs matplotlib (the
 ``batch`` extra); without it the CSV and the Markdown are still written and
 the caller is told why there is no chart.
+
+While the batch runs, :class:`Journal` appends each run as it ends to
+``journal.jsonl`` (a JSON line: the spec's hash, the result) and to
+``summary.csv``; :func:`read_journal` and :func:`resumed` give
+``driftframe batch --resume`` the runs it can skip.
 """
 from __future__ import annotations
 

@@ -131,9 +131,11 @@ def test_serial_and_pool_give_the_same_hashes_stats_and_bytes(tmp_path):
 @pytest.fixture(scope="module")
 def cluster():
     distributed = need_distributed()
-    # in-process workers (threads), loopback only, no dashboard: starts in about a second
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp://", host="127.0.0.1",
-                                  dashboard_address=None) as lc, distributed.Client(lc) as client:
+    # in-process workers (threads), loopback only, the dashboard on a free loopback port (None gives the
+    # default 8787, which another cluster on the machine may hold): starts in about a second
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp://",
+                                  host="127.0.0.1", dashboard_address="127.0.0.1:0") as lc, \
+            distributed.Client(lc) as client:
         yield client
 
 
@@ -713,7 +715,7 @@ def test_cluster_tasks_have_retries_and_the_versions_are_checked_first(cluster, 
 
 def test_the_dashboard_link_is_given_when_the_scheduler_serves_one(cluster, tmp_path, capsys):
     info = cluster.scheduler_info()
-    port = info["services"]["dashboard"]                    # the test cluster serves one on the default port
+    port = info["services"]["dashboard"]                    # the test cluster serves one
     assert batch.dashboard(cluster) == f"http://127.0.0.1:{port}/status"
     spec = tmp_path / "s.toml"
     spec.write_text('scene = "batch_scenes:box"\nseconds = 0.1\n')
