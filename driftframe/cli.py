@@ -205,6 +205,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "otherwise")
     rec.add_argument("--hash-log", default=None, metavar="FILE",
                      help="write one 'STEP HASH' line per step (compare two with `driftframe diverge`)")
+    rec.add_argument("--from", dest="from_save", default=None, metavar="SAVE",
+                     help="start from the save SAVE (world.save, or play's F5) of this scene: its entities, "
+                          "step count and state; --seconds more are recorded")
 
     play = sub.add_parser("play", parents=[common], help="fly a demo in a window with the keyboard",
                           description="Open a window and fly DEMO with the keyboard. The physics runs in "
@@ -371,6 +374,25 @@ def _apply_track(args, demo):
     return track
 
 
+def _open_save(args):
+    """``record --from SAVE``: the save read and checked (a :class:`SaveFile`), of this scene; its seed is
+    taken unless --seed says otherwise. None without --from."""
+    if args.from_save is None:
+        return None
+    from driftframe.framework.inputfile import InputFileError
+    from driftframe.framework.save import SaveError, SaveFile
+    try:
+        saved = SaveFile(args.from_save)
+    except (SaveError, InputFileError) as e:
+        raise UsageError(f"--from {e}") from None
+    scene = saved.manifest.get("scene") or {}
+    if scene.get("name") != args.demo:
+        raise UsageError(f"--from {args.from_save}: the save is of scene {scene.get('name')!r}, not {args.demo!r}")
+    if args.seed is DEFAULT_SEED:
+        args.seed = scene.get("seed", 0)
+    return saved
+
+
 #: Longest recording the command line starts: 1,000,000 frames (4.6 h at 60 fps), 10,000,000 fixed steps.
 MAX_FRAMES = 1_000_000
 MAX_STEPS = 10_000_000
@@ -458,9 +480,10 @@ def cmd_record(args) -> int:
 
     demo = _load_demo(args.demo, args.seed, args.sky)
     out = args.output or os.path.join("out", f"{_file_stem(args.demo)}.mp4")
-    _distinct_paths(**{"-o": out, "--hash-log": args.hash_log, "--track": args.track})
+    _distinct_paths(**{"-o": out, "--hash-log": args.hash_log, "--track": args.track, "--from": args.from_save})
     _output_names(**{"-o": out, "--hash-log": args.hash_log})
     track = _apply_track(args, demo)
+    saved = _open_save(args)
     _output_file("--hash-log", args.hash_log, args.overwrite)
     seconds = args.seconds if args.seconds is not None else demo.SECONDS
     try:
@@ -488,6 +511,12 @@ def cmd_record(args) -> int:
         _load_kernels(args.demo, args.seed, args.quiet, nv12=fmt == "mp4")   # a first run's compiling, before the bar
         world, demo = make_world(args.demo, seed=args.seed, track=track)
         try:
+            if saved is not None:
+                from driftframe.framework.save import SaveError
+                try:
+                    world.restore(saved)
+                except SaveError as e:
+                    raise UsageError(f"--from {e}") from None
             attach_rendering(world, size=args.size, camera=args.camera, sky=args.sky)
             if args.hash_log:
                 from driftframe.framework.hashlog import attach_hash_log

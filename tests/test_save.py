@@ -297,3 +297,39 @@ def test_tagged_values_round_trip():
     assert np.isnan(back[4]) and np.copysign(1, back[5]) == -1 and back[6] is True
     with pytest.raises(save.SaveError, match="here: unknown tag"):
         save.decode({"$pickle": "x"}, "here")
+
+
+# -- the command line: record --from SAVE ----------------------------------------------------------------
+
+def _cli(*args):
+    import subprocess
+    import sys
+    return subprocess.run([sys.executable, "-m", "driftframe", *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.gl
+def test_record_from_a_save_steps_on_as_the_uninterrupted_run(tmp_path):
+    """A recording from a save at step 30 hashes, step by step, as the last 15 steps of the recording
+    from the start (the recorder's world, rendering attached, is the one compared)."""
+    a = _run("billiards", 30)
+    a.save(tmp_path / "b.npz")
+    a.close()
+    logs = [tmp_path / "whole.txt", tmp_path / "from.txt"]
+    for log, extra in zip(logs, (["--seconds", "0.75"], ["--seconds", "0.25", "--from", str(tmp_path / "b.npz")])):
+        res = _cli("record", "billiards", *extra, "--size", "160x90", "--quiet", "--hash-log", str(log),
+                   "-o", str(tmp_path / log.stem) + "/")
+        assert res.returncode == 0, res.stderr
+    whole, tail = (log.read_text().splitlines() for log in logs)
+    assert len(whole) == 45 and tail == whole[30:] and tail[0].startswith("31 ")
+
+
+def test_record_from_refuses_a_bad_save_in_one_line(tmp_path):
+    a = _run("cradle", 2)
+    a.save(tmp_path / "c.npz")
+    a.close()
+    res = _cli("record", "billiards", "--from", str(tmp_path / "c.npz"), "-o", str(tmp_path / "x.gif"))
+    assert res.returncode == 2 and "the save is of scene 'cradle', not 'billiards'" in res.stderr
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    res = _cli("record", "cradle", "--from", str(tmp_path / "junk.npz"), "-o", str(tmp_path / "x.gif"))
+    assert res.returncode == 2 and "junk.npz" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x.gif").exists()
