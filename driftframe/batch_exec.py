@@ -520,7 +520,7 @@ def _dask_attempt(spec: Spec, stop_name: str):
     lock): the first compiles, the rest then load."""
     from distributed import Event
 
-    from driftframe.framework.kernels import warm_once
+    from driftframe.warmup import warm_once
 
     warm_once()
 

@@ -81,8 +81,8 @@ def _numba_cache_dir() -> str:
     return (getattr(config, "CACHE_DIR", "") if config is not None else "") or os.environ.get("NUMBA_CACHE_DIR", "")
 
 
-def warn_once(key: str, line: str) -> None:
-    """One line on stderr, once per process for each ``key``."""
+def warn_once(key, line: str) -> None:
+    """One line on stderr, once per process for each ``key`` (any hashable)."""
     if key not in _warned:
         _warned.add(key)
         print(f"driftframe: warning: {line}", file=sys.stderr, flush=True)
@@ -344,58 +344,29 @@ def is_warm(folder: Path | None = None) -> bool:
     return ((folder or cache_dir()) / WARM_MARK).exists()
 
 
-def _workload() -> None:
-    """Calls that reach the kernels: two steps of each demo scene (the second checks the neighbour list),
-    a Kepler propagation of enough bodies for the compiled loops, one frame through the NV12 converter."""
-    import numpy as np
+def warm(workload, watch: CompileWatch | None = None) -> list:
+    """Run ``workload()`` (calls that reach every kernel: :func:`driftframe.warmup.workload`), so that
+    each kernel is compiled or loaded, one process at a time per cache folder (a file lock), then mark
+    the folder warm.
 
-    from driftframe import demos
-    from driftframe.app import make_world
-    from driftframe.framework import kepler
-    from driftframe.framework.yuv import rgba_to_nv12
-
-    for name in demos.NAMES:
-        world, _ = make_world(name)
-        try:
-            world.step()
-            world.step()
-            jam_path = [s for stage in world.systems.values() for s in stage if getattr(s, "_stick", None) is False]
-            for system in jam_path:      # the collision solver's variant with the jam path, taken after a jam
-                system._stick = True
-            if jam_path:
-                world.step()
-        finally:
-            world.close()
-    n = kepler.COMPILED_MIN
-    angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1
-    v = np.stack([-np.sin(angle), np.cos(angle), np.zeros(n)], axis=1)
-    r1, v1, chi = kepler.Epoch(r, v, 1.0).at(0.1, chi=np.full(n, 0.1))
-    kepler.next_chi(chi, r1, v1, 1.0, 0.1)
-    rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
-
-
-def warm(watch: CompileWatch | None = None) -> list:
-    """Compile or load every kernel, one process at a time per cache folder (a file lock).
-
-    Returns the kernels the warm-up did not reach (empty when all are ready).
-    ``watch``: a :class:`CompileWatch` already entered, to show progress; every
-    kernel with nothing cached is added to its ``expected`` here.
+    Returns the kernels still with nothing compiled or cached (the workload did not reach them).
+    ``watch``: a :class:`CompileWatch` already entered, to show progress; every kernel with nothing
+    cached is added to its ``expected`` here.
     """
     with file_lock(cache_dir() / "warm.lock"):
-        return _warm(watch)
+        return _warm(workload, watch)
 
 
-def warm_once() -> None:
+def warm_once(workload) -> None:
     """:func:`warm` unless the cache folder is warm already; quiet. Each batch worker calls it before a run:
     the first to take the lock compiles, the others wait and then find the folder warm."""
     if not is_warm():
         with file_lock(cache_dir() / "warm.lock"):
             if not is_warm():
-                _warm(None)
+                _warm(workload, None)
 
 
-def _warm(watch) -> list:
+def _warm(workload, watch) -> list:
     folder = cache_dir()
     kernels = registry()
     for stale in folder.glob("*.tmp.*"):        # a write cut short (Ctrl-C, a crash): numba renames on success
@@ -406,7 +377,7 @@ def _warm(watch) -> list:
             for d in kernels:
                 if needs_compile(d):
                     watch.expected.setdefault(id(d), d)
-    _workload()
+    workload()
     try:                          # what the warm-up did not reach compiles at its first call, as numba does
         (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
     except OSError as e:

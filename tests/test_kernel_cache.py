@@ -246,14 +246,15 @@ def test_ctrl_c_during_warm_leaves_a_cache_the_next_warm_completes_and_uses(tmp_
     assert n + len(dead) == m_ <= total - saved_before + 1, (progress[-1], saved_before, dead)
     assert not _cache_files(tmp_path / "nc", "*.tmp.*")
     again = subprocess.run(EXE + ["warm"], capture_output=True, text=True, env=env, timeout=300)
-    assert again.returncode == 0 and "compil" not in again.stderr, again.stderr
+    assert again.returncode == 0 and "driftframe: compiling" not in again.stderr, again.stderr
 
 
 def test_warm_once_takes_the_lock_and_skips_a_warm_folder(tmp_path):
     # a worker finding the folder warm loads nothing and compiles nothing
     env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
-    code = ("import sys; from driftframe.framework import kernels; d = kernels.cache_dir(); "
-            "d.mkdir(parents=True); (d / kernels.WARM_MARK).write_text('x'); kernels.warm_once(); "
+    code = ("import sys; from driftframe import warmup; from driftframe.framework import kernels; "
+            "d = kernels.cache_dir(); d.mkdir(parents=True); (d / kernels.WARM_MARK).write_text('x'); "
+            "warmup.warm_once(); "
             "print('numba' in sys.modules)")
     res = _py(code, env=env)
     assert res.returncode == 0 and res.stdout.strip() == "False", res.stderr
@@ -274,13 +275,13 @@ def test_import_driftframe_imports_none_of_the_heavy_libraries():
 
 
 # warm's own work swapped for one kernel (a second): what is tested here is the lock and the order
-_CHEAP = ("import numpy as np; from driftframe.framework import kernels, yuv; "
-          "kernels._workload = lambda: yuv.rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4); ")
+_CHEAP = ("import numpy as np; from driftframe import warmup; from driftframe.framework import kernels, yuv; "
+          "warmup.workload = lambda: yuv.rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4); ")
 
 
 def test_warm_once_in_two_processes_at_once_compiles_in_one_and_the_other_waits_and_loads(tmp_path):
     env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
-    code = (_CHEAP + "import time; kernels.warm_once(); "
+    code = (_CHEAP + "import time; warmup.warm_once(); "
             "print(sum(yuv._nv12.stats.cache_misses.values()), time.time())")
     procs = [subprocess.Popen([PY, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                               env=env, cwd=tempfile.gettempdir()) for _ in range(2)]

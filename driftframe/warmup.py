@@ -1,0 +1,49 @@
+"""``driftframe warm``: the calls that reach every kernel, for :func:`framework.kernels.warm`.
+
+Here, in the application shell, because they build the demo scenes; the cache, the lock and the
+progress are in :mod:`driftframe.framework.kernels`.
+"""
+from __future__ import annotations
+
+from driftframe.framework import kernels
+
+
+def workload() -> None:
+    """Calls that reach the kernels: two steps of each demo scene (the second checks the neighbour list),
+    a Kepler propagation of enough bodies for the compiled loops, one frame through the NV12 converter."""
+    import numpy as np
+
+    from driftframe import demos
+    from driftframe.app import make_world
+    from driftframe.framework import kepler
+    from driftframe.framework.yuv import rgba_to_nv12
+
+    for name in demos.NAMES:
+        world, _ = make_world(name)
+        try:
+            world.step()
+            world.step()
+            jam_path = [s for stage in world.systems.values() for s in stage if getattr(s, "_stick", None) is False]
+            for system in jam_path:      # the collision solver's variant with the jam path, taken after a jam
+                system._stick = True
+            if jam_path:
+                world.step()
+        finally:
+            world.close()
+    n = kepler.COMPILED_MIN
+    angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1
+    v = np.stack([-np.sin(angle), np.cos(angle), np.zeros(n)], axis=1)
+    r1, v1, chi = kepler.Epoch(r, v, 1.0).at(0.1, chi=np.full(n, 0.1))
+    kepler.next_chi(chi, r1, v1, 1.0, 0.1)
+    rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
+
+
+def warm(watch=None) -> list:
+    """Compile or load every kernel (:func:`framework.kernels.warm` with :func:`workload`)."""
+    return kernels.warm(workload, watch)
+
+
+def warm_once() -> None:
+    """:func:`warm` unless the cache folder is warm already (:func:`framework.kernels.warm_once`)."""
+    kernels.warm_once(workload)
