@@ -424,6 +424,8 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
                 ui["overlay"] = not ui["overlay"]
             elif action == "fullscreen":
                 toggle_fullscreen()
+            elif action in ("quick_save", "quick_load"):   # between two steps (keys are polled between ticks)
+                quick(action)
             elif loop.paused and action == "switch_camera":   # while paused: at once, written down for the replay
                 switch_camera(world)
                 if recorder is not None:
@@ -432,6 +434,28 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
                     interp.snapshot.take()      # no blending across the jump
             else:                      # otherwise at the next fixed step
                 inputs.press(action)
+
+        slot = os.path.join(screenshot_dir, f"{label.replace(':', '-')}-quicksave.npz")
+
+        def quick(action):
+            """F5: the world into the slot (replacing the last); F9: the slot into the world. A quick-load
+            would rewind a flight being written down, so it is refused then (one line says why)."""
+            from driftframe.framework.inputfile import InputFileError
+            from driftframe.framework.save import SaveError
+            try:
+                if action == "quick_save":
+                    world.save(slot, overwrite=True)
+                    print(f"quick-save: {slot} (step {world.step_count})", file=sys.stderr)
+                elif save_track or hash_log:
+                    print("quick-load is off while --save-track or --hash-log writes the flight down",
+                          file=sys.stderr)
+                else:
+                    world.restore(slot)
+                    if interp is not None:
+                        interp.snapshot.take()        # no blending across the jump
+                    print(f"quick-load: {slot} (step {world.step_count})", file=sys.stderr)
+            except (SaveError, InputFileError, OSError) as e:
+                print(f"driftframe: {action.replace('_', '-')}: {e}", file=sys.stderr)
 
         def toggle_fullscreen():
             if glfw.get_window_monitor(win):

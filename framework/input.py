@@ -42,7 +42,8 @@ HELD = {
     "kill_rotation": ("kill_rotation", True),
 }
 #: Pressed actions, fired once per press.
-PRESSED = ("switch_camera", "pause", "screenshot", "quit", "fullscreen", "overlay", "warp_up", "warp_down")
+PRESSED = ("switch_camera", "pause", "screenshot", "quit", "fullscreen", "overlay", "warp_up", "warp_down",
+           "quick_save", "quick_load")
 #: Pressed actions that change the simulation (and so go into a saved track); the others act on the window.
 #: (Warp changes only how many steps a frame shows, but a replayed track should warp where the flight did.)
 SIM_PRESSED = ("switch_camera", "warp_up", "warp_down")
@@ -66,6 +67,8 @@ KEYMAP = {
     "quit": ("ESCAPE",),
     "warp_up": ("PERIOD",),
     "warp_down": ("COMMA",),
+    "quick_save": ("F5",),
+    "quick_load": ("F9",),
 }
 
 #: What each action does, in words (``driftframe keys``, ``--help``, the README).
@@ -77,6 +80,8 @@ ACTION_HELP = {
     "pause": "pause / resume", "screenshot": "screenshot (PNG)", "fullscreen": "fullscreen on / off",
     "overlay": "overlay: frame rate and the time of each stage", "quit": "quit",
     "warp_up": "time warp up (x10)", "warp_down": "time warp down (/10)",
+    "quick_save": "quick-save the world (SCENE-quicksave.npz beside the screenshots)",
+    "quick_load": "quick-load the last quick-save",
 }
 
 

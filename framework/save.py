@@ -415,6 +415,9 @@ def restore(world, save) -> None:
     dt = decode(m["dt"], f"{where}: field 'dt'")
     if dt != world.dt:
         raise SaveError(f"{where}: field 'dt' is {dt!r} s; the rebuilt world steps {world.dt!r} s")
+    mine, theirs = world.resources.get("make_world"), m.get("scene")
+    if isinstance(mine, dict) and isinstance(theirs, dict) and mine.get("name") != theirs.get("name"):
+        raise SaveError(f"{where}: field 'scene' is {theirs.get('name')!r}; this world is {mine.get('name')!r}")
     subs = _subscriptions(world)
     if [list(s) for s in m["subscriptions"]] != subs:
         raise SaveError(f"{where}: field 'subscriptions' names {m['subscriptions']}; the rebuilt world has {subs}")

@@ -3,6 +3,7 @@ never stopped; a bad file is one clear error naming the file and the field."""
 from __future__ import annotations
 
 import io
+import re
 import json
 import os
 import zipfile
@@ -333,3 +334,72 @@ def test_record_from_refuses_a_bad_save_in_one_line(tmp_path):
     res = _cli("record", "cradle", "--from", str(tmp_path / "junk.npz"), "-o", str(tmp_path / "x.gif"))
     assert res.returncode == 2 and "junk.npz" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x.gif").exists()
+
+
+# -- play: F5 quick-save, F9 quick-load (a real window under Xvfb, real keys) ---------------------------
+
+@pytest.fixture(scope="module")
+def display():
+    import shutil
+    if not (shutil.which("Xvfb") and shutil.which("xdotool")):
+        pytest.fail("window tests need Xvfb and xdotool: `./run tests` installs them")
+    from driftframe.xvfb import virtual_display
+    with virtual_display((1280, 720)) as name:
+        yield name
+
+
+@pytest.mark.window
+@pytest.mark.gl
+def test_play_f5_saves_and_f9_loads_the_world_back(display, tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    def xdo(*args):
+        return subprocess.run(["xdotool", *args], env={**os.environ, "DISPLAY": display}, capture_output=True,
+                              text=True, timeout=30)
+
+    state = tmp_path / "state.json"
+    proc = subprocess.Popen([sys.executable, "-m", "driftframe", "play", "asteroids", "--size", "320x180",
+                             "--state-out", str(state), "--screenshots", str(tmp_path)],
+                            env={**os.environ, "DISPLAY": display}, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline, wid = time.time() + 60, None
+        while wid is None and time.time() < deadline:
+            assert proc.poll() is None, proc.stderr.read()
+            out = xdo("search", "--name", "driftframe").stdout.split()
+            wid = out[0] if out else time.sleep(0.2)
+        assert wid, "no window"
+        xdo("windowfocus", "--sync", wid)
+        time.sleep(0.5)
+        xdo("key", "--window", wid, "F5")                # the slot
+        time.sleep(0.3)
+        xdo("keydown", "--window", wid, "w")             # then fly away from it
+        time.sleep(0.8)
+        xdo("keyup", "--window", wid, "w")
+        xdo("key", "--window", wid, "p")                 # paused: nothing steps after the load
+        time.sleep(0.2)
+        xdo("key", "--window", wid, "F9")
+        time.sleep(0.3)
+        xdo("keydown", "--window", wid, "Escape")
+        time.sleep(0.05)
+        xdo("keyup", "Escape")
+        proc.wait(60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        xdo("keyup", "w", "Escape")
+    err = proc.stderr.read()
+    assert proc.returncode == 0, err
+    slot = tmp_path / "asteroids-quicksave.npz"
+    saved = re.search(r"quick-save: .*asteroids-quicksave\.npz \(step (\d+)\)", err)
+    loaded = re.search(r"quick-load: .*asteroids-quicksave\.npz \(step (\d+)\)", err)
+    assert saved and loaded and saved.group(1) == loaded.group(1), err
+    s = json.loads(state.read_text())
+    w = World.load(slot)
+    assert s["steps"] == w.step_count == int(saved.group(1)) > 0
+    from driftframe.app import player
+    assert s["player"]["position"] == w.columns(Transform, [player(w)]).position[0].tolist()
+    assert s["player"]["velocity"] == w.columns(Velocity, [player(w)]).linear[0].tolist()
+    w.close()
