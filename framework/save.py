@@ -342,7 +342,7 @@ class SaveFile:
                             f"not {FORMAT!r}: not a driftframe save")
         if m.get("format_version") != FORMAT_VERSION:
             raise SaveError(f"{self.path}: field 'format_version': save format {m.get('format_version')!r} "
-                            f"written by driftframe {m.get('driftframe_version')!r}; this is driftframe "
+                            f"written by driftframe {m.get('driftframe_version')}; this is driftframe "
                             f"{__version__}, which reads save format {FORMAT_VERSION}")
         self.manifest = m
         need = {"dt": (dict, float, int), "step_count": int, "next_entity": int, "entities": list,
