@@ -15,7 +15,7 @@ can be written down (``save_track``) and re-rendered by ``driftframe record
 --track``; ``hash_log`` writes one state hash per step.
 
 Window keys: F11 fullscreen, F3 the overlay (frame rate, each stage's time),
-F12 a screenshot, P pause, Esc quit. Resizing keeps the picture's aspect
+F12 a screenshot, F5 / F9 quick-save / quick-load, P pause, Esc quit. Resizing keeps the picture's aspect
 ratio: the scene is drawn in the largest centred rectangle of the
 ``size``'s aspect (black bars around it).
 """
