@@ -247,6 +247,27 @@ def test_missing_member_and_wrong_shape(tmp_path, good):
     assert "Transform/position" in _load_error(tmp_path, _rewrite(good, reshape))
 
 
+def test_edited_values_name_the_field(tmp_path, good):
+    def nan_mass(name, raw):
+        if name.endswith("Mass/kg.npy"):
+            kg = np.lib.format.read_array(io.BytesIO(raw))
+            kg[1] = -2.0
+            out = io.BytesIO()
+            np.lib.format.write_array(out, kg)
+            return name, out.getvalue()
+        return name, raw
+    msg = _load_error(tmp_path, _rewrite(good, nan_mass))
+    assert "columns/driftframe.components.body:Mass" in msg and "Mass.kg" in msg
+
+    def step_text(name, raw):
+        if name == save.MANIFEST:
+            m = json.loads(raw)
+            m["step_count"] = "five"
+            return name, json.dumps(m)
+        return name, raw
+    assert "field 'step_count' is a str" in _load_error(tmp_path, _rewrite(good, step_text))
+
+
 def test_foreign_files(tmp_path):
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w") as z:
