@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import enum
 import io
 import itertools
 import json
@@ -112,6 +113,8 @@ def _find_class(path: str, where: str):
 
 def encode(value, where: str = "value"):
     """``value`` as JSON-ready data with tags (see the module's text); an unsavable value raises naming ``where``."""
+    if isinstance(value, enum.Enum):
+        return {"$enum": _class_path(type(value)), "name": value.name}
     if value is None or isinstance(value, (bool, str)):
         return value
     if type(value) is int:
@@ -166,6 +169,8 @@ def decode(data, where: str = "value"):
     try:
         if "$f" in data:
             return float.fromhex(data["$f"])
+        if "$enum" in data:
+            return _find_class(data["$enum"], where)[data["name"]]
         if "$np" in data:
             return np.dtype(data["$np"]).type(decode(data["v"], where))
         if "$array" in data:

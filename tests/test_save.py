@@ -311,12 +311,14 @@ def test_size_cap(tmp_path, good, monkeypatch):
 
 
 def test_tagged_values_round_trip():
+    import http
     values = [(1, (2.5, "x")), [np.int32(3), np.float32(0.1)], {"a": None, 5: frozenset({1, 2})},
-              np.arange(6, dtype=np.int16).reshape(2, 3), float("nan"), -0.0, True]
+              np.arange(6, dtype=np.int16).reshape(2, 3), float("nan"), -0.0, True, http.HTTPStatus.OK]
     back = save.decode(json.loads(json.dumps(save.encode(values))))
     assert repr(back[:2]) == repr(values[:2]) and type(back[1][1]) is np.float32
     assert back[2] == values[2] and back[3].dtype == np.int16 and (back[3] == values[3]).all()
     assert np.isnan(back[4]) and np.copysign(1, back[5]) == -1 and back[6] is True
+    assert back[7] is http.HTTPStatus.OK                  # an Enum member comes back as the member itself
     with pytest.raises(save.SaveError, match="here: unknown tag"):
         save.decode({"$pickle": "x"}, "here")
 
