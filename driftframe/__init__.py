@@ -37,6 +37,7 @@ _HOMES = {
     "AutopilotSystem": "systems.autopilot", "WarpGovernorSystem": "systems.warp",
     "orbit": "systems.readouts", "closest_approach": "systems.readouts", "predicted_orbit": "systems.readouts",
     "place": "framework.placement", "in_shell": "framework.placement", "in_box": "framework.placement",
+    "SaveError": "framework.save",
 }
 
 
@@ -63,5 +64,5 @@ __all__ = [
     "simulation_systems", "attach_rendering", "make_world", "load_scene", "declare_variant", "declare_model_file",
     "play", "record", "look_rotation", "save_track", "load_track", "Autopilot", "FlightPlan", "Orbiting",
     "AutopilotSystem", "WarpGovernorSystem", "orbit", "closest_approach", "predicted_orbit",
-    "place", "in_shell", "in_box",
+    "place", "in_shell", "in_box", "SaveError",
 ]

@@ -139,9 +139,10 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
         raise
     world.resources["demo"] = demo
     world.resources["seed"] = int(seed)        # later generation steps (the starfield's texture) derive from it
-    # how to build it again: a save names it, and World.load rebuilds the systems from it
+    # how to build it again: a save names it, and World.load calls the builder (framework/save.py)
     world.resources["make_world"] = {"name": name, "seed": int(seed), "scripted": bool(scripted),
-                                     "collision": collision, "track": track is not None}
+                                     "collision": collision, "track": track is not None,
+                                     "builder": f"{__name__}:make_world"}
     return world, demo
 
 

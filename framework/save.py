@@ -22,7 +22,10 @@ and bytes, +-inf and NaN survive): ``{"$tuple": [...]}``, ``{"$f": hex}``,
 ``{"$dc": "module:Class", ...}`` (a dataclass), ``{"$obj": ...}`` (an object's
 ``__dict__``), ``{"$rng": ...}`` (a ``numpy.random.Generator``'s bit generator
 state). A class is looked up among the modules this process has imported
-(the scene's build imports them); a file never makes it import anything.
+(the scene's build imports them). The only modules a load imports are
+driftframe's ``make_world`` (named in the save by ``make_world`` itself)
+and, through it, the scene the save names, as ``driftframe play SCENE``
+would; with ``build=``, none.
 
 **What is not in a save, and how loading gets it back.** Systems and
 callbacks are code, not data. :func:`load` (``World.load``) first rebuilds the
@@ -52,6 +55,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import enum
+import importlib
 import io
 import itertools
 import json
@@ -77,7 +81,7 @@ FORMAT = "driftframe-save"
 SAVE_CAP = 256 << 20
 MANIFEST = "manifest.json"
 #: Resources a world's rebuild makes again, never taken from a save: the scene's module and how it was made,
-#: rendering handles (the movement skip table, claims by system object ids, is left out too).
+#: rendering handles. A system adds the names of those it makes in its ``rebuilt_resources``.
 REBUILT_RESOURCES = ("demo", "gl", "model_cache", "render_target", "make_world")
 
 
@@ -96,7 +100,7 @@ def _class_path(cls) -> str:
 
 
 def _find_class(path: str, where: str):
-    """The class ``module:qualname`` among the imported modules (a save never imports anything)."""
+    """The class ``module:qualname`` among the imported modules (a class name in a save imports nothing)."""
     mod_name, _, qual = path.partition(":")
     mod = sys.modules.get(mod_name)
     if mod is None or not qual:
@@ -278,11 +282,14 @@ def snapshot(world) -> tuple[dict, dict]:
                                                       f"{cls.__name__} of entity {e}")] for e in holders]
             except _Unsavable as err:
                 raise SaveError(f"cannot save component {err}") from None
-    from driftframe.systems import movement
+    # what the systems say they make again (the movement skip table: claims by system object ids)
+    rebuilt = set(REBUILT_RESOURCES)
+    for _, system in _systems(world):
+        rebuilt.update(getattr(system, "rebuilt_resources", ()))
     for key, value in world.resources.items():
         if not isinstance(key, str):
             raise SaveError(f"cannot save resource key {key!r}: resource names are strings")
-        if key == movement.SKIP or key in REBUILT_RESOURCES:
+        if key in rebuilt:
             manifest["rebuilt_resources"].append(key)
             continue
         try:
@@ -388,10 +395,21 @@ def _scene_build(save: SaveFile):
     if scene.get("track"):
         raise SaveError(f"{save.path}: field 'scene': the world flew its own track; pass build= to rebuild it")
 
+    # the builder is the shell's make_world, named in the save by make_world itself (the framework does not
+    # import the floors above it); only driftframe's own functions are called from a file
+    mod_name, _, func = str(scene.get("builder", "")).partition(":")
+    if not (mod_name == "driftframe" or mod_name.startswith("driftframe.")) or not func:
+        raise SaveError(f"{save.path}: field 'scene': builder {scene.get('builder')!r} is not one of driftframe's; "
+                        "pass build=")
+    try:
+        make = getattr(importlib.import_module(mod_name), func)
+    except (ImportError, AttributeError) as e:
+        raise SaveError(f"{save.path}: field 'scene': builder {scene['builder']!r} not found ({e})") from None
+
     def build():
-        from driftframe.app import make_world
-        return make_world(scene["name"], seed=int(scene.get("seed", 0)), scripted=bool(scene.get("scripted", True)),
-                          collision=scene.get("collision", "continuous"))[0]
+        made = make(scene["name"], seed=int(scene.get("seed", 0)), scripted=bool(scene.get("scripted", True)),
+                    collision=scene.get("collision", "continuous"))
+        return made[0] if isinstance(made, tuple) else made
     return build
 
 

@@ -243,6 +243,7 @@ class CollisionSystem(esper.Processor):
     stage = "collision"
     reads = (Transform, Velocity, Acceleration, Mass, SphereCollider, Orbiting)
     writes = (Transform, Velocity)
+    rebuilt_resources = (movement.SKIP,)      # its claim in the skip table: made anew (framework/save.py)
 
     def __init__(self, method: str = "continuous", *, broadphase: str = "auto",
                  skin_steps: float = 8.0, events: bool = True, contact_time: float | None = None,

@@ -355,6 +355,7 @@ class GravitySystem(esper.Processor):
     name = "gravity"
     reads = (GravityWell, Transform, Velocity, Acceleration, Mass, NBody, Orbiting, SphereCollider)
     writes = (Transform, Velocity, Orbiting)
+    rebuilt_resources = (movement.SKIP,)      # its claim in the skip table: made anew (framework/save.py)
     #: before the movement system, in whatever order the two were added: a body is marked Orbiting
     #: (and so skipped by movement) before movement first runs
     before = (MovementSystem,)

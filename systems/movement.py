@@ -43,6 +43,9 @@ class MovementSystem(esper.Processor):
     writes = (Transform, Velocity)
 
     requires = (Transform, Velocity)
+    #: Resources this system's world makes again on a load, never taken from a save (framework/save.py):
+    #: the skip table holds claims by system object ids, which a rebuilt world's systems make anew.
+    rebuilt_resources = (SKIP,)
 
     def __init__(self):
         self._kept = {}

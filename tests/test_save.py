@@ -268,6 +268,17 @@ def test_edited_values_name_the_field(tmp_path, good):
     assert "field 'step_count' is a str" in _load_error(tmp_path, _rewrite(good, step_text))
 
 
+def test_a_builder_outside_driftframe_is_never_called(tmp_path, good):
+    def builder(name, raw):
+        if name == save.MANIFEST:
+            m = json.loads(raw)
+            assert m["scene"]["builder"] == "driftframe.app:make_world" and "movement.skip" in m["rebuilt_resources"]
+            m["scene"]["builder"] = "os:system"
+            return name, json.dumps(m)
+        return name, raw
+    assert "builder 'os:system' is not one of driftframe's" in _load_error(tmp_path, _rewrite(good, builder))
+
+
 def test_foreign_files(tmp_path):
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w") as z:
