@@ -90,8 +90,34 @@ def test_existing_file_refused_without_overwrite_and_nothing_left_behind(tmp_pat
         a.save(path)
     assert path.read_bytes() == before
     a.save(path, overwrite=True)
-    assert World.load(path).step_count == 6
+    b = World.load(path)
+    assert b.step_count == 6
+    b.close()
     assert sorted(os.listdir(tmp_path)) == ["slot.npz"]       # no part file
+    a.close()
+
+
+def test_a_failed_write_leaves_the_old_save_whole(tmp_path, monkeypatch):
+    """Atomic: a disk that fills while the save is written leaves the last save as it was, and no part file."""
+    import errno
+
+    from driftframe.framework.output import OutputError
+    a = _run("cradle", 3)
+    path = tmp_path / "slot.npz"
+    a.save(path)
+    before = path.read_bytes()
+    a.step(5)
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(OutputError, match="slot.npz.*no space left"):
+        a.save(path, overwrite=True)
+    monkeypatch.undo()
+    assert path.read_bytes() == before and sorted(os.listdir(tmp_path)) == ["slot.npz"]
+    b = World.load(path)
+    assert b.step_count == 3
+    b.close()
     a.close()
 
 
