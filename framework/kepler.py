@@ -512,8 +512,12 @@ def time_to_radius(r, v, mu, radius, horizon, *, outward: bool = False):
     inside ``radius`` (leaving a sphere of influence), the mirror image of the same solution.
 
     Exact along the conic at any step length (no sampling, so no tunnelling):
-    the crossing exists iff periapsis < ``radius`` and the body is outside it;
-    it lies on the inbound branch, before the next periapsis. The anomaly of
+    the crossing exists iff periapsis < ``radius`` and the body is outside it,
+    or on it moving out to an apoapsis past it (just bounced: the next crossing is a
+    cycle on, so no nudge off the surface is needed, which would move the conic);
+    it lies on the inbound branch, before the next periapsis. Straight-line (radial)
+    orbits, ``h = 0`` and so ``e = 1`` whatever the energy, fall back when bound:
+    only ``energy >= 0`` counts as open. The anomaly of
     the crossing comes from ``r = a (1 - e cos E)`` (``a (1 - e cosh H)``), its
     time from Kepler's equation; two Newton steps on ``|r(t)| - radius`` with
     the exact propagator polish it (``d|r|/dt = r.v/|r|``), which also covers
@@ -531,13 +535,15 @@ def time_to_radius(r, v, mu, radius, horizon, *, outward: bool = False):
     out = np.full(n, np.inf)
     if outward:
         # out through the sphere: from inside it, on an orbit that reaches past it (any open one does)
-        with np.errstate(invalid="ignore"):
-            reach = np.where(el.e < 1.0, el.a * (1.0 + el.e), np.inf)
-        cand = (rn < radius) & (reach > radius)
+        # (apoapsis from the energy, not e < 1: a bound straight-line orbit has e = 1 and turns back)
+        cand = (rn < radius) & (el.apoapsis > radius)
     else:
-        cand = (el.periapsis < radius) & (rn > radius)
-        # an outbound hyperbola (or parabola) past periapsis never returns
-        cand &= ~((el.e >= 1.0) & (rv >= 0))
+        # outside the sphere, or on it (to rounding, after a bounce) on the way out to an apoapsis past it
+        cand = (el.periapsis < radius) & ((rn > radius) | ((rv > 0) & (el.apoapsis > radius)))
+        # an outbound hyperbola (or parabola) past periapsis never returns. "Open" is decided by the
+        # energy (alpha = 2/r - v^2/mu <= 0), not by e >= 1: a straight-line (radial) bound orbit, a
+        # body released at rest or thrown straight up, has h = 0 and so e = 1 exactly, yet it falls back.
+        cand &= ~((el.energy >= 0.0) & (rv >= 0))
     if not cand.any():
         return out
     idx = np.flatnonzero(cand)

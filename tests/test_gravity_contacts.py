@@ -564,3 +564,67 @@ def test_a_body_at_rest_on_an_obstacle_does_not_sink_into_it(dt):
         assert float(w.columns(Transform, [a]).position[0, 0]) - (R_ORBIT - 81.0) <= 80.0 + 9.81 * dt * dt / 8
     finally:
         w.close()
+
+
+# -- straight-line (radial) orbits: h = 0, so e = 1 whatever the energy; a bound one falls back -------------
+def apex_fall_time(r_max, x, one_minus_x):
+    """s from rest at ``r_max`` down to ``x r_max`` on a straight line (radial Kepler free fall, closed form):
+    ``t = sqrt(r_max^3 / (2 mu)) (sqrt(x (1 - x)) + arccos(sqrt(x)))``, with ``arccos(sqrt(x))`` written
+    ``arcsin(sqrt(1 - x))`` and ``1 - x`` passed in, so a start just below the apex keeps its digits."""
+    return math.sqrt(r_max ** 3 / (2 * MU)) * (math.sqrt(x * one_minus_x) + math.asin(math.sqrt(one_minus_x)))
+
+
+def radial_contacts(r0, speed, count):
+    """Times of the first ``count`` surface contacts of a body at ``r0`` moving straight out at ``speed``
+    (m/s; negative: straight down), bouncing elastically: from the apex ``r_max = r0 / (1 - q/2)``,
+    ``q = speed^2 r0 / mu`` (energy), where ``1 - r0/r_max = q/2`` exactly. Independent of kepler.py."""
+    q = speed * speed * r0 / MU
+    r_max = r0 / (1 - q / 2)
+    # apex -> surface: 1 - R/r_max = (r0 - R + R q/2) / r0, its digits kept for a drop of metres
+    down = apex_fall_time(r_max, R_EARTH / r_max, (r0 - R_EARTH + R_EARTH * q / 2) / r0)
+    above = apex_fall_time(r_max, 1 - q / 2, q / 2)                       # apex -> r0
+    first = down - above if speed < 0 else down + above
+    return [first + 2 * k * down for k in range(count)]
+
+
+#: (step s, release radius m): each step length with a fall of a few to thousands of steps.
+RADIAL = [(1 / 60, R_EARTH + 500.0), (1.0, R_EARTH + 2e5), (60.0, 1e7), (3600.0, 1e7), (1e5, 1e8)]
+
+
+@pytest.mark.parametrize("dt,r0", RADIAL)
+@pytest.mark.parametrize("how", ["at rest", "straight up", "straight down"])
+def test_a_body_on_a_straight_line_meets_the_surface_at_the_radial_fall_time_and_bounces(dt, r0, how):
+    """A body released at rest, or thrown straight up or down, on rails: three surface contacts at the
+    closed-form radial fall times (the first, then each bounce back up to the same apex and down), never
+    below the surface at a step's end, its energy kept. (It fell through unseen when its e = 1 was taken
+    for an escaping parabola's.)"""
+    # half the speed of a fall from r0 to the surface, and under half the escape speed: bound
+    fast = 0.5 * min(math.sqrt(2 * MU * (1 / R_EARTH - 1 / r0)), math.sqrt(2 * MU / r0))
+    speed = {"at rest": 0.0, "straight up": fast, "straight down": -fast}[how]
+    want = radial_contacts(r0, speed, 3)
+    w = make(dt, collision_system=False)
+    try:
+        r_start, v_start = np.array([0.0, r0, 0.0]), np.array([0.0, speed, 0.0])
+        body = w.create_entity(Transform(r_start), Velocity(v_start))
+        lowest = np.inf
+        while w.time < want[-1] + 0.5 * (want[1] - want[0]):
+            w.step()
+            lowest = min(lowest, float(np.linalg.norm(w.columns(Transform, [body]).position[0])))
+        hits = [e for e in w.seen if isinstance(e, SurfaceContact)]
+        want = radial_contacts(r0, speed, len(hits))                    # a long last step may hold a 4th
+        assert len(hits) >= 3 and {h.entity for h in hits} == {body}
+        # the first contact to rounding: a position is known to an ulp of R, at a slow contact (110 m/s)
+        # 8e-12 s. Each bounce reflects a computed state: a rounding dv/v of its speed moves the next cycle
+        # T ~ a^(3/2) by 3 (r_max/R - 1) dv/v of T (energy's conditioning), an ulp of its place a few ulp_time
+        ulp_time = np.spacing(R_EARTH) / hits[0].speed
+        r_max = r0 / (1 - speed * speed * r0 / MU / 2)
+        per_bounce = 96 * np.finfo(float).eps * (r_max / R_EARTH - 1) * (want[1] - want[0]) + 4 * ulp_time
+        for k, (h, t) in enumerate(zip(hits, want)):
+            assert abs(h.time - t) <= 4e-15 * t + 1e-12 + ulp_time + k * per_bounce, (k, h.time, t, h.time - t)
+            assert h.normal_speed == pytest.approx(h.speed, rel=1e-12)       # straight in
+        assert lowest >= R_EARTH * (1 - 1e-12)
+        r, v = w.columns(Transform, [body]).position[0], w.columns(Velocity, [body]).linear[0]
+        assert abs(energy(r, v) / energy(r_start, v_start) - 1) < 1e-12
+        assert abs(r[0]) + abs(r[2]) == 0.0 and abs(v[0]) + abs(v[2]) == 0.0   # still on its line
+    finally:
+        w.close()

@@ -1,4 +1,5 @@
 """The universal-variable Kepler propagator against closed forms (framework/kepler.py)."""
+import math
 import numpy as np
 import pytest
 
@@ -376,3 +377,25 @@ def test_time_to_radius_outward_is_the_first_crossing_outwards(speed):
     assert kepler.time_to_radius(at * 1.01, vt, mu, R, 1e9, outward=True)[0] == np.inf
     circ = np.array([0, np.sqrt(mu / r0), 0.0])
     assert kepler.time_to_radius(r, circ, mu, R, 1e9, outward=True)[0] == np.inf
+
+
+@pytest.mark.parametrize("speed", [0.0, 2000.0, -2000.0])
+def test_time_to_radius_on_a_straight_line_is_the_radial_fall_time(speed):
+    """h = 0 gives e = 1 whatever the energy: a bound straight-line orbit falls back (it was taken for an
+    escaping parabola's, so a body released at rest or thrown up never met the surface), and one that
+    turns back inside a sphere does not leave it."""
+    R, r0 = 6.371e6, 1e7
+    q = speed * speed * r0 / MU                                # apex r_max = r0 / (1 - q/2), energy kept
+    r_max = r0 / (1 - q / 2)
+
+    def fall(omx):                                             # closed form, apex -> (1 - omx) r_max
+        return math.sqrt(r_max ** 3 / (2 * MU)) * (math.sqrt((1 - omx) * omx) + math.asin(math.sqrt(omx)))
+
+    want = fall(1 - R / r_max) + math.copysign(fall(q / 2), speed)
+    for axis in range(3):
+        r, v = np.zeros(3), np.zeros(3)
+        r[axis], v[axis] = r0, speed
+        t = kepler.time_to_radius(r, v, MU, R, 1e9)[0]
+        assert t == pytest.approx(want, abs=1e-11)
+        assert kepler.time_to_radius(r, v, MU, 1.01 * r_max, 1e9, outward=True)[0] == np.inf
+        assert kepler.time_to_radius(r, v, MU, 0.99 * r_max, 1e9, outward=True)[0] < np.inf or speed <= 0

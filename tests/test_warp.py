@@ -234,3 +234,33 @@ def test_warp_drops_before_n_body_colliders_could_touch():
     assert max(f for t, f, _ in seen if t < first) >= 10       # far apart: faster than 1x
     _, hits1, x1 = run(1)
     assert [h.time for h in hits1] == [h.time for h in hits] and np.array_equal(x1, x_end)
+
+
+@pytest.mark.parametrize("speed", [0.0, 3000.0], ids=["released at rest", "engine cut going straight up"])
+def test_warp_drops_before_a_body_on_a_straight_line_meets_the_surface(speed):
+    """A ship that lifts off vertically and cuts its engine (or hangs at rest) falls straight back: the
+    governor sees that contact (a straight-line orbit's e = 1 was taken for an escaping parabola's, and
+    warp stayed at 100,000x while the ship fell through the planet)."""
+    w = World(dt=1.0)
+    for s in (GravitySystem(), MovementSystem(), WarpGovernorSystem(lead_frames=3)):
+        w.add_system(s)
+    w.create_entity(Transform(), GravityWell(mu=MU, radius=R))
+    ship = w.create_entity(Transform((0.0, 0.0, 1e7)), Velocity((0.0, 0.0, speed)))
+    hits = []
+    w.subscribe(SurfaceContact, hits.append)
+    # radial Kepler fall from the apex r_max = r0 / (1 - q/2), q = v^2 r0 / mu, to R, plus the rise to it
+    q = speed * speed * 1e7 / MU
+    r_max = 1e7 / (1 - q / 2)
+
+    def fall(omx):                                     # apex -> (1 - omx) r_max, closed form
+        return math.sqrt(r_max ** 3 / (2 * MU)) * (math.sqrt((1 - omx) * omx) + math.asin(math.sqrt(omx)))
+
+    t_hit = fall(1 - R / r_max) + fall(q / 2)
+    try:
+        seen, _ = fly(w, 100_000, t_hit + 10.0)
+        assert [h.entity for h in hits] == [ship] and hits[0].time == pytest.approx(t_hit, abs=1e-9)
+        assert_no_frame_runs_into(seen, [t_hit])
+        assert any("surface" in why for _, _, why in seen)
+        assert np.linalg.norm(w.columns(Transform, [ship]).position[0]) >= R
+    finally:
+        w.close()
