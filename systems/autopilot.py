@@ -203,7 +203,7 @@ class AutopilotSystem(esper.Processor):
             ap.status = mode.replace("_", " ")
             return self.direction(ent, mode, ap, x, v), 0.0
         if ctl.thrust <= 0:
-            raise ValueError(f"Autopilot {mode} of entity {ent}: FlightControl.thrust is {float(ctl.thrust):g}, "
+            raise ValueError(f"Autopilot {mode} of entity {ent}: FlightControl.thrust is {float(ctl.thrust)!r}, "
                              f"so no burn can reach it (an unreachable target)")
         full = ctl.thrust * dt                      # m/s one step at full throttle gives
         if ap.done and mode != "flip_and_burn":     # flip-and-burn keeps station once there

@@ -242,8 +242,8 @@ class _Wells:
             for j in range(i + 1, len(order)):
                 d = float(np.linalg.norm(pos[i] - pos[j]))
                 if d < self.radius[i] + self.radius[j]:
-                    raise ValueError(f"GravityWell of entity {self.ents[j]} (radius {float(self.radius[j]):g} m) "
-                                     f"is {d:g} m from well {self.ents[i]} (radius {float(self.radius[i]):g} m): "
+                    raise ValueError(f"GravityWell of entity {self.ents[j]} (radius {float(self.radius[j])!r} m) "
+                                     f"is {d!r} m from well {self.ents[i]} (radius {float(self.radius[i])!r} m): "
                                      f"a well inside another's surface")
 
     def __len__(self):
@@ -458,7 +458,7 @@ class GravitySystem(esper.Processor):
             if inside.any():
                 k = int(np.flatnonzero(inside)[0])
                 raise ValueError(f"entity {int(self.ents[k])} starts {float(d[k])!r} m from the centre of "
-                                 f"well {wells.ents[i]}, inside its surface (radius {float(wells.radius[i]):g} m)")
+                                 f"well {wells.ents[i]}, inside its surface (radius {float(wells.radius[i])!r} m)")
 
     def _build_obstacles(self, oq) -> None:
         """The colliders gravity does not move (not bodies of this system, not wells: ``Mass(inf)``,

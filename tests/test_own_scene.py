@@ -276,7 +276,7 @@ def test_messages_carry_no_numpy_reprs():
             warnings.simplefilter("ignore")
             with pytest.raises(ValueError) as e:
                 w.step()
-        assert "inside its surface (radius 6.371e+06 m)" in str(e.value)
+        assert "inside its surface (radius 6371000.0 m)" in str(e.value)
         assert "np." not in str(e.value)
     finally:
         w.close()
