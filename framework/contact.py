@@ -1,11 +1,11 @@
 """Sphere contact kernels: times of impact, islands of simultaneous contacts, the step's event loop.
 
-Pure functions over arrays, compiled with numba (``cache=True``: the
-machine code is kept next to this file, so only the first run on a machine
-pays the compilation; ``benchmarks/collision_stress.py`` measures it). The
-collision system (:mod:`driftframe.systems.collision`) gathers the bodies'
-start-of-step state, calls a solver (:func:`solve_all_pairs`, :func:`solve_listed`) once per step and writes the
-result back; nothing here knows about entities or components.
+Pure functions over arrays, compiled with numba and cached (only the first
+run on a machine pays the compilation; docs/bench/compile.md measures it).
+The collision system (:mod:`driftframe.systems.collision`) gathers the
+bodies' start-of-step state, calls a solver (:func:`solve_all_pairs`,
+:func:`solve_listed`) once per step and writes the result back; nothing
+here knows about entities or components.
 
 **Paths.** Body ``k`` moves as ``p(t) = x[k] + u[k] t`` for ``0 <= t <= dt``.
 An impulse at time ``t`` changes ``u`` and moves the path's origin by
@@ -125,7 +125,7 @@ _INF = math.inf
 # is typed Literal[int](0) at first, and numba compiles the callee for it and again for int64
 # once ``k`` widens (True and False each get their own, too). Constants that reach a callee are
 # written np.int64(0) / np.bool_(True): one compile each. solve_all_pairs passing False and 0 had
-# solve_step, the largest kernel, compiled twice on a machine's first run (about 15 s more).
+# the solver, the largest kernel, compiled twice on a machine's first run (about 15 s more).
 
 
 # Copies are loops, not slice assignments: ``b[:k] = a`` compiles numba's shape check and the string
