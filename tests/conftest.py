@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -16,6 +17,28 @@ for _bare in ("framework", "components", "systems", "demos"):
     assert _bare not in sys.modules, f"{_bare!r} was imported as a top-level module"
 
 from driftframe.framework.world import World
+
+
+_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+
+@pytest.fixture(autouse=True)
+def _signal_handlers_restored():
+    """A test (or the code it calls) must leave the stop signals' handlers and the blocked-signal mask as it
+    found them: a child process inherits an ignored or blocked SIGINT (and Python installs no
+    KeyboardInterrupt for an ignored one), so a later test's Ctrl-C of a `driftframe` child would go
+    unseen, in whichever test shares the process (under two workers, not the same tests every run).
+    Restored for the next test either way; the test that changed them fails."""
+    before = {s: signal.getsignal(s) for s in _SIGNALS}
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, ())          # blocked signals are inherited too
+    yield
+    changed = {signal.Signals(s).name: (h, signal.getsignal(s)) for s, h in before.items() if signal.getsignal(s) != h}
+    blocked = signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    for s, h in before.items():
+        if h is not None:
+            signal.signal(s, h)
+    assert not changed and blocked == mask, f"signal handlers left changed (before, after): {changed}; " \
+                                            f"blocked signals {sorted(mask)} -> {sorted(blocked)}"
 
 
 @pytest.fixture
