@@ -730,10 +730,13 @@ class _CompileProgress:
     """Shows a compile while :func:`_compile` waits: a line saying so, then which kernel, n of m and the time.
 
     numba reports a compile only when its cache misses, so a warm run shows
-    nothing. The progress line is rewritten in place (``\\r``) at least once a
-    second; the summary line follows it when the compile ends, before the
-    command goes on.
+    nothing. On a terminal the progress line is rewritten in place (``\\r``) at
+    least once a second; into a file or a pipe (a CI log) a whole line is
+    written at most every :attr:`LOG_EVERY` seconds, and the last state when
+    the compile ends. The summary line follows, before the command goes on.
     """
+
+    LOG_EVERY = 5.0
 
     def __init__(self, watch, enabled: bool):
         self.watch = watch
@@ -741,12 +744,14 @@ class _CompileProgress:
         self.announced = False
         self.last = (None, 0.0)
         self.width = 0
+        self.tty = sys.stderr.isatty()
+        self.named = None
 
     def _write(self, text: str) -> None:
         sys.stderr.write(text)
         sys.stderr.flush()
 
-    def tick(self) -> None:
+    def tick(self, force: bool = False) -> None:
         if not self.enabled or self.watch.n == 0:
             return
         if not self.announced:
@@ -756,6 +761,17 @@ class _CompileProgress:
                         f"(they are cached in {cache_dir()})\n")
         line = f"driftframe: compiling {self.watch.line()}"
         now = time.monotonic()
+        if not self.tty:
+            # a log file or a pipe (CI): a whole line at most every LOG_EVERY s, and the last state at the end
+            if ": " in line.rsplit(" kernels, ", 1)[-1]:
+                self.named = line                         # the latest state that names its kernel
+            if force:
+                line = self.named or line
+            if force or now - self.last[1] >= self.LOG_EVERY:
+                if line != self.last[0]:
+                    self._write(line + "\n")
+                self.last = (line, now)
+            return
         if line != self.last[0] or now - self.last[1] >= 1.0:
             self._write("\r" + line.ljust(self.width))     # spaces over a longer previous line
             self.width = len(line)
@@ -764,15 +780,17 @@ class _CompileProgress:
     def end(self, stopped: bool) -> None:
         if not self.enabled:
             return
-        self.tick()
+        self.tick(force=True)
         if not self.announced:
             return
         seconds, n, m = self.watch.elapsed(), self.watch.n, self.watch.m
+        if self.tty:
+            self._write("\n")                             # end the line rewritten in place
         if stopped:
-            self._write(f"\ndriftframe: stopped after {seconds:.0f} s of compiling kernels: those finished are "
+            self._write(f"driftframe: stopped after {seconds:.0f} s of compiling kernels: those finished are "
                         f"cached, the rest are compiled on the next run ({n} of {m} begun)\n")
         else:
-            self._write(f"\ndriftframe: compiled {n} kernels in {seconds:.0f} s; "
+            self._write(f"driftframe: compiled {n} kernels in {seconds:.0f} s; "
                         "later runs load them from the cache\n")
 
 

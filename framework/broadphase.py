@@ -523,21 +523,6 @@ def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     return new, total
 
 
-@kernel(no_cfunc_wrapper=True)
-def _within(c, reach, i, j):
-    """Which candidate pairs (i, j) have ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n))."""
-    out = np.empty(i.shape[0], np.bool_)
-    for k in range(i.shape[0]):
-        a = i[k]
-        b = j[k]
-        dx = c[0, b] - c[0, a]
-        dy = c[1, b] - c[1, a]
-        dz = c[2, b] - c[2, a]
-        R = reach[a] + reach[b]
-        out[k] = dx * dx + dy * dy + dz * dz <= R * R
-    return out
-
-
 def _grid_build(c, reach, swept, n_slow):
     """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`; None when the scene spans
     too many cells for int64 keys (the caller falls back on sort and sweep)."""
