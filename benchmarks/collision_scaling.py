@@ -152,14 +152,6 @@ class Bullet:
         self.pb.disconnect(physicsClientId=self.cid)
 
 
-def have_pybullet() -> bool:
-    try:
-        import pybullet  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def run_size(n: int, steps: dict[str, int], block: dict[str, int], energy_every: int,
              tumble: bool = False) -> dict:
     """Step the simulators in turn, a block of steps each (continuous 20, pybullet 5, articles 1, ...),
@@ -276,7 +268,7 @@ def main(argv=None) -> int:
     quick = args.quick
     t_start = time.perf_counter()
     sizes = [50, 500, 2_000] if quick else [50, 500, 2_000, 10_000]
-    bullet = have_pybullet()
+    bullet = common.have_pybullet()
     if not bullet:
         print("[collision_scaling] pybullet is not installed: its column is skipped "
               "(pip install -e '.[compare]' to include it)")

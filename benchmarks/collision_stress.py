@@ -93,29 +93,8 @@ class Drift:
 
 class Bullet:
     def __init__(self, scene):
-        import pybullet as pb
-
         x, v, r, m, e = scene
-        self.pb = pb
-        self.cid = pb.connect(pb.DIRECT)
-        pb.setGravity(0, 0, 0, physicsClientId=self.cid)
-        pb.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, restitutionVelocityThreshold=0.0,
-                                     contactERP=0.0, physicsClientId=self.cid)
-        self.ids = []
-        shapes = {}
-        # Bullet multiplies the two restitutions: sqrt(e) each gives the pair e
-        for xi, vi, ri, mi, ei in zip(x, v, r, m, e):
-            key = float(ri)
-            if key not in shapes:
-                shapes[key] = pb.createCollisionShape(pb.GEOM_SPHERE, radius=key, physicsClientId=self.cid)
-            b = pb.createMultiBody(baseMass=0.0 if not math.isfinite(mi) else float(mi),
-                                   baseCollisionShapeIndex=shapes[key], basePosition=xi.tolist(),
-                                   useMaximalCoordinates=True, physicsClientId=self.cid)
-            pb.changeDynamics(b, -1, restitution=math.sqrt(float(ei)), lateralFriction=0.0, spinningFriction=0.0,
-                              rollingFriction=0.0, linearDamping=0.0, angularDamping=0.0,
-                              activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=self.cid)
-            pb.resetBaseVelocity(b, vi.tolist(), [0, 0, 0], physicsClientId=self.cid)
-            self.ids.append(b)
+        self.pb, self.cid, self.ids = common.pybullet_spheres(scene, DT)
         self.m = m
         self.r = r
 
@@ -135,14 +114,6 @@ class Bullet:
 
     def close(self):
         self.pb.disconnect(physicsClientId=self.cid)
-
-
-def have_pybullet() -> bool:
-    try:
-        import pybullet  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 def kinetic(sim) -> float:
@@ -296,7 +267,7 @@ def main(argv=None) -> int:
     args = common.parser(__doc__.splitlines()[0]).parse_args(argv)
     q = args.quick
     started = time.perf_counter()
-    bullet = have_pybullet()
+    bullet = common.have_pybullet()
     if not bullet:
         print("[collision_stress] pybullet is not installed (pip install -e '.[compare]'): its column is empty")
     steps = 30 if q else 180

@@ -89,3 +89,43 @@ def save_chart(fig, name: str) -> Path:
     import matplotlib.pyplot as plt
     plt.close(fig)
     return path
+
+
+def have_pybullet() -> bool:
+    """Whether pybullet (the `compare` extra), the peer of the collision benchmarks, is installed.
+
+    Looked up, not imported: startup.py measures pybullet's import in a fresh process."""
+    import importlib.util
+    return importlib.util.find_spec("pybullet") is not None
+
+
+def pybullet_spheres(scene, dt: float):
+    """``scene = (x, v, r, m, e)`` as free spheres in a new pybullet world tuned elastic; returns ``(pb, cid, ids)``.
+
+    No gravity, no friction, damping or sleeping; one fixed step of ``dt``, no sub-steps, no restitution
+    threshold and no position correction (contactERP 0). Bullet multiplies the two restitutions: sqrt(e)
+    each gives the pair e. An infinite mass is Bullet's static body (mass 0).
+    """
+    import math
+
+    import pybullet as pb
+
+    x, v, r, m, e = scene
+    cid = pb.connect(pb.DIRECT)
+    pb.setGravity(0, 0, 0, physicsClientId=cid)
+    pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, restitutionVelocityThreshold=0.0,
+                                 contactERP=0.0, physicsClientId=cid)
+    ids, shapes = [], {}
+    for xi, vi, ri, mi, ei in zip(x, v, r, m, e):
+        key = float(ri)
+        if key not in shapes:
+            shapes[key] = pb.createCollisionShape(pb.GEOM_SPHERE, radius=key, physicsClientId=cid)
+        b = pb.createMultiBody(baseMass=0.0 if not math.isfinite(mi) else float(mi),
+                               baseCollisionShapeIndex=shapes[key], basePosition=xi.tolist(),
+                               useMaximalCoordinates=True, physicsClientId=cid)
+        pb.changeDynamics(b, -1, restitution=math.sqrt(float(ei)), lateralFriction=0.0, spinningFriction=0.0,
+                          rollingFriction=0.0, linearDamping=0.0, angularDamping=0.0,
+                          activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
+        pb.resetBaseVelocity(b, vi.tolist(), [0, 0, 0], physicsClientId=cid)
+        ids.append(b)
+    return pb, cid, ids

@@ -28,7 +28,6 @@ Bars (issue 20): a step of the head-on pair costs at most 3x pybullet's CPU time
 """
 from __future__ import annotations
 
-import math
 import os
 import statistics
 import sys
@@ -111,35 +110,12 @@ class Bullet:
     """The same bodies in pybullet (see the module docstring)."""
 
     def __init__(self, scene):
-        import pybullet as pb
-
-        x, v, r, m, e = scene
-        self.pb = pb
-        self.cid = cid = pb.connect(pb.DIRECT)
-        pb.setGravity(0, 0, 0, physicsClientId=cid)
-        pb.setPhysicsEngineParameter(fixedTimeStep=DT, numSubSteps=0, restitutionVelocityThreshold=0.0,
-                                     contactERP=0.0, physicsClientId=cid)
-        for xi, vi, ri, mi, ei in zip(x, v, r, m, e):
-            shape = pb.createCollisionShape(pb.GEOM_SPHERE, radius=float(ri), physicsClientId=cid)
-            b = pb.createMultiBody(baseMass=float(mi), baseCollisionShapeIndex=shape, basePosition=xi.tolist(),
-                                   useMaximalCoordinates=True, physicsClientId=cid)
-            pb.changeDynamics(b, -1, restitution=math.sqrt(float(ei)), lateralFriction=0.0, spinningFriction=0.0,
-                              rollingFriction=0.0, linearDamping=0.0, angularDamping=0.0,
-                              activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
-            pb.resetBaseVelocity(b, vi.tolist(), [0, 0, 0], physicsClientId=cid)
-        step = pb.stepSimulation
+        self.pb, self.cid, _ = common.pybullet_spheres(scene, DT)
+        step, cid = self.pb.stepSimulation, self.cid
         self.step = lambda: step(physicsClientId=cid)
 
     def close(self):
         self.pb.disconnect(physicsClientId=self.cid)
-
-
-def have_pybullet() -> bool:
-    try:
-        import pybullet  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 def clock_cost(n: int = 20000) -> tuple[int, int]:
@@ -219,7 +195,7 @@ def stages(steps: int) -> dict:
 def main(argv=None) -> int:
     args = common.parser(__doc__.splitlines()[0]).parse_args(argv)
     started = time.perf_counter()
-    bullet = have_pybullet()
+    bullet = common.have_pybullet()
     if not bullet:
         print("[small_scenes] pybullet is not installed (pip install -e '.[compare]'): its column is empty")
     engines = ["driftframe"] + (["pybullet"] if bullet else [])

@@ -49,7 +49,7 @@ import sys
 import tempfile
 import time
 
-from benchmarks.common import ROOT, figure, parser, save_chart, table, write_section
+from benchmarks.common import ROOT, figure, have_pybullet, parser, save_chart, table, write_section
 
 NAME = "startup"
 DEMOS = ("rotation", "spin", "asteroids", "billiards", "cradle", "swarm", "orbit")
@@ -190,11 +190,6 @@ def med(runs: list[dict], fn) -> tuple[float, float]:
     """Medians of (CPU, wall) of ``fn(run)`` over the runs."""
     pairs = [fn(r) for r in runs]
     return statistics.median(p[0] for p in pairs), statistics.median(p[1] for p in pairs)
-
-
-def have_pybullet() -> bool:
-    import importlib.util
-    return importlib.util.find_spec("pybullet") is not None
 
 
 def _ms(seconds: float) -> str:

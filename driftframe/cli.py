@@ -56,16 +56,6 @@ class _DefaultSky(str):
 DEFAULT_SKY = _DefaultSky("lines")
 
 
-def _seed(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"seed must be an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"seed must be an integer >= 0, got {text!r}")
-    return v
-
-
 def _blur(text):
     from driftframe.framework.recorder import MAX_MOTION_BLUR
     try:
@@ -102,14 +92,15 @@ def _keys_epilog() -> str:
             + keys_help())
 
 
-def _positive_int(name):
+def _int_at_least(name, low: int = 1):
+    """An argparse type: an integer >= ``low`` (1 unless said), named ``name`` in the error."""
     def parse(text):
         try:
             v = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {text!r}") from None
-        if v < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {text!r}")
+            raise argparse.ArgumentTypeError(f"{name} must be an integer >= {low}, got {text!r}") from None
+        if v < low:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer >= {low}, got {text!r}")
         return v
     return parse
 
@@ -166,7 +157,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "(e.g. mygame.scene:build), imported from here or from an installed package")
     common.add_argument("--size", type=_size, default=(1280, 720), metavar="WxH",
                         help="frame size in pixels (default 1280x720)")
-    common.add_argument("--seed", type=_seed, default=DEFAULT_SEED, metavar="N",
+    common.add_argument("--seed", type=_int_at_least("seed", 0), default=DEFAULT_SEED, metavar="N",
                         help="random seed of the scene (default 0)")
     common.add_argument("--camera", choices=CAMERAS, default=None,
                         help="camera to start with (default: the demo's own)")
@@ -225,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="replace --save-track, --hash-log and --state-out files that exist (refused otherwise)")
     play.add_argument("--bindings", default=None, metavar="FILE",
                       help="key and gamepad bindings, TOML (`driftframe keys` prints the defaults)")
-    play.add_argument("--frames", type=_positive_int("frames"), default=None, metavar="N",
+    play.add_argument("--frames", type=_int_at_least("frames"), default=None, metavar="N",
                       help="quit after N frames (the closing line gives the frame rate)")
     play.add_argument("--overlay", action="store_true", help="start with the F3 overlay shown")
     play.add_argument("--no-interpolation", action="store_true",
@@ -262,7 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="continue a stopped batch: skip the runs that journal.jsonl in the output folder "
                             "lists as finished (same spec, output still there); with --overwrite, outputs it "
                             "does not list are replaced")
-    batch.add_argument("--retries", type=_retries, default=1, metavar="N",
+    batch.add_argument("--retries", type=_int_at_least("--retries", 0), default=1, metavar="N",
                        help="run again a run whose worker process died, up to N times (default 1)")
     batch.add_argument("-o", "--output", default=None, metavar="DIR",
                        help="folder for the recordings and the summary (default out/SPEC)")
@@ -282,16 +273,6 @@ def build_parser() -> argparse.ArgumentParser:
                                       "The cache is per user (the folder is printed; NUMBA_CACHE_DIR moves it).")
     warm.add_argument("--quiet", action="store_true", help="no progress line")
     return p
-
-
-def _retries(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--retries must be an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"--retries must be an integer >= 0, got {text!r}")
-    return v
 
 
 def _jobs(text):
