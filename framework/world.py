@@ -2,7 +2,7 @@
 
 Data flows one way each step. The built-in stages give the default order::
 
-    input -> control -> movement -> spin -> collision -> camera      (every fixed step)
+    input -> control -> movement -> spin -> collision -> commit -> camera   (every fixed step)
     render -> record                                                  (every presented frame)
 
 A system is an ``esper.Processor`` with ``process(dt)`` that declares, as
@@ -50,11 +50,12 @@ from driftframe.framework import validate
 from driftframe.framework.store import Columnar, Columns, Query, Table
 
 #: Stages run once per fixed simulation step, in this order.
-STEP_STAGES = ("input", "control", "movement", "spin", "collision", "camera")
+STEP_STAGES = ("input", "control", "movement", "spin", "collision", "commit", "camera")
 #: Stages run once per presented frame (window or recorder), in this order.
 FRAME_STAGES = ("render", "record")
-#: Where a system with no stage and no ``after``/``before`` runs: after collision, before camera.
-DEFAULT_AFTER, DEFAULT_BEFORE = "collision", "camera"
+#: Where a system with no stage and no ``after``/``before`` runs: after commit (every body at the end of
+#: the step), before camera.
+DEFAULT_AFTER, DEFAULT_BEFORE = "commit", "camera"
 
 _ids = itertools.count(1)
 _FIRST, _SECOND = itemgetter(0), itemgetter(1)
