@@ -141,6 +141,7 @@ class World:
             raise ValueError(f"an esper world named {self.name!r} exists already")
         self.step_count = 0
         self._entries: list[_Entry] = []
+        self._companions: set[int] = set()              # ids of the systems added as another's companions
         self._order: dict[str, list[_Entry]] = {"step": [], "frame": []}
         # each phase's lines of the profile, all 0.0 (set at the start of each step / frame)
         self._zero: dict[str, dict[str, float]] = {"step": dict.fromkeys(STEP_STAGES, 0.0),
@@ -422,6 +423,14 @@ class World:
         system may change its ``requires`` (the gravity system while it holds
         bodies); the world reads it again at the next change of entities.
         """
+        for e in self._entries:
+            if e.system is system:
+                raise ValueError(f"system {e.name!r} ({type(system).__name__}) is in this world already: a system "
+                                 "object is added once (make another to run it twice)")
+            if id(e.system) in self._companions and type(e.system) is type(system):
+                self._companions.discard(id(e.system))
+                self.remove_system(e.system)            # added for another system: this one takes its place
+                break
         stage = stage if stage is not None else getattr(system, "stage", None)
         if stage is not None and stage not in STEP_STAGES + FRAME_STAGES:
             raise ScheduleError(f"unknown stage {stage!r}; stages are {STEP_STAGES + FRAME_STAGES}")
@@ -451,6 +460,12 @@ class World:
             self._schedule()
             raise
         system.world = self
+        # ``companions``: the system classes this one needs beside it (the step's predict and commit
+        # stages, see framework/step.py), one of each, added when the world has none yet; a system of
+        # that class added later takes the place of the one added for it
+        for cls in getattr(system, "companions", ()):
+            if not any(isinstance(e.system, cls) for e in self._entries):
+                self._companions.add(id(self.add_system(cls())))
         return system
 
     def remove_system(self, system) -> None:
