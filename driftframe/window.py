@@ -34,7 +34,8 @@ import numpy as np
 
 from driftframe.framework.gl import RenderTarget
 from driftframe.framework.input import HELD
-from driftframe.framework.recorder import StopSignals, _signal_name
+from driftframe.framework.stop_signals import StopSignals
+from driftframe.framework.stop_signals import signal_name as _signal_name
 
 
 class PlayError(Exception):

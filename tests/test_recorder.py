@@ -270,16 +270,16 @@ def test_gif_delays_add_up_to_the_exact_length(scene, tmp_path, fps, frames, tot
 
 
 def test_gif_is_written_as_it_records_and_holds_at_most_two_frames(scene, tmp_path, monkeypatch):
-    from driftframe.framework import recorder
+    from driftframe.framework import record_sinks
 
     sinks = []
 
-    class Spy(recorder._GifSink):
+    class Spy(record_sinks._GifSink):
         def __init__(self, *a, **kw):
             super().__init__(*a, **kw)
             sinks.append(self)
 
-    monkeypatch.setattr(recorder, "_GifSink", Spy)
+    monkeypatch.setattr(record_sinks, "_GifSink", Spy)
     sizes = {}
 
     def watch(world, step):
@@ -568,16 +568,16 @@ def test_a_frame_read_in_bands_is_the_frame_read_whole(scene):
 
 
 def test_mp4_defaults_are_the_measured_preset_and_its_crf(scene, tmp_path, monkeypatch):
-    from driftframe.framework import recorder
+    from driftframe.framework import record_sinks, recorder
 
     seen = {}
-    real = recorder._H264Sink
+    real = record_sinks._H264Sink
 
     def spy(tmp, size, fps, **kw):
         seen.update(kw)
         return real(tmp, size, fps, **kw)
 
-    monkeypatch.setattr(recorder, "_H264Sink", spy)
+    monkeypatch.setattr(record_sinks, "_H264Sink", spy)
     record(scene(), tmp_path / "a.mp4", frames=2, progress=False)
     assert seen == {"crf": recorder.X264_CRF[recorder.X264_PRESET], "preset": recorder.X264_PRESET,
                     "pixel_format": "nv12"}
