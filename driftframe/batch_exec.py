@@ -97,12 +97,8 @@ def cores() -> int:
         return os.cpu_count() or 1
 
 
-#: Cores one MP4 recording keeps busy, measured alone (CPU time over wall time, asteroids demo, 3 s at
-#: 640x360, rasterising on the run's thread): 1.27-1.35 while x264 ran in an ffmpeg process; encoding in
-#: the process, 1.08-1.17 against 1.16-1.22 piped on a slower host (kept at 1.3: a pool of 2 cores gets 2
-#: workers either way, and more cores err towards fewer). The run's own thread is the critical path; x264
-#: (its thread count pinned at ``recorder.X264_THREADS``: the bytes depend on it) runs beside it on the
-#: recorder's writer thread, a quarter to a half of the run's own CPU time from 640x360 to 1280x720.
+#: Cores one MP4 recording keeps busy: its own thread, and x264 on the recorder's writer thread. Set above
+#: the measured, so more cores err towards fewer workers (docs/design/recorder.md, "How many recordings").
 RECORDING_CORES = 1.3
 
 

@@ -8,10 +8,8 @@
 The recorder's default MP4 path (:mod:`framework.recorder`) reads each
 frame back in bands of rows and converts each band at once, while it is
 still in the core's cache (:class:`BandedNV12`), and hands x264 1.5 bytes
-a pixel instead of 4, so it only encodes. Measured on the asteroids demo
-at 1280x720 on 2 cores (``benchmarks/record_throughput.py``): reading and
-converting a frame in bands takes about 1 ms, where FFmpeg's own conversion
-(swscale, with the flip) took 3.3 ms of CPU and moved 2.7x the bytes.
+a pixel instead of 4, so it only encodes: a fraction of the CPU of FFmpeg's
+own conversion (``docs/design/recorder.md``, "NV12").
 
 The numbers are BT.709, limited ("TV") range, as the video is tagged:
 ``Y' = 16 + 219 (Kr R + Kg G + Kb B) / 255`` per pixel, and ``Cb``, ``Cr``
@@ -119,10 +117,7 @@ def rgba_to_nv12(rgba, width: int, height: int, out: np.ndarray | None = None) -
 
 
 #: RGBA bytes a band of :class:`BandedNV12` holds by default: inside the L2 cache of current x86 cores
-#: (512 KiB-2 MiB); 1280x720 in 8 bands. Read back and converted band by band, a 1280x720 frame of the
-#: asteroids demo took 0.98 ms in 768 KiB bands, 1.04 ms in 512 KiB, 1.11 ms in 256 KiB and 1.44 ms in
-#: 64 KiB (each band is two calls), against 1.22 ms read whole and then converted (2-core AMD EPYC VM,
-#: 1 MiB of L2; the medians of 100 frames each, interleaved).
+#: (512 KiB-2 MiB); 1280x720 in 8 bands. Band sizes measured: ``docs/design/recorder.md``, "NV12".
 BAND_BYTES = 512 << 10
 
 
