@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.model_cache import declare_model_file, declare_variant  # noqa: F401  (re-exported)
+from driftframe.framework.model_cache import declare_model_file as declare_model_file  # re-exported (PEP 484 form)
+from driftframe.framework.model_cache import declare_variant as declare_variant
 from driftframe.framework.world import World
 
 
