@@ -47,7 +47,7 @@ from driftframe.components.body import AngularVelocity, Transform, Velocity
 from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
-from driftframe.framework import recorder
+from driftframe.framework import record_sinks, recorder
 from driftframe.framework.gl import create_context, renderer
 from driftframe.framework.recorder import record
 from driftframe.framework.world import World
@@ -120,10 +120,17 @@ def bare(ctx, frames: int) -> float:
     return fps
 
 
+#: The module each swappable name is looked up in when record() runs: the sinks' or the record loop's.
+_LOOKED_UP_IN = {"X264_TUNING": record_sinks, "_H264Sink": record_sinks, "_banded_nv12": recorder}
+
+
 def _swapped(**attrs):
     """A context in which the recorder's named attributes are the values given (None: left as they are)."""
-    attrs = {k: v for k, v in attrs.items() if v is not None}
-    return mock.patch.multiple(recorder, **attrs) if attrs else contextlib.nullcontext()
+    stack = contextlib.ExitStack()
+    for name, value in attrs.items():
+        if value is not None:
+            stack.enter_context(mock.patch.object(_LOOKED_UP_IN[name], name, value))
+    return stack
 
 
 def _args(options: dict) -> list[str]:
@@ -131,7 +138,7 @@ def _args(options: dict) -> list[str]:
     return [a for k, v in options.items() for a in (f"-{k}", v)]
 
 
-class _PipedSink(recorder._Sink):
+class _PipedSink(record_sinks._Sink):
     """The MP4 sink before in-process encoding: the same x264 settings, through the ffmpeg command of the
     ``imageio-ffmpeg`` wheel (the ``bench`` extra), fed raw frames on a pipe widened to 1 MiB."""
 
@@ -144,14 +151,14 @@ class _PipedSink(recorder._Sink):
         super().__init__(tmp, size, fps)
         self.pixel_format = pixel_format
         w, h = size
-        tags = _args(recorder._BT709)
+        tags = _args(record_sinks._BT709)
         convert = ["-vf", "vflip,scale=out_color_matrix=bt709:out_range=tv"] if pixel_format == "rgba" else []
         cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-nostdin", "-loglevel", "error",
                "-f", "rawvideo", "-pix_fmt", pixel_format, "-s", f"{w}x{h}", "-r", str(fps),
                *(tags if pixel_format == "nv12" else []), "-i", "pipe:0", "-an", *convert,
-               "-c:v", "libx264", "-preset", preset, "-crf", str(crf), *_args(recorder.X264_TUNING.get(preset, {})),
+               "-c:v", "libx264", "-preset", preset, "-crf", str(crf), *_args(record_sinks.X264_TUNING.get(preset, {})),
                "-pix_fmt", "nv12" if pixel_format == "nv12" else "yuv420p",
-               "-threads", str(recorder.X264_THREADS), *tags,
+               "-threads", str(record_sinks.X264_THREADS), *tags,
                "-fflags", "+bitexact", "-flags:v", "+bitexact", "-map_metadata", "-1", "-f", "mp4", str(tmp)]
         self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, start_new_session=True)
         with contextlib.suppress(OSError):
@@ -361,7 +368,7 @@ def _encode(nv12: list[np.ndarray], path: Path, preset: str, crf: int, tuning) -
     """x264 CPU seconds a frame and bytes, through the recorder's own encoder (in this process)."""
     with _swapped(X264_TUNING=tuning):
         c0 = resource.getrusage(resource.RUSAGE_SELF)
-        sink = recorder._H264Sink(path, SIZE, 60, crf=crf, preset=preset, pixel_format="nv12")
+        sink = record_sinks._H264Sink(path, SIZE, 60, crf=crf, preset=preset, pixel_format="nv12")
         for f in nv12:
             sink.write(f)
         sink.finish()
