@@ -85,7 +85,8 @@ class _H264Sink(_Sink):
         # matrix (BT.709, limited range) as framework.yuv and the GPU's.
         self._shape = (h * 3 // 2, w) if pixel_format == "nv12" else (h, w, 4)
         self._to_yuv = None if pixel_format == "nv12" else functools.partial(
-            VideoReformatter().reformat, format="yuv420p", dst_colorspace="ITU709", dst_color_range="MPEG")
+            VideoReformatter().reformat, format="yuv420p", dst_colorspace="ITU709",  # type: ignore[arg-type]
+            dst_color_range="MPEG")               # (by name: PyAV 14 takes no enum here, whatever its stubs say)
         options = {"preset": preset, "crf": str(crf), **X264_TUNING.get(preset, {}),
                    "flags": "+bitexact",                # no version strings that could vary
                    **_BT709}                            # say what the numbers mean, so players do not guess
@@ -203,8 +204,8 @@ class _GifSink(_Sink):
         self._fp.write(b"GIF89a" + ow.to_bytes(2, "little") + oh.to_bytes(2, "little") + b"\x00\x00\x00"
                        + b"\x21\xff\x0bNETSCAPE2.0\x03\x01\x00\x00\x00")
         self._end = 0                 # end time of the last frame received, 1/100 s
-        self._shown = None            # [block, start cs]: the frame on screen, delay still open
-        self._ready = None            # [block, delay cs]: closed, not yet written
+        self._shown: list | None = None   # [block, start cs]: the frame on screen, delay still open
+        self._ready: list | None = None   # [block, delay cs]: closed, not yet written
         #: Encoded frames held in memory now, and the most at any time (bounded: 2).
         self.held = 0
         self.max_held = 0
@@ -265,13 +266,14 @@ class _GifSink(_Sink):
         self._fp.flush()
 
     def finish(self) -> None:
+        assert self._shown is not None                  # record() finishes only a sink with frames
         block, start = self._shown
         tail = self._end - start
         if tail < 2 and self._ready is not None:
             self._ready[1] += tail                      # too short to show: the frame before lasts longer
         else:
             self._close(block, max(tail, 1))
-        self._emit(*self._ready)
+        self._emit(*self._ready)                        # type: ignore[misc]  # set by either branch
         self._shown = self._ready = None
         self._count_held()
         self._fp.write(b";")

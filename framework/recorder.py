@@ -83,6 +83,7 @@ import time
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -141,7 +142,7 @@ class _Plan:
     preset: str
     yuv: str
     gif_scale: float
-    target: object                  # the world's render target
+    target: Any                     # the world's render target (framework.gl.RenderTarget)
     size: tuple[int, int]
 
     @property
@@ -255,7 +256,8 @@ def _checked(world, path, *, frames, fps, steps_per_frame, before_step, gif_scal
     size = tuple(target.size)
     if fmt == "mp4" and (size[0] % 2 or size[1] % 2):
         raise ValueError(f"H.264 (yuv420p) needs an even width and height, got {size[0]}x{size[1]}")
-    rate = Fraction(fps).limit_denominator(10000)
+    # exact for ints; a float's exact binary value (np.float32 too, which Fraction takes only as a float)
+    rate = Fraction(int(fps) if isinstance(fps, (int, np.integer)) else float(fps)).limit_denominator(10000)
     if rate <= 0:     # below 1/20000 fps the rate rounds to 0: every frame time would divide by it
         raise ValueError(f"fps must be at least 1/10000 (a frame every 2.8 h), got {fps!r}")
     if yuv == "gpu" and (fmt != "mp4" or getattr(target, "is_screen", True) or size[0] % 4):

@@ -269,6 +269,14 @@ def test_gif_delays_add_up_to_the_exact_length(scene, tmp_path, fps, frames, tot
         assert set(delays) <= {3, 4}                 # 3.33 cs per frame: 3, 4, 3, 3, 4, 3...
 
 
+@pytest.mark.parametrize("fps", [np.float32(30.0), np.float64(30.0), np.int64(30)])
+def test_fps_as_a_numpy_number_is_the_same_rate(scene, tmp_path, fps):
+    # np.float32 is no Python float: Fraction refused it, a TypeError from inside record after every check
+    out = tmp_path / "t.gif"
+    res = record(scene(), out, frames=9, fps=fps, steps_per_frame=2, progress=False)
+    assert res.frames == 9 and sum(gif_delays(out)) == 30
+
+
 def test_gif_is_written_as_it_records_and_holds_at_most_two_frames(scene, tmp_path, monkeypatch):
     from driftframe.framework import record_sinks
 
