@@ -6,11 +6,16 @@ once while user code still reads and writes ``body.position`` per entity.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from driftframe.framework import frame as fr
 from driftframe.framework import validate
 from driftframe.framework.store import Columnar, Field
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 
 def _unit_quat(name, q):
@@ -45,7 +50,8 @@ class Transform(Columnar):
     orientation = Field((4,), "Unit quaternion (x, y, z, w), local -> world.",
                         default=fr.IDENTITY_QUAT, check=_unit_quat)
 
-    def __init__(self, position=(0.0, 0.0, 0.0), orientation=None, *, right=None, up=None, forward=None):
+    def __init__(self, position: ArrayLike = (0.0, 0.0, 0.0), orientation: ArrayLike | None = None, *,
+                 right: ArrayLike | None = None, up: ArrayLike | None = None, forward: ArrayLike | None = None) -> None:
         given = [v is not None for v in (right, up, forward)]
         if any(given):
             if not all(given):
@@ -63,7 +69,7 @@ class Transform(Columnar):
         return fr.quat_to_matrix(self.orientation)
 
     @rotation.setter
-    def rotation(self, m) -> None:
+    def rotation(self, m: ArrayLike) -> None:
         m = validate.vector("Transform.rotation", m, (3, 3))
         self.orientation = fr.frame_to_quat(m[:, 0], m[:, 1], m[:, 2], name="Transform.rotation")
 

@@ -28,7 +28,9 @@ import signal
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,6 +38,10 @@ from driftframe.framework.gl import RenderTarget
 from driftframe.framework.input import HELD
 from driftframe.framework.stop_signals import StopSignals
 from driftframe.framework.stop_signals import signal_name as _signal_name
+
+if TYPE_CHECKING:
+    from driftframe.framework.bindings import Bindings
+    from driftframe.framework.world import World
 
 
 class PlayError(Exception):
@@ -198,10 +204,11 @@ def overlay_lines(stats, loop) -> list[str]:
     return out
 
 
-def play(name, *, size=(1280, 720), seed: int = 0, camera: str | None = None,
-         state_out: str | None = None, screenshot_dir: str = ".", bindings=None, save_track: str | None = None,
-         hash_log: str | None = None, frames: int | None = None, overlay: bool = False, interpolate: bool = True,
-         loop_options: dict | None = None, setup=None, quiet: bool = False, sky: str = "lines",
+def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 0, camera: str | None = None,
+         state_out: str | None = None, screenshot_dir: str = ".", bindings: Bindings | None = None,
+         save_track: str | None = None, hash_log: str | None = None, frames: int | None = None,
+         overlay: bool = False, interpolate: bool = True, loop_options: dict[str, Any] | None = None,
+         setup: Callable[[World], object] | None = None, quiet: bool = False, sky: str = "lines",
          overwrite: bool = False, handle_signals: bool = True) -> int:
     """Open a window and fly ``name`` until Esc, the window is closed, or ``frames`` frames.
 

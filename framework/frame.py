@@ -22,7 +22,12 @@ and ``q' = dq (x) q`` (world-frame increment multiplies on the left).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 #: Local axis of each control channel, in body coordinates.
 RIGHT = np.array([1.0, 0.0, 0.0])
@@ -177,7 +182,7 @@ def check_unit_quat(name: str, q: np.ndarray) -> np.ndarray:
     return q
 
 
-def look_rotation(forward, up_hint=(0.0, 1.0, 0.0)) -> np.ndarray:
+def look_rotation(forward: ArrayLike, up_hint: ArrayLike = (0.0, 1.0, 0.0)) -> np.ndarray:
     """Quaternion whose forward is ``forward`` and whose up is as close to ``up_hint`` as possible."""
     f = np.asarray(forward, dtype=np.float64)
     nf = np.linalg.norm(f)

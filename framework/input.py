@@ -19,6 +19,7 @@ from __future__ import annotations
 import bisect
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -141,7 +142,7 @@ class Hold:
     channels: dict
     kill_rotation: bool
 
-    def __init__(self, start: float, end: float, *, kill_rotation: bool = False, **channels):
+    def __init__(self, start: float, end: float, *, kill_rotation: bool = False, **channels: float) -> None:
         s = validate.scalar("Hold.start", start, nonnegative=True)
         e = validate.scalar("Hold.end", end, nonnegative=True)
         if not e > s:
@@ -324,7 +325,7 @@ class TrackFileError(ValueError):
     """A track file that cannot be read: the message names the file and the entry."""
 
 
-def save_track(track: Track, path, *, overwrite: bool = False) -> Path:
+def save_track(track: Track, path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
     """Write ``track`` to ``path`` as JSON (format below); atomically: a complete file or none.
 
     Written under :mod:`framework.output`'s discipline: an existing ``path``
@@ -416,7 +417,7 @@ def _check_doc(where: str, doc) -> None:
             stack.extend((x, f"{at}[{i}]", depth + 1) for i, x in enumerate(v))
 
 
-def load_track(path) -> Track:
+def load_track(path: str | os.PathLike[str]) -> Track:
     """Read a track file written by :func:`save_track` (or by hand, in the same format).
 
     Every problem is a :class:`TrackFileError` naming the file and the entry,

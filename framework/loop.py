@@ -47,7 +47,7 @@ from typing import Callable
 
 from driftframe.framework import validate
 from driftframe.framework import warp as time_warp
-from driftframe.framework.world import FRAME_STAGES, STEP_STAGES
+from driftframe.framework.world import FRAME_STAGES, STEP_STAGES, World
 
 
 class FixedStepLoop:
@@ -64,7 +64,7 @@ class FixedStepLoop:
     #: first step's compilation, does not make the loop drop time).
     COST_FRAMES = 9
 
-    def __init__(self, world, clock: Callable[[], float], *, max_steps: int = 8, max_delta: float | None = 0.25,
+    def __init__(self, world: World, clock: Callable[[], float], *, max_steps: int = 8, max_delta: float | None = 0.25,
                  max_step_time: float = 1.0 / 30.0, drop_when_behind: bool = True):
         if not callable(clock):
             raise TypeError(f"clock must be a function returning seconds, got {clock!r}")

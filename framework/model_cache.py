@@ -32,11 +32,18 @@ Built-in models (defined by every cache unless ``builtins=False``):
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from driftframe.framework import meshes, validate
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from driftframe.framework.world import World
 
 GREY = (0.62, 0.60, 0.58)
 SHIP_BLUE = (0.55, 0.75, 1.0)
@@ -238,7 +245,8 @@ class ModelCache:
                 ms.gpu = None
 
 
-def declare_variant(world, name: str, base: str = "sphere", *, scale=1.0, colour=None) -> str:
+def declare_variant(world: World, name: str, base: str = "sphere", *, scale: ArrayLike = 1.0,
+                    colour: ArrayLike | None = None) -> str:
     """Declare a model variant (a scaled entry sharing ``base``'s buffers); returns ``name``.
 
     Stored in ``world.resources["model_variants"]`` until rendering is attached.
@@ -252,7 +260,8 @@ def declare_variant(world, name: str, base: str = "sphere", *, scale=1.0, colour
     return name
 
 
-def declare_model_file(world, name: str, path, *, colour=None, shading: str = "smooth") -> str:
+def declare_model_file(world: World, name: str, path: str | os.PathLike[str], *, colour: ArrayLike | None = None,
+                       shading: str = "smooth") -> str:
     """Declare base model ``name`` read from ``path`` (OBJ, glTF, GLB) when rendering is attached; returns ``name``.
 
     Stored in ``world.resources["model_files"]``; the file is checked to

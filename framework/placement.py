@@ -16,13 +16,21 @@ Samplers are functions ``sample(rng, k) -> (k, 3)`` positions:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from driftframe.framework import broadphase as bp
 
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
-def in_box(lo, hi):
+#: A sampler: ``(rng, k)`` -> ``k`` candidate positions ``(k, 3)``, m (what in_box and in_shell return).
+Sampler = Callable[[np.random.Generator, int], np.ndarray]
+
+
+def in_box(lo: ArrayLike, hi: ArrayLike) -> Sampler:
     """Uniform positions in the axis-aligned box ``[lo, hi]`` (3-vectors, m)."""
     lo = np.asarray(lo, float)
     hi = np.asarray(hi, float)
@@ -33,21 +41,22 @@ def in_box(lo, hi):
     return lambda rng, k: rng.uniform(lo, hi, (k, 3))
 
 
-def in_shell(inner: float, outer: float, centre=(0.0, 0.0, 0.0)):
+def in_shell(inner: float, outer: float, centre: ArrayLike = (0.0, 0.0, 0.0)) -> Sampler:
     """Positions in the spherical shell ``inner <= |x - centre| <= outer`` (m): random direction,
     radius uniform in [inner, outer] (as the asteroid demo always drew them)."""
     if not (math.isfinite(inner) and math.isfinite(outer) and 0 <= inner < outer):
         raise ValueError(f"in_shell: need 0 <= inner < outer (finite), got inner={inner!r}, outer={outer!r}")
     c = np.asarray(centre, float)
 
-    def sample(rng, k):
+    def sample(rng: np.random.Generator, k: int) -> np.ndarray:
         d = rng.normal(size=(k, 3))
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         return c + d * rng.uniform(inner, outer, (k, 1))
     return sample
 
 
-def place(rng, radii, sample, *, gap: float = 0.0, tries: int = 200, avoid=None) -> np.ndarray:
+def place(rng: np.random.Generator, radii: ArrayLike, sample: Sampler, *, gap: float = 0.0, tries: int = 200,
+          avoid: tuple[ArrayLike, ArrayLike] | None = None) -> np.ndarray:
     """Positions ``(n, 3)`` for spheres of ``radii`` (m), each at least ``gap`` (m) clear of every other.
 
     ``avoid``: ``(centres (k, 3), radii (k,))`` of spheres already there (a ship, a station) that

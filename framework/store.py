@@ -33,11 +33,17 @@ entity order) or, inside systems, through :class:`Query` rows into
 from __future__ import annotations
 
 from operator import attrgetter, itemgetter
+from typing import TYPE_CHECKING, Any
 
 import esper
 import numpy as np
 
 from driftframe.framework import validate
+
+if TYPE_CHECKING:
+    from typing import Self
+
+    from numpy.typing import ArrayLike
 
 
 class Field:
@@ -262,7 +268,7 @@ class Columnar:
                     fields[name] = attr
         cls._fields = fields
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         names = list(self._fields)
         if len(args) > len(names):
             raise TypeError(f"{type(self).__name__} takes at most {len(names)} positional arguments")
@@ -285,7 +291,7 @@ class Columnar:
         self._row = 0
 
     @classmethod
-    def bulk(cls, n: int, **columns) -> list:
+    def bulk(cls, n: int, **columns: ArrayLike) -> list[Self]:
         """Create ``n`` components at once from arrays of shape ``(n, *field.shape)``.
 
         Every array is validated as a whole (the error names the first bad

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import esper
 import numpy as np
@@ -90,15 +91,15 @@ class AutopilotSystem(esper.Processor):
     writes = (FlightInput, Autopilot, FlightPlan)
     requires = (Autopilot,)              # (a FlightPlan engages an Autopilot: without one, nothing to do)
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._last_dir: dict[int, np.ndarray] = {}
 
-    def state(self):
+    def state(self) -> dict[str, Any]:
         """What a save keeps of this system (see framework/save.py): each ship's wanted direction of the
         last step (the turn rate of the direction is measured against it)."""
         return {"last_dir": {int(e): np.array(d, float) for e, d in self._last_dir.items()}}
 
-    def restore(self, state) -> None:
+    def restore(self, state: dict[str, Any]) -> None:
         """Take back :meth:`state` (a load)."""
         self._last_dir = {int(e): np.array(d, float) for e, d in state["last_dir"].items()}
 
@@ -119,7 +120,7 @@ class AutopilotSystem(esper.Processor):
             return np.zeros(3), np.zeros(3)
         return ref[3], ref[4]
 
-    def direction(self, ent: int, name: str, ap: Autopilot, x, v) -> np.ndarray | None:
+    def direction(self, ent: int, name: str, ap: Autopilot, x: np.ndarray, v: np.ndarray) -> np.ndarray | None:
         """Unit vector (world frame) of direction ``name`` for ship ``ent`` now, or None if undefined."""
         if name in ("target", "anti_target"):
             p, _ = self._state(ap.target, f"{name} of entity {ent}")

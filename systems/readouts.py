@@ -14,6 +14,7 @@ import numpy as np
 from driftframe.components.autopilot import Autopilot
 from driftframe.components.body import Transform, Velocity
 from driftframe.framework import kepler
+from driftframe.framework.world import World
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,7 @@ def _gravity(world):
     return world.get_system(GravitySystem)
 
 
-def orbit(world, ent: int) -> OrbitReadout | None:
+def orbit(world: World, ent: int) -> OrbitReadout | None:
     """The readout of ``ent``'s orbit, or None in a scene without wells (or for a root well)."""
     g = _gravity(world)
     ref = g.reference(ent) if g is not None else None
@@ -57,7 +58,7 @@ def orbit(world, ent: int) -> OrbitReadout | None:
                         time_to_impact=float(impact))
 
 
-def closest_approach(world, ent: int, target: int, horizon: float | None = None):
+def closest_approach(world: World, ent: int, target: int, horizon: float | None = None) -> tuple[float, float]:
     """``(seconds from now, distance in m)`` of ``ent``'s closest approach to ``target``, both on their
     conics about ``ent``'s well (one orbit of ``ent``, or 2 hours on an open orbit, unless given);
     on straight lines in a scene without wells."""
@@ -80,7 +81,7 @@ def closest_approach(world, ent: int, target: int, horizon: float | None = None)
     return kepler.closest_approach(x[0] - X, v[0] - V, x[1] - X, v[1] - V, mu, horizon)
 
 
-def predicted_orbit(world, ent: int, n: int = 128) -> np.ndarray | None:
+def predicted_orbit(world: World, ent: int, n: int = 128) -> np.ndarray | None:
     """``n`` world points (n, 3) along ``ent``'s predicted conic about its well (at the well's current
     position), or None without a well."""
     g = _gravity(world)

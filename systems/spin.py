@@ -27,7 +27,7 @@ class SpinSystem(esper.Processor):
     writes = (Transform,)
     requires = (Transform, AngularVelocity)
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._scratch = np.empty((16, 0))    # work rows, reused every step (see _rotate)
 
     def process(self, dt: float) -> None:
