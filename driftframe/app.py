@@ -33,9 +33,10 @@ def simulation_systems(track=None, *, collision: str = "continuous") -> list:
     from driftframe.systems.spin import SpinSystem
     from driftframe.systems.warp import WarpGovernorSystem
 
-    # gravity runs before movement in the movement stage and moves the bodies it integrates itself
-    # (marked Orbiting, which movement skips); without a GravityWell it is one empty query per step
-    # the autopilot flies through FlightInput (before control); the warp governor looks ahead after collision
+    # movement predicts every body's end of step; gravity (its Orbiting bodies) and collision (the colliders
+    # a contact touched) correct it; the world's commit stage writes it (framework/step.py); without a
+    # GravityWell gravity is one empty query per step; the autopilot flies through FlightInput (before
+    # control); the warp governor looks ahead after the commit
     return [InputSystem(track), AutopilotSystem(), ControlSystem(), RotationAssistSystem(), GravitySystem(),
             MovementSystem(), SpinSystem(), CollisionSystem(method=collision), WarpGovernorSystem()]
 

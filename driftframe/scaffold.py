@@ -151,7 +151,7 @@ def build(world, rng):
         df.SphereCollider.bulk(n, radius=r),
         [df.ModelRef(name) for name in names],
         [Fenced(radius=60.0, centre=(0, 0, 90)) for _ in range(n)])
-    world.add_system(FenceSystem(), after="collision")
+    world.add_system(FenceSystem(), after="commit")
     return ship
 '''
 
@@ -185,7 +185,7 @@ def test_the_scene_builds_and_steps():
 def test_the_fence_turns_a_body_back():
     world = df.World(dt=0.1)
     world.add_system(df.MovementSystem())
-    world.add_system(FenceSystem(), after="movement")
+    world.add_system(FenceSystem(), after="commit")
     rock = world.create_entity(df.Transform((0, 0, 0)), df.Velocity((10.0, 0, 0)),
                                Fenced(radius=20.0, centre=(0, 0, 0)))
     world.step(100)                                     # 10 s at 10 m/s: it would be 100 m out

@@ -282,7 +282,7 @@ def snapshot(world) -> tuple[dict, dict]:
                                                       f"{cls.__name__} of entity {e}")] for e in holders]
             except _Unsavable as err:
                 raise SaveError(f"cannot save component {err}") from None
-    # what the systems say they make again (the movement skip table: claims by system object ids)
+    # what the systems say they make again (a handle, a table of claims by object ids)
     rebuilt = set(REBUILT_RESOURCES)
     for _, system in _systems(world):
         rebuilt.update(getattr(system, "rebuilt_resources", ()))

@@ -12,7 +12,7 @@ carries its ``b2StepContext`` through its solver stages:
    contact touched) writes that body's end state into the context from the
    start state, which is still what ``Transform`` and ``Velocity`` hold. It
    corrects the prediction; it never undoes a write to the components.
-3. **commit** (the ``commit`` stage, :class:`~driftframe.systems.commit.CommitSystem`):
+3. **commit** (the ``commit`` stage, :class:`Commit`, which every world has):
    the context is written into ``Transform.position`` and ``Velocity.linear``,
    every body at once.
 
@@ -24,10 +24,13 @@ there would be overwritten by the commit, so it belongs before ``movement``
 
 The context's arrays are the size of the component tables, row for row, so a
 system writes ``ctx.position[rows]`` with the rows it reads the components at.
-This module is data and the formula only; the systems above hold the tables.
+The world owns its context (``world.step_context``) as Box2D's world owns its
+step context: it is not a resource, and a save never holds it (between two
+steps it is closed).
 """
 from __future__ import annotations
 
+import esper
 import numpy as np
 
 
@@ -49,32 +52,28 @@ def advance(x0: np.ndarray, v0: np.ndarray, a: np.ndarray | None, dt: float) -> 
 
 
 class StepContext:
-    """The step's predicted end state, a resource of the world (``world.resources[StepContext]``).
+    """The step's predicted end state (``world.step_context``).
 
     ``position`` (m) and ``velocity`` (m/s) have one row per row of the
     ``Transform`` and ``Velocity`` tables; ``step`` is the world's step count
-    the context is open for (-1: closed), ``dt`` its length (s). Made by
-    :meth:`of` on first use; :meth:`begin` opens it at most once a step,
-    :meth:`end` closes it.
+    the context is open for (-1: closed), ``dt`` its length (s); ``predicted``
+    says whether a movement stage has written every body's free flight this
+    step (a world without one leaves each owner to write all of its bodies).
+    :meth:`begin` opens it at most once a step, :meth:`end` commits and closes it.
     """
 
-    __slots__ = ("step", "dt", "position", "velocity", "_t_owner", "_v_owner", "_t_version", "_v_version")
+    __slots__ = ("step", "dt", "predicted", "position", "velocity", "_tables", "_t_owner", "_v_owner", "_t_version",
+                 "_v_version")
 
     def __init__(self):
         self.step = -1
         self.dt = 0.0
+        self.predicted = False
         self.position = np.empty((0, 3))
         self.velocity = np.empty((0, 3))
+        self._tables = None
         self._t_owner = self._v_owner = None
         self._t_version = self._v_version = -1
-
-    @staticmethod
-    def of(world) -> "StepContext":
-        """The world's step context (made on first use)."""
-        ctx = world.resources.get(StepContext)
-        if ctx is None:
-            ctx = world.resources[StepContext] = StepContext()
-        return ctx
 
     @property
     def open(self) -> bool:
@@ -85,7 +84,8 @@ class StepContext:
         two tables (``Table`` of Transform and of Velocity). True when it was opened by this call."""
         if self.step == step:
             return False
-        self.step, self.dt = step, dt
+        self.step, self.dt, self.predicted = step, dt, False
+        self._tables = (t_table, v_table)
         self.position = _copy_into(self.position, t_table.data["position"], t_table.size)
         self.velocity = _copy_into(self.velocity, v_table.data["linear"], v_table.size)
         # which entity held each row when the step began: a row freed and taken again before the commit
@@ -94,10 +94,11 @@ class StepContext:
         self._v_owner, self._v_version = v_table.entity[: v_table.size].copy(), v_table.version
         return True
 
-    def end(self, t_table, v_table) -> None:
+    def end(self) -> None:
         """Commit: write the context into the tables' position and velocity columns, and close it."""
         if self.step < 0:
             return
+        t_table, v_table = self._tables
         _commit(t_table, "position", self.position, self._t_owner, self._t_version)
         _commit(v_table, "linear", self.velocity, self._v_owner, self._v_version)
         self.step = -1
@@ -105,6 +106,25 @@ class StepContext:
     def close(self) -> None:
         """Close without a commit (the step failed: the components keep the start of the step)."""
         self.step = -1
+
+
+class Commit(esper.Processor):
+    """Reads the step context; writes Transform.position, Velocity.linear.  The step's end state into the
+    components, every body at once (every world has one, in the ``commit`` stage; with the context
+    closed, because nothing moved this step, it does nothing)."""
+
+    stage = "commit"
+    reads = (StepContext,)
+    writes = ("Transform", "Velocity")
+    #: what no system may write between the movement stage and this one (the world's schedule refuses
+    #: it): the step holds every body's velocity there. (Transform is not listed: the spin stage writes
+    #: its orientation there; a position written there is overwritten all the same.)
+    holds = ("Velocity",)
+
+    def process(self, dt: float) -> None:
+        ctx = self.world.step_context
+        if ctx.step >= 0:
+            ctx.end()
 
 
 def _copy_into(buf: np.ndarray, col: np.ndarray, n: int) -> np.ndarray:

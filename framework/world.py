@@ -47,6 +47,7 @@ import esper
 import numpy as np
 
 from driftframe.framework import validate
+from driftframe.framework.step import Commit, StepContext
 from driftframe.framework.store import Columnar, Columns, Query, Table
 
 #: Stages run once per fixed simulation step, in this order.
@@ -141,7 +142,6 @@ class World:
             raise ValueError(f"an esper world named {self.name!r} exists already")
         self.step_count = 0
         self._entries: list[_Entry] = []
-        self._companions: set[int] = set()              # ids of the systems added as another's companions
         self._order: dict[str, list[_Entry]] = {"step": [], "frame": []}
         # each phase's lines of the profile, all 0.0 (set at the start of each step / frame)
         self._zero: dict[str, dict[str, float]] = {"step": dict.fromkeys(STEP_STAGES, 0.0),
@@ -169,6 +169,11 @@ class World:
         self.epoch = 0
         self.closed = False
         esper.switch_world(self.name)
+        #: Every body's end-of-step state while a step runs (framework/step.py): predicted by the movement
+        #: stage, corrected by the systems that own bodies, written into the components by the commit
+        #: stage, which every world has.
+        self.step_context = StepContext()
+        self.add_system(Commit())
 
     # -- entities ---------------------------------------------------------------
     def activate(self) -> "World":
@@ -427,10 +432,6 @@ class World:
             if e.system is system:
                 raise ValueError(f"system {e.name!r} ({type(system).__name__}) is in this world already: a system "
                                  "object is added once (make another to run it twice)")
-            if id(e.system) in self._companions and type(e.system) is type(system):
-                self._companions.discard(id(e.system))
-                self.remove_system(e.system)            # added for another system: this one takes its place
-                break
         stage = stage if stage is not None else getattr(system, "stage", None)
         if stage is not None and stage not in STEP_STAGES + FRAME_STAGES:
             raise ScheduleError(f"unknown stage {stage!r}; stages are {STEP_STAGES + FRAME_STAGES}")
@@ -460,12 +461,6 @@ class World:
             self._schedule()
             raise
         system.world = self
-        # ``companions``: the system classes this one needs beside it (the step's predict and commit
-        # stages, see framework/step.py), one of each, added when the world has none yet; a system of
-        # that class added later takes the place of the one added for it
-        for cls in getattr(system, "companions", ()):
-            if not any(isinstance(e.system, cls) for e in self._entries):
-                self._companions.add(id(self.add_system(cls())))
         return system
 
     def remove_system(self, system) -> None:
@@ -557,9 +552,36 @@ class World:
                                     + " -> ".join(self._cycle(left, edges, by_seq)))
             self._order[phase] = order
             self._zero[phase] = dict.fromkeys(stages + tuple(e.key for e in order), 0.0)
+        self._check_held(self._order["step"])
+
+    @staticmethod
+    def _check_held(order) -> None:
+        """No system between the movement stage and the commit writes what the step holds there (the
+        commit would overwrite it: framework/step.py)."""
+        moved = False
+        for e in order:
+            if isinstance(e.system, Commit):
+                return
+            if moved:
+                held = [w for w in _access(e.system, "writes") if getattr(w, "__name__", w) in Commit.holds]
+                if held:
+                    what = ", ".join(getattr(w, "__name__", w) for w in held)
+                    raise ScheduleError(
+                        f"system {e.name!r} writes {what} between the movement stage and the commit, where the "
+                        f"step holds every body's {what}: the commit would overwrite what it writes. Place it "
+                        "before='movement' (a force, a change of velocity) or after='commit' (the default)")
+            moved = moved or e.stage == "movement"
 
     @staticmethod
     def _cycle(left, edges, by_seq) -> list[str]:
+        # systems after a cycle are left unordered too: drop those with no way on inside what is left,
+        # until every one left leads to another (so the walk below ends on a cycle)
+        left = set(left)
+        while True:
+            dead = {s for s in left if not any(o in left for o in edges[s])}
+            if not dead:
+                break
+            left -= dead
         start = min(left)
         path, seen = [start], {start: 0}
         while True:

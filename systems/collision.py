@@ -1,17 +1,14 @@
 """Sphere collisions: exact, continuous, order-independent, bounded (and the articles' method as a baseline).
 
-**One-way data.** The collision system integrates the bodies it handles
-itself, from the start-of-step state: a :class:`CollisionSystem` in a world
-tells :class:`~driftframe.systems.movement.MovementSystem` (through
-``world.resources[movement.SKIP]``) to leave the bodies with a
-:class:`~driftframe.components.collision.SphereCollider` alone, so in the
-collision stage it reads ``x0, v0`` (and ``a``), never reconstructs them, and
-writes ``x1, v1``. Each body moves over the step as ``p(t) = x0 + u t`` with
+**One-way data.** The collision stage corrects the step's prediction
+(:mod:`driftframe.framework.step`): it reads the colliders' start-of-step
+``x0, v0`` (and ``a``) from the components, which the commit stage has not
+written yet, and writes ``x1, v1`` into ``world.step_context`` for the bodies
+a contact touched; every other body keeps the movement stage's free-flight
+prediction. Each body moves over the step as ``p(t) = x0 + u t`` with
 ``u = v0 + a dt/2`` (the exact constant-acceleration end point; an impulse
 changes ``u`` and ``a dt/2`` is added back at the end; contacts of a thrusting
-body lie on the chord of its parabola, at most ``|a| dt^2 / 8`` off). A body
-that no contact touched gets exactly the update the movement system would
-have made.
+body lie on the chord of its parabola, at most ``|a| dt^2 / 8`` off).
 
 The physics is :mod:`driftframe.framework.contact` (times of impact,
 islands of simultaneous contacts, the TC model against inelastic collapse,
@@ -59,8 +56,8 @@ from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact
+from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
-from driftframe.systems import movement
 
 METHODS = ("continuous", "articles")
 
@@ -190,14 +187,9 @@ class State:
         self.n_bad, self.moving = contact.gather_bodies(*args, float(dt), *self._out)
         return self
 
-    def end_of_step(self, lay: _Layout, dt: float):
-        """x1, v1 of every body as the movement system computes them (no contact)."""
-        x1 = self.x0 + self.v0 * dt
-        v1 = self.v0
-        if self.a is not None:
-            x1 += (0.5 * dt * dt) * self.a
-            v1 = self.v0 + dt * self.a
-        return x1, v1
+    def end_of_step(self, dt: float):
+        """x1, v1 of every body in free flight (no contact)."""
+        return advance(self.x0, self.v0, self.a, dt)
 
     def bad(self, lay: _Layout) -> np.ndarray | None:
         """Bodies with a non-finite or invalid field, or None (found by the gather)."""
@@ -220,8 +212,8 @@ class State:
 
 
 class CollisionSystem(esper.Processor):
-    """Reads Transform, Velocity, Acceleration, Mass, SphereCollider; writes Transform.position,
-    Velocity.linear of the colliders (it integrates them); appends CollisionEvent to world.events.
+    """Reads Transform, Velocity, Acceleration, Mass, SphereCollider; writes the step context (the end of
+    the step of the colliders a contact touched); appends CollisionEvent to world.events.
     Elastic (or restitution-scaled) sphere impulses at the exact times of impact inside the step.
 
     ``method``: ``"continuous"`` (default; swept, time-ordered, islands of
@@ -242,8 +234,7 @@ class CollisionSystem(esper.Processor):
 
     stage = "collision"
     reads = (Transform, Velocity, Acceleration, Mass, SphereCollider, Orbiting)
-    writes = (Transform, Velocity)
-    rebuilt_resources = (movement.SKIP,)      # its claim in the skip table: made anew (framework/save.py)
+    writes = (StepContext, CollisionEvent)
 
     def __init__(self, method: str = "continuous", *, broadphase: str = "auto",
                  skin_steps: float = 8.0, events: bool = True, contact_time: float | None = None,
@@ -281,7 +272,6 @@ class CollisionSystem(esper.Processor):
         self._stick = False                          # a step jammed: solve with the jam path's variant
         self.stats = dict(_ZERO_STATS)
 
-    # the world this system is in: it integrates the colliders, so movement must leave them alone
     @property
     def world(self):
         return self._world
@@ -289,17 +279,6 @@ class CollisionSystem(esper.Processor):
     @world.setter
     def world(self, w):
         self._world = w
-        if w is not None:
-            w.resources.setdefault(movement.SKIP, {}).setdefault(SphereCollider, set()).add(id(self))
-
-    def release(self) -> None:
-        """Taken out of the world: movement moves the colliders again (unless another collision system
-        is still there)."""
-        w = self._world
-        if w is not None:
-            claims = w.resources.get(movement.SKIP, {}).get(SphereCollider)
-            if claims is not None:
-                claims.discard(id(self))
 
     # -- bookkeeping ----------------------------------------------------------
     def _refresh(self) -> _Layout:
@@ -377,7 +356,7 @@ class CollisionSystem(esper.Processor):
         if self.method == "articles":
             from driftframe.systems.collision_baseline import articles_step
             x, v, events = articles_step(st, lay, dt, self._now(), self.events, self.world.step_count)
-            self._write(lay, x, v)
+            self._write(lay, x, v, dt)
             self.stats["pairs"] = lay.n * (lay.n - 1) // 2
             self.stats["contacts"] = len(events)
             for ev in events:
@@ -385,24 +364,39 @@ class CollisionSystem(esper.Processor):
             return
         self._continuous(lay, st, dt)
 
-    def _write(self, lay: _Layout, x1: np.ndarray, v1: np.ndarray) -> None:
+    def _context(self, dt: float) -> StepContext:
+        """The step context, opened for this step (by the movement stage, or here in a world without one)."""
+        world = self.world
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        return ctx
+
+    def _write(self, lay: _Layout, x1: np.ndarray, v1: np.ndarray, dt: float) -> None:
         """Position and velocity at the end of the step of every collider that has a Velocity."""
         if len(lay.v_sel) == 0:
             return
-        pos = self.world.table(Transform).data["position"]
-        vel = self.world.table(Velocity).data["linear"]
+        ctx = self._context(dt)
         if lay.all_v:
-            pos[lay.t_rows] = x1
-            vel[lay.v_rows] = v1
+            ctx.position[lay.t_rows] = x1
+            ctx.velocity[lay.v_rows] = v1
         else:
-            pos[lay.tv_rows] = x1[lay.v_sel]
-            vel[lay.v_rows] = v1[lay.v_sel]
+            ctx.position[lay.tv_rows] = x1[lay.v_sel]
+            ctx.velocity[lay.v_rows] = v1[lay.v_sel]
 
     def _finish(self, lay: _Layout, st: State, changed: np.ndarray, dt: float) -> None:
-        """The continuous solver's end of step into the columns (one compiled pass)."""
-        pos, vel = st.columns(lay)[:2]
-        contact.scatter_bodies(pos, vel, lay.t_idx, lay.v_idx, st.x0, st.v0,
-                               st.a if st.a is not None else _NO_N3, st.x, st.u, changed, float(dt))
+        """The end of the step of the bodies a contact changed, ``x + u dt`` with ``u`` (plus the second
+        ``a dt/2``), into the step context; the others keep the movement stage's prediction (in a world
+        without a movement stage, their free flight is written here)."""
+        ctx = self._context(dt)
+        if not ctx.predicted:
+            x1, v1 = st.end_of_step(dt)
+            self._write(lay, x1, v1, dt)
+        k = np.flatnonzero(changed & (lay.v_idx >= 0)) if changed.any() else None
+        if k is None or not len(k):
+            return
+        u = st.u[k]
+        ctx.position[lay.t_idx[k]] = st.x[k] + u * dt
+        ctx.velocity[lay.v_idx[k]] = u + (0.5 * dt) * st.a[k] if st.a is not None else u
 
     def _t_last_of(self, lay: _Layout) -> np.ndarray:
         """The last contact of each body of the layout (absolute time, s; -inf: none yet), kept across

@@ -11,9 +11,10 @@ and it does not ask whether an overlapping pair approaches: a pair that
 overlaps while separating (spawned so, or left so by rounding) is "moved
 back" through each other to the far side, a jump.
 
-The collision system integrates its bodies itself (see
-:mod:`driftframe.systems.collision`), so this first moves every body as the
-movement system would, then makes the articles' pass over the end state.
+It works on the end of the step (the bodies' free flight,
+:func:`driftframe.framework.step.advance`), as the articles did after their
+movement pass, and the collision system writes what it returns into the
+step context (see :mod:`driftframe.systems.collision`).
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from driftframe.components.collision import CollisionEvent
 
 def articles_step(st, lay, dt: float, t0: float, events: bool, step: int = -1):
     """The end-of-step ``(x, v)`` (n, 3) of the colliders in ``st`` and the events (a list)."""
-    x1, v1 = st.end_of_step(lay, dt)
+    x1, v1 = st.end_of_step(dt)
     x = x1.tolist()
     v = v1.tolist()
     inv = st.inv.tolist()

@@ -1,11 +1,13 @@
 """Gravity: bodies on rails about one well (exact Kepler), or kick-drift-kick in the pull of many.
 
-Runs in the movement stage *before* the movement system and moves every body
-it integrates itself (marking it :class:`~components.gravity.Orbiting`, which
-it claims in ``world.resources[movement.SKIP]`` so the movement system skips
-it, and which the collision system leaves out: their sphere contacts are
-found here, on their conics), so no body is moved twice. A scene without a
-:class:`~components.gravity.GravityWell` costs one empty esper query per step.
+Runs in the movement stage after the movement system has predicted every
+body's free flight (:mod:`driftframe.framework.step`) and writes the end of the
+step of every body it integrates (marked :class:`~components.gravity.Orbiting`,
+which the collision system leaves out: their sphere contacts are found here,
+on their conics) into the step context, from the start of the step, which the
+components still hold: its result replaces the prediction, and the commit
+stage writes it. A scene without a :class:`~components.gravity.GravityWell`
+costs one empty esper query per step.
 
 **Which well (patched conics).** A body moves about the deepest well whose
 sphere of influence holds it (a root well's is infinite; a moon's is Laplace's
@@ -71,8 +73,8 @@ its conic about its well, which is itself at rest, moving straight, or a moon
 on its conic about its parent), n-body colliders (on the leapfrog's straight
 drift between its two kicks), and *obstacles*, the colliders this system does
 not move (``Mass(inf)``, or no ``Velocity``; not a well): straight at their
-step-start velocity (the movement system moves them, after this system, so
-nothing is moved twice; an ``Acceleration`` on one is not followed). Only
+step-start velocity (the movement stage's prediction moves them; an
+``Acceleration`` on one is not followed here). Only
 where two or more colliders move, or one and an obstacle, is anything done; a
 scene without colliders pays one comparison. Each step, after the
 end-of-step states on rails are known:
@@ -167,9 +169,8 @@ from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
 from driftframe.framework import broadphase as bp
 from driftframe.framework import kepler
+from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, to_indices
-from driftframe.systems import movement
-from driftframe.systems.movement import MovementSystem
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
 MAX_CONTACTS = 4
@@ -346,19 +347,18 @@ def _overlapping(mv, c, pairs) -> list:
 
 
 class GravitySystem(esper.Processor):
-    """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody, SphereCollider; writes Transform,
-    Velocity, Orbiting; appends SurfaceContact and CollisionEvent to world.events.  Gravity: on rails
+    """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody, SphereCollider; writes the step
+    context (its bodies' end of the step), Orbiting; appends SurfaceContact and CollisionEvent to world.events.  Gravity: on rails
     (exact Kepler from an epoch, with the sphere contacts of the bodies on rails) or kick-drift-kick
     (n-body)."""
 
     stage = "movement"
     name = "gravity"
     reads = (GravityWell, Transform, Velocity, Acceleration, Mass, NBody, Orbiting, SphereCollider)
-    writes = (Transform, Velocity, Orbiting)
-    rebuilt_resources = (movement.SKIP,)      # its claim in the skip table: made anew (framework/save.py)
-    #: before the movement system, in whatever order the two were added: a body is marked Orbiting
-    #: (and so skipped by movement) before movement first runs
-    before = (MovementSystem,)
+    writes = (StepContext, Orbiting, SurfaceContact, CollisionEvent)
+    #: after the movement system's prediction, in whatever order the two were added: this system's end
+    #: of the step replaces the prediction of its bodies
+    after = ("movement",)
 
     @property
     def requires(self) -> tuple:
@@ -447,8 +447,6 @@ class GravitySystem(esper.Processor):
         orbiting.refresh()
         for e in self.ents[~np.isin(self.ents, orbiting.entities)]:
             world.add_component(int(e), Orbiting())
-        # the movement system leaves the Orbiting bodies to this system (world.resources[movement.SKIP])
-        world.resources.setdefault(movement.SKIP, {}).setdefault(Orbiting, set()).add(id(self))
         # no body may start inside a surface
         x = world.table(Transform).data["position"][self.t_rows]
         X = world.table(Transform).data["position"][wells.t_rows]
@@ -476,7 +474,6 @@ class GravitySystem(esper.Processor):
 
     def _release(self) -> None:
         world = self.world
-        world.resources.get(movement.SKIP, {}).get(Orbiting, set()).discard(id(self))
         orbiting = world.query(Orbiting)
         orbiting.refresh()
         for e in orbiting.entities:
@@ -519,14 +516,15 @@ class GravitySystem(esper.Processor):
         """A scene with ``NBody`` bodies and no well: they attract each other all the same.
 
         Each step kicks every NBody body's velocity by the pull of the others,
-        ``v += dt * sum_j G m_j (x_j - x_i) / |x_j - x_i|^3`` (positions at the
-        step's start), and leaves the drift to the movement system, which runs
-        next (``x += v dt``): symplectic Euler, first order, energy bounded; the
+        ``v' = v + dt * sum_j G m_j (x_j - x_i) / |x_j - x_i|^3`` (positions at
+        the step's start), then drifts it, ``x += v' dt``, into the step context
+        in place of the movement stage's prediction (without a movement stage,
+        the kick alone): symplectic Euler, first order, energy bounded; the
         collision system meets them as any other bodies. A body of infinite
         (or no) mass pulls nothing and is not kicked. With a well in the scene
         they are this system's own, on the leapfrog above.
         """
-        q = self.world.query(NBody, Transform, Velocity, Mass)
+        q = self.world.query(NBody, Transform, Velocity, Mass, optional=(Acceleration,))
         q.refresh()
         if len(q) < 2:
             return
@@ -537,6 +535,7 @@ class GravitySystem(esper.Processor):
         if np.count_nonzero(live) < 2:
             return
         t_rows, v_rows, gm = t_rows[live], v_rows[live], G * kg[live]
+        a_rows = np.asarray(q.rows(Acceleration), np.intp)[live]
         x = world.table(Transform).data["position"][t_rows]
         d = x[None, :, :] - x[:, None, :]                       # d[i, j] = x_j - x_i, m
         r2 = np.einsum("ijk,ijk->ij", d, d)
@@ -544,7 +543,16 @@ class GravitySystem(esper.Processor):
         with np.errstate(divide="ignore", invalid="ignore"):
             w = gm[None, :] / (r2 * np.sqrt(r2))                # G m_j / r^3, 1/s^2
         w[~np.isfinite(w)] = 0.0                                # two bodies at one point: no kick
-        world.table(Velocity).data["linear"][v_rows] += dt * np.einsum("ij,ijk->ik", w, d)
+        v = world.table(Velocity).data["linear"][v_rows] + dt * np.einsum("ij,ijk->ik", w, d)
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        if not ctx.predicted:
+            ctx.velocity[v_rows] = v
+            return
+        has_a = a_rows >= 0
+        for sel, a in ((~has_a, None), (has_a, world.table(Acceleration).data["linear"][a_rows[has_a]])):
+            if sel.any():
+                ctx.position[t_rows[sel]], ctx.velocity[v_rows[sel]] = advance(x[sel], v[sel], a, dt)
 
     def reference(self, entity: int):
         """The well ``entity`` moves about now, as ``(well entity, mu, radius, X, V)`` (its centre's
@@ -884,7 +892,7 @@ class GravitySystem(esper.Processor):
             edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
         else:
             edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
-        # the obstacles at the step's start (the movement system moves them after this system)
+        # the obstacles at the step's start (the components: the commit stage writes their end later)
         self._ob_x = pos_t[self.ob_t_rows]
         has = self.ob_v_rows >= 0
         self._ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
@@ -931,8 +939,10 @@ class GravitySystem(esper.Processor):
             self._rails_end(sel, wi, r, u, chi, guess, touched, a, thrust, X1, V1, t1, x1, v1)
         if nb.size:
             self._leapfrog_end(nb, line, a, X0, X1, dt, t0, x1, v1, events)
-        pos_t[self.t_rows] = x1
-        vel_t[self.v_rows] = v1
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        ctx.position[self.t_rows] = x1
+        ctx.velocity[self.v_rows] = v1
         self.last_x = x1
         self.last_v = v1
         for ev in events:

@@ -1,4 +1,4 @@
-"""Newtonian movement."""
+"""Newtonian movement: the step's predict stage."""
 from __future__ import annotations
 
 import esper
@@ -6,13 +6,8 @@ import esper
 import numpy as np
 
 from driftframe.components.body import Acceleration, Transform, Velocity
-from driftframe.components.collision import SphereCollider
+from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
-
-#: ``world.resources[SKIP]``: ``{component class: set of claiming systems}``: the bodies with that
-#: component are integrated by the claiming system itself (the collision system moves its colliders
-#: from the start-of-step state), so movement leaves them alone and the step's data flows one way.
-SKIP = "movement.skip"
 
 
 def _some(rows) -> bool:
@@ -21,102 +16,72 @@ def _some(rows) -> bool:
 
 
 class MovementSystem(esper.Processor):
-    """Reads Velocity, Acceleration; writes Transform.position, Velocity.  x += v dt (+ a dt^2/2).
+    """Reads Transform, Velocity, Acceleration; writes StepContext.  Predicts every body's end of the step:
+    ``x1 = x0 + v0 dt + a dt^2/2``, ``v1 = v0 + a dt`` (:func:`~driftframe.framework.step.advance`).
 
-    Free bodies: ``x += v dt`` is exact for constant velocity. Bodies with an
+    The prediction goes into the step's :class:`~driftframe.framework.step.StepContext`
+    (``world.step_context``), which the gravity and collision systems correct
+    for the bodies they own and the commit stage writes into ``Transform`` and
+    ``Velocity``: every
+    body is predicted, so a body nobody owns ends where free flight takes it,
+    and no system is told to skip another's bodies. Bodies with an
     Acceleration (thrust held constant over the step) take the exact
-    constant-acceleration update ``x += v dt + a dt^2 / 2; v += a dt`` — not
-    explicit Euler (which lags by ``a dt^2 / 2`` per step) nor semi-implicit
-    Euler (which leads by as much); see ``benchmarks/thrust_accuracy.py``.
-    Nothing else changes velocity here: there is no drag in space.
-
-    Bodies with a component listed in ``world.resources[SKIP]`` are left to
-    the system that claimed them (a CollisionSystem integrates its colliders).
+    constant-acceleration update. Nothing else changes velocity here: there is
+    no drag in space.
 
     All matching bodies are updated with whole-column numpy operations; the
-    packed rows are rebuilt only when esper's query result changes.
+    packed rows are rebuilt only when entities gain or lose components.
     """
 
     stage = "movement"
-    # SphereCollider: only to leave the colliders to a CollisionSystem in the world (see SKIP)
-    reads = (Velocity, Acceleration, SphereCollider)
-    writes = (Transform, Velocity)
-
+    reads = (Transform, Velocity, Acceleration)
+    writes = (StepContext,)
     requires = (Transform, Velocity)
-    #: Resources this system's world makes again on a load, never taken from a save (framework/save.py):
-    #: the skip table holds claims by system object ids, which a rebuilt world's systems make anew.
-    rebuilt_resources = (SKIP,)
 
     def __init__(self):
-        self._kept = {}
-        self._plan_key = None
+        self._plan_epoch = None
         self._plan = ()
 
-    def _rows(self, q, types, skip):
-        """``q.rows(T)`` for each of ``types``, without the bodies that have a class in ``skip``."""
-        got = self._kept.get(q.types)
-        if got is not None and got[0] == (q.version, skip):
-            return got[1]
-        rows = tuple(q.rows(T) for T in types)
-        if skip:
-            world = self.world
-            claimed = []
-            for cls in skip:
-                c = world.query(cls)
-                c.refresh()
-                claimed.append(c.entities)
-            keep = ~in_sorted(q.entities, claimed[0] if len(claimed) == 1 else np.sort(np.concatenate(claimed)))
-            if not keep.all():
-                rows = tuple(as_index(to_indices(r)[keep]) if keep.any() else np.empty(0, np.intp)
-                             for r in rows)
-        self._kept[q.types] = ((q.version, skip), rows)
-        return rows
-
-    def _moves(self, skip: frozenset) -> tuple:
-        """What a step does, as packed rows: ``((t_rows, v_rows), (t_rows, v_rows, a_rows))`` with either
-        left out when it has no body (every body claimed by a collision system: nothing)."""
+    def _moves(self) -> tuple:
+        """What a step does, as packed rows: ``((t_rows, v_rows), (t_rows, v_rows, a_rows))``, the bodies
+        without an Acceleration and those with one, either left out when it has no body."""
         world = self.world
+        q = world.query(Transform, Velocity)
+        q.refresh()
+        if not len(q):
+            return ()
+        qa = world.query(Transform, Velocity, Acceleration)
+        qa.refresh()
+        if not len(qa):
+            return ((q.rows(Transform), q.rows(Velocity)),)
+        keep = ~in_sorted(q.entities, qa.entities)
         moves = []
-        for types in ((Transform, Velocity), (Transform, Velocity, Acceleration)):
-            q = world.query(*types)
-            q.refresh()
-            if len(q):
-                rows = self._rows(q, types, skip)
-                if _some(rows[0]):
-                    moves.append(rows)
-            elif len(types) == 2:
-                break                           # (no body with a Velocity: none with an Acceleration either)
-        return tuple(moves)
+        if keep.any():
+            moves.append(tuple(as_index(to_indices(q.rows(T))[keep]) for T in (Transform, Velocity)))
+        moves.append((qa.rows(Transform), qa.rows(Velocity), qa.rows(Acceleration)))
+        return tuple(m for m in moves if _some(m[0]))
 
     def prepare(self) -> None:
         """The packed rows of the current bodies (see :meth:`World.prepare`)."""
-        skip = self._skip()
-        self._plan = self._moves(skip)
-        self._plan_key = (self.world.epoch, skip)
-
-    def _skip(self) -> frozenset:
-        skip = self.world.resources.get(SKIP)
-        return frozenset(cls for cls, by in skip.items() if by) if skip else frozenset()
+        self._plan = self._moves()
+        self._plan_epoch = self.world.epoch
 
     def process(self, dt: float) -> None:
         world = self.world
-        skip = self._skip()
-        # the rows change only when entities gain or lose components (the world's epoch) or a system
-        # claims or frees a class of bodies; a step otherwise reuses them
-        if self._plan_key is None or self._plan_key[0] != world.epoch or self._plan_key[1] != skip:
-            self._plan = self._moves(skip)
-            self._plan_key = (world.epoch, skip)
-        if not self._plan:
-            return
-        pos = world.table(Transform).data["position"]
-        vel = world.table(Velocity).data["linear"]
+        # the rows change only when entities gain or lose components (the world's epoch)
+        if self._plan_epoch != world.epoch:
+            self.prepare()
+        t_table, v_table = world.table(Transform), world.table(Velocity)
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, t_table, v_table)
+        pos, vel = t_table.data["position"], v_table.data["linear"]
+        xp, vp = ctx.position, ctx.velocity
         for rows in self._plan:
             if len(rows) == 2:
                 t_rows, v_rows = rows
-                pos[t_rows] += vel[v_rows] * dt
+                xp[t_rows], vp[v_rows] = advance(pos[t_rows], vel[v_rows], None, dt)
             else:
                 t_rows, v_rows, a_rows = rows
-                a = world.table(Acceleration).data["linear"][a_rows]
-                # the v dt part was added above; add the constant-acceleration term, then update v
-                pos[t_rows] += (0.5 * dt * dt) * a
-                vel[v_rows] += dt * a
+                xp[t_rows], vp[v_rows] = advance(pos[t_rows], vel[v_rows],
+                                                 world.table(Acceleration).data["linear"][a_rows], dt)
+        ctx.predicted = True

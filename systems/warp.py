@@ -28,7 +28,7 @@ class WarpGovernorSystem(esper.Processor):
     """
 
     name = "warp"
-    after = ("collision",)
+    after = ("commit",)                 # the bodies at the end of the step
     before = ("camera",)
     reads = (Orbiting, Autopilot, FlightPlan)
     writes = ()

@@ -15,8 +15,8 @@ R_EARTH = 6.371e6
 
 def make(dt=1.0, *wells):
     world = World(dt=dt)
-    world.add_system(MovementSystem())          # added first on purpose: gravity still runs before it
-    world.add_system(GravitySystem())
+    world.add_system(GravitySystem())           # added first on purpose: it still runs after movement
+    world.add_system(MovementSystem())
     return world
 
 
@@ -35,9 +35,9 @@ def world():
     w.close()
 
 
-def test_gravity_runs_before_movement_whatever_the_adding_order(world):
+def test_gravity_corrects_movements_prediction_whatever_the_adding_order(world):
     names = [e.name for e in world._order["step"]]
-    assert names.index("gravity") < names.index("movement")
+    assert names.index("movement") < names.index("gravity") < names.index("commit")
 
 
 def test_a_body_on_rails_follows_the_exact_conic_and_is_moved_once(world):

@@ -298,7 +298,7 @@ def test_a_builder_outside_driftframe_is_never_called(tmp_path, good):
     def builder(name, raw):
         if name == save.MANIFEST:
             m = json.loads(raw)
-            assert m["scene"]["builder"] == "driftframe.app:make_world" and "movement.skip" in m["rebuilt_resources"]
+            assert m["scene"]["builder"] == "driftframe.app:make_world" and "make_world" in m["rebuilt_resources"]
             m["scene"]["builder"] = "os:system"
             return name, json.dumps(m)
         return name, raw
