@@ -689,7 +689,11 @@ class World:
             self.previous_events, self.events = self.events, []
             self._rendered = False
         for _ in range(n):
-            self._run("step", self.dt)
+            try:
+                self._run("step", self.dt)
+            except BaseException:
+                self.step_context.close()           # a prediction of a step that did not end is never committed
+                raise
             self.step_count += 1
 
     def render(self) -> None:
