@@ -20,8 +20,19 @@ from driftframe.framework.model_cache import declare_model_file as declare_model
 from driftframe.framework.model_cache import declare_variant as declare_variant
 from driftframe.framework.world import World
 
+TYPE_CHECKING = False                # typing's constant without importing typing (this module starts the CLI)
+if TYPE_CHECKING:
+    from types import ModuleType
+    from typing import Any
 
-def simulation_systems(track=None, *, collision: str = "continuous") -> list:
+    import esper
+    import moderngl
+
+    from driftframe.framework.input import Track
+    from driftframe.systems.render import RenderSystem
+
+
+def simulation_systems(track: Track | None = None, *, collision: str = "continuous") -> list[esper.Processor]:
     """The standard per-step systems, one per job, for every stage up to collision."""
     from driftframe.systems.assist import RotationAssistSystem
     from driftframe.systems.autopilot import AutopilotSystem
@@ -92,7 +103,7 @@ def is_scene_path(name) -> bool:
     return isinstance(name, str) and ":" in name
 
 
-def load_scene(name: str):
+def load_scene(name: str) -> ModuleType | Scene:
     """Demo ``name``, or the user's scene ``"package.module:function"`` as a :class:`Scene`.
 
     A scene is imported as ``driftframe batch`` imports one
@@ -118,7 +129,8 @@ def load_scene(name: str):
     return Scene(name, func)
 
 
-def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous", track=None):
+def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: str = "continuous",
+               track: Track | None = None) -> tuple[World, ModuleType | Scene]:
     """A world with the standard systems and demo ``name``'s entities; returns ``(world, demo)``.
 
     ``name``: a demo (``driftframe list``) or a scene of your own,
@@ -166,8 +178,8 @@ def load_kernels(name: str, *, seed: int = 0) -> None:
         world.close()
 
 
-def attach_rendering(world, ctx=None, size=(1280, 720), *, camera: str | None = None, hud: bool = True,
-                     sky: str = "lines", **options):
+def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tuple[int, int] | str = (1280, 720), *,
+                     camera: str | None = None, hud: bool = True, sky: str = "lines", **options: Any) -> RenderSystem:
     """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.
 
     ``camera``: start in ``"cockpit"``, ``"chase"`` or ``"overhead"`` (default: as the demo

@@ -82,7 +82,7 @@ class Fenced:
     turns it back (reverses its outward velocity) when it crosses the fence."""
 
     radius: float = 60.0
-    centre: tuple = (0.0, 0.0, 90.0)
+    centre: tuple[float, float, float] = (0.0, 0.0, 90.0)
 '''
 
 SYSTEMS = '''\
@@ -103,7 +103,7 @@ class FenceSystem(esper.Processor):
     writes = (df.Velocity,)
     requires = (Fenced,)                     # not called while no entity is Fenced
 
-    def process(self, dt):
+    def process(self, dt: float) -> None:
         for ent, (fence, tf, vel) in esper.get_components(Fenced, df.Transform, df.Velocity):
             out = tf.position - np.asarray(fence.centre, float)
             dist = float(np.linalg.norm(out))
@@ -133,7 +133,7 @@ SECONDS = 10.0                              # `driftframe record`'s default leng
 SCRIPT = df.Track((df.Hold(1.0, 2.0, throttle=1.0), df.Hold(3.0, 3.5, yaw=1.0), df.Hold(5.0, 5.5, yaw=-1.0)))
 
 
-def build(world, rng):
+def build(world: df.World, rng: np.random.Generator) -> int:
     """The ship, a chase camera and forty fenced rocks; ``world`` has the standard systems already."""
     ship = world.create_entity(
         df.Player(), df.Transform((0, 0, 0), df.look_rotation((0, 0, 1))), df.Velocity((0, 0, 5.0)),
@@ -166,14 +166,14 @@ from {name}.scene import build
 from {name}.systems import FenceSystem
 
 
-def new_world():
+def new_world() -> df.World:
     world = df.World(dt=1 / 60)
     for system in df.simulation_systems():
         world.add_system(system)
     return world
 
 
-def test_the_scene_builds_and_steps():
+def test_the_scene_builds_and_steps() -> None:
     world = new_world()
     ship = build(world, np.random.default_rng(1))
     world.step(60)                                      # one simulated second
@@ -182,7 +182,7 @@ def test_the_scene_builds_and_steps():
     world.close()
 
 
-def test_the_fence_turns_a_body_back():
+def test_the_fence_turns_a_body_back() -> None:
     world = df.World(dt=0.1)
     world.add_system(df.MovementSystem())
     world.add_system(FenceSystem(), after="commit")

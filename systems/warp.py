@@ -38,7 +38,7 @@ class WarpGovernorSystem(esper.Processor):
             raise ValueError(f"lead_frames must be an int >= 1, got {lead_frames!r}")
         self.lead_frames = lead_frames
 
-    def next_event(self, horizon: float = math.inf):
+    def next_event(self, horizon: float = math.inf) -> tuple[float, str] | None:
         """``(seconds from now, what)`` of the next event to slow down for, or None. Contacts between
         bodies are looked for ``horizon`` s ahead (the surface contacts and burns are known at any
         distance)."""
@@ -46,7 +46,7 @@ class WarpGovernorSystem(esper.Processor):
 
         world = self.world
         now = (world.step_count + 1) * world.dt          # this step has run: the state is at its end
-        best = None
+        best: tuple[float, str] | None = None
         g = world.get_system(GravitySystem)
         contact = g.next_contact() if g is not None else None
         if contact is not None:
