@@ -34,7 +34,8 @@ import esper
 import numpy as np
 
 
-def advance(x0: np.ndarray, v0: np.ndarray, a: np.ndarray | None, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def advance(x0: np.ndarray, v0: np.ndarray, a: np.ndarray | None, dt: float,
+            out: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The exact constant-acceleration update over ``dt`` seconds:
     ``x1 = x0 + v0 dt + a dt^2/2`` (m), ``v1 = v0 + a dt`` (m/s); ``a`` None: free flight, ``v1`` is ``v0``.
 
@@ -42,13 +43,64 @@ def advance(x0: np.ndarray, v0: np.ndarray, a: np.ndarray | None, dt: float) -> 
     Euler (which leads by as much): a thrust held over the step lands exactly
     (``benchmarks/thrust_accuracy.py``). The operations are done in this order,
     ``(x0 + v0 dt) + (dt^2/2) a``, everywhere the update is needed, so that
-    every path gives the same bits.
+    every path gives the same bits. ``out``: ``(x1, v1)`` arrays to write the
+    result into (none made); with ``a`` None, ``v1`` is not written (it may be
+    None) and holds ``v0`` already where a caller passes one.
     """
-    x1 = x0 + v0 * dt
-    if a is None:
-        return x1, v0
-    x1 += (0.5 * dt * dt) * a
-    return x1, v0 + dt * a
+    if out is None:
+        x1 = x0 + v0 * dt
+        if a is None:
+            return x1, v0
+        x1 += (0.5 * dt * dt) * a
+        return x1, v0 + dt * a
+    x1, v1 = out
+    np.multiply(v0, dt, out=x1)
+    x1 += x0                                    # (v0 dt) + x0: the same bits as x0 + v0 dt
+    if a is not None:
+        x1 += (0.5 * dt * dt) * a
+        np.multiply(a, dt, out=v1)
+        v1 += v0
+    return x1, v1
+
+
+class _Column:
+    """One column of the context: a table's field (``position`` of Transform, ``linear`` of Velocity),
+    copied in at :meth:`begin` and written back at :meth:`commit`. The views are kept while the table's
+    array and size stay the same (until an entity gains or loses the component), so a step costs one
+    copy each way."""
+
+    __slots__ = ("table", "field", "buf", "_col", "_src", "_version")
+
+    def __init__(self, table, field: str):
+        self.table, self.field = table, field
+        self.buf = np.empty((0, 3))
+        self._col = self._src = None
+        self._version = -1
+
+    def prepare(self) -> None:
+        """The views for the table as it is now (the buffer kept while its size is)."""
+        table = self.table
+        col = table.data[self.field]
+        n = table.size
+        if col is not self._col or len(self.buf) != n:
+            self._col, self._src = col, col[:n]
+            self.buf = np.empty((n, 3))
+
+    def begin(self) -> None:
+        self.prepare()
+        np.copyto(self.buf, self._src)
+        self._version = self.table.version
+
+    def commit(self) -> None:
+        table = self.table
+        if table.version == self._version and table.data[self.field] is self._col:
+            np.copyto(self._src, self.buf)          # the usual step: no row changed hands
+            return
+        # rows were taken or freed mid-step (a system deleted or spawned a body): write back the rows that
+        # hold the entity they held when the step began, never a row freed or taken since
+        n = min(len(self.buf), table.size)
+        keep = np.flatnonzero((table.entity[:n] >= 0) & (table.born[:n] <= self._version))
+        table.data[self.field][keep] = self.buf[keep]
 
 
 class StepContext:
@@ -62,18 +114,36 @@ class StepContext:
     :meth:`begin` opens it at most once a step, :meth:`end` commits and closes it.
     """
 
-    __slots__ = ("step", "dt", "predicted", "position", "velocity", "_tables", "_t_owner", "_v_owner", "_t_version",
-                 "_v_version")
+    __slots__ = ("step", "dt", "predicted", "position", "_x", "_v", "_v_open")
 
     def __init__(self):
         self.step = -1
         self.dt = 0.0
         self.predicted = False
         self.position = np.empty((0, 3))
-        self.velocity = np.empty((0, 3))
-        self._tables = None
-        self._t_owner = self._v_owner = None
-        self._t_version = self._v_version = -1
+        self._x = self._v = None
+        self._v_open = False
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The velocities (m/s), copied from the table on first use in a step: a step in which no body's
+        velocity changes (free flight, no contact) copies them neither in nor out."""
+        return self._v.buf if self._v_open else self.open_velocity()
+
+    def open_velocity(self) -> np.ndarray:
+        """:attr:`velocity`, its copy of the table made now if it was not yet this step."""
+        if not self._v_open:
+            if self.step < 0:
+                raise RuntimeError("the step context is closed: it is open from the movement stage to the commit")
+            self._v.begin()
+            self._v_open = True
+        return self._v.buf
+
+    @property
+    def velocity_buffer(self) -> np.ndarray:
+        """The array :attr:`velocity` is (the same object from step to step until the table changes
+        size), without copying the table into it."""
+        return self._v.buf
 
     @property
     def open(self) -> bool:
@@ -85,22 +155,22 @@ class StepContext:
         if self.step == step:
             return False
         self.step, self.dt, self.predicted = step, dt, False
-        self._tables = (t_table, v_table)
-        self.position = _copy_into(self.position, t_table.data["position"], t_table.size)
-        self.velocity = _copy_into(self.velocity, v_table.data["linear"], v_table.size)
-        # which entity held each row when the step began: a row freed and taken again before the commit
-        # (a body deleted and another spawned by a system mid-step) is not written over
-        self._t_owner, self._t_version = t_table.entity[: t_table.size].copy(), t_table.version
-        self._v_owner, self._v_version = v_table.entity[: v_table.size].copy(), v_table.version
+        x, v = self._x, self._v
+        if x is None or x.table is not t_table or v.table is not v_table:
+            x, v = self._x, self._v = _Column(t_table, "position"), _Column(v_table, "linear")
+        x.begin()
+        v.prepare()
+        self._v_open = False
+        self.position = x.buf
         return True
 
     def end(self) -> None:
         """Commit: write the context into the tables' position and velocity columns, and close it."""
         if self.step < 0:
             return
-        t_table, v_table = self._tables
-        _commit(t_table, "position", self.position, self._t_owner, self._t_version)
-        _commit(v_table, "linear", self.velocity, self._v_owner, self._v_version)
+        self._x.commit()
+        if self._v_open:
+            self._v.commit()
         self.step = -1
 
     def close(self) -> None:
@@ -125,24 +195,3 @@ class Commit(esper.Processor):
         ctx = self.world.step_context
         if ctx.step >= 0:
             ctx.end()
-
-
-def _copy_into(buf: np.ndarray, col: np.ndarray, n: int) -> np.ndarray:
-    """``col[:n]`` copied into ``buf`` (reused when it is large enough; a view of its first n rows)."""
-    if buf.base is not None:
-        buf = buf.base
-    if len(buf) < n:
-        buf = np.empty((max(n, 2 * len(buf)), 3))
-    out = buf[:n]
-    np.copyto(out, col[:n])
-    return out
-
-
-def _commit(table, field: str, values: np.ndarray, owner: np.ndarray, version: int) -> None:
-    col = table.data[field]
-    n = len(values)
-    if table.version == version:                    # the usual step: no row changed hands
-        col[:n] = values
-        return
-    keep = np.flatnonzero((table.entity[:n] == owner) & (owner >= 0))
-    col[keep] = values[keep]

@@ -133,6 +133,9 @@ class Table:
         self.entity = np.full(self.capacity, -1, np.int64)
         #: Bumped whenever a row is attached or detached (for caches keyed on membership).
         self.version = 0
+        #: ``born[row]``: the version at which the row's component was attached (-1: never), so a step that
+        #: began at version v can tell the rows taken since (``born > v``) from its own (framework/step.py).
+        self.born = np.full(self.capacity, -1, np.int64)
         self._by_entity = None
 
     def __repr__(self):
@@ -157,6 +160,9 @@ class Table:
         entity = np.full(cap, -1, np.int64)
         entity[: self.size] = self.entity[: self.size]
         self.entity = entity
+        born = np.full(cap, -1, np.int64)
+        born[: self.size] = self.born[: self.size]
+        self.born = born
         self.capacity = cap
 
     def alloc(self, n: int) -> np.ndarray:
@@ -204,6 +210,7 @@ class Table:
                 owner[row] = c
         self.entity[rows] = entities
         self.version += 1
+        self.born[rows] = self.version
         self._by_entity = None
 
     def detach(self, rows) -> None:

@@ -368,7 +368,8 @@ class CollisionSystem(esper.Processor):
         """The step context, opened for this step (by the movement stage, or here in a world without one)."""
         world = self.world
         ctx = world.step_context
-        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        if ctx.step != world.step_count:
+            ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
         return ctx
 
     def _write(self, lay: _Layout, x1: np.ndarray, v1: np.ndarray, dt: float) -> None:
@@ -391,8 +392,10 @@ class CollisionSystem(esper.Processor):
         if not ctx.predicted:
             x1, v1 = st.end_of_step(dt)
             self._write(lay, x1, v1, dt)
-        k = np.flatnonzero(changed & (lay.v_idx >= 0)) if changed.any() else None
-        if k is None or not len(k):
+        if changed is self._none_changed:
+            return
+        k = np.flatnonzero(changed & (lay.v_idx >= 0))
+        if not len(k):
             return
         u = st.u[k]
         ctx.position[lay.t_idx[k]] = st.x[k] + u * dt

@@ -41,6 +41,8 @@ class MovementSystem(esper.Processor):
     def __init__(self):
         self._plan_epoch = None
         self._plan = ()
+        self._views_key = None
+        self._views = ()
 
     def _moves(self) -> tuple:
         """What a step does, as packed rows: ``((t_rows, v_rows), (t_rows, v_rows, a_rows))``, the bodies
@@ -66,22 +68,47 @@ class MovementSystem(esper.Processor):
         self._plan = self._moves()
         self._plan_epoch = self.world.epoch
 
+    def _views_of(self, ctx) -> tuple:
+        """Per group of the plan: ``(x0, v0, a, x1, v1)``, views into the tables and the context where the
+        rows are contiguous (kept until the structure or the context's buffers change), else the rows."""
+        world = self.world
+        pos, vel = world.table(Transform).data["position"], world.table(Velocity).data["linear"]
+        acc = world.table(Acceleration).data["linear"] if any(len(g) == 3 for g in self._plan) else None
+        out = []
+        for rows in self._plan:
+            t_rows, v_rows = rows[0], rows[1]
+            a_rows = rows[2] if len(rows) == 3 else None
+            if isinstance(t_rows, slice) and isinstance(v_rows, slice):
+                out.append((pos[t_rows], vel[v_rows], None if a_rows is None else acc[a_rows],
+                            ctx.position[t_rows], ctx.velocity_buffer[v_rows], None))
+            else:
+                out.append((None, None, None, None, None, rows))
+        self._views_key = (world.epoch, ctx.position, ctx.velocity_buffer)
+        return tuple(out)
+
     def process(self, dt: float) -> None:
         world = self.world
         # the rows change only when entities gain or lose components (the world's epoch)
         if self._plan_epoch != world.epoch:
             self.prepare()
-        t_table, v_table = world.table(Transform), world.table(Velocity)
         ctx = world.step_context
-        ctx.begin(world.step_count, dt, t_table, v_table)
-        pos, vel = t_table.data["position"], v_table.data["linear"]
-        xp, vp = ctx.position, ctx.velocity
-        for rows in self._plan:
-            if len(rows) == 2:
-                t_rows, v_rows = rows
-                xp[t_rows], vp[v_rows] = advance(pos[t_rows], vel[v_rows], None, dt)
-            else:
-                t_rows, v_rows, a_rows = rows
-                xp[t_rows], vp[v_rows] = advance(pos[t_rows], vel[v_rows],
-                                                 world.table(Acceleration).data["linear"][a_rows], dt)
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        key = self._views_key
+        if key is None or key[0] != world.epoch or key[1] is not ctx.position \
+                or key[2] is not ctx.velocity_buffer:
+            self._views = self._views_of(ctx)
+        for x0, v0, a, x1, v1, rows in self._views:
+            if rows is None:                          # contiguous rows: views, nothing gathered or made
+                if a is not None:
+                    ctx.open_velocity()               # the other bodies' velocities copied in (see StepContext)
+                advance(x0, v0, a, dt, out=(x1, v1))
+                continue
+            pos = world.table(Transform).data["position"]
+            vel = world.table(Velocity).data["linear"]
+            t_rows, v_rows = rows[0], rows[1]
+            a = world.table(Acceleration).data["linear"][rows[2]] if len(rows) == 3 else None
+            x, v = advance(pos[t_rows], vel[v_rows], a, dt)
+            ctx.position[t_rows] = x
+            if a is not None:
+                ctx.velocity[v_rows] = v
         ctx.predicted = True
