@@ -72,11 +72,11 @@ class Autopilot:
 
     def __post_init__(self):
         if self.mode not in MODES:
-            raise ValueError(f"Autopilot.mode must be one of {MODES}, got {self.mode!r}")
+            raise ValueError(f"Autopilot.mode must be one of {MODES}, got {validate.shown(self.mode)}")
         if self.along not in DIRECTIONS:
-            raise ValueError(f"Autopilot.along must be one of {DIRECTIONS}, got {self.along!r}")
+            raise ValueError(f"Autopilot.along must be one of {DIRECTIONS}, got {validate.shown(self.along)}")
         if self.target is not None and (isinstance(self.target, bool) or not isinstance(self.target, int)):
-            raise TypeError(f"Autopilot.target must be an entity id (int) or None, got {self.target!r}")
+            raise TypeError(f"Autopilot.target must be an entity id (int) or None, got {validate.shown(self.target)}")
         if self.point is not None:
             self.point = tuple(validate.vector("Autopilot.point", self.point).tolist())
         needs_target = self.mode in ("target", "anti_target", "match_velocity") or \
@@ -85,10 +85,10 @@ class Autopilot:
             raise ValueError(f"Autopilot mode {self.mode!r} needs a target entity, got target=None")
         if self.mode == "flip_and_burn" and (self.target is None) == (self.point is None):
             raise ValueError("Autopilot flip_and_burn needs exactly one of target (an entity) or point (x, y, z), "
-                             f"got target={self.target!r}, point={self.point!r}")
+                             f"got target={validate.shown(self.target)}, point={validate.shown(self.point)}")
         self.dv = validate.scalar("Autopilot.dv", self.dv, nonnegative=True)
         if self.mode == "burn" and not self.dv > 0:
-            raise ValueError(f"Autopilot burn needs dv > 0 m/s, got {self.dv!r}")
+            raise ValueError(f"Autopilot burn needs dv > 0 m/s, got {validate.shown(self.dv)}")
         self.at = validate.scalar("Autopilot.at", self.at)
         self.aim = validate.scalar("Autopilot.aim", self.aim, positive=True, hi=math.pi)
         self.max_rate = validate.scalar("Autopilot.max_rate", self.max_rate, positive=True)
@@ -111,10 +111,11 @@ class FlightPlan:
         legs = []
         for k, leg in enumerate(self.legs):
             if not (isinstance(leg, (tuple, list)) and len(leg) == 2 and isinstance(leg[1], Autopilot)):
-                raise TypeError(f"FlightPlan.legs[{k}] must be (time, Autopilot(...)), got {leg!r}")
+                raise TypeError(f"FlightPlan.legs[{k}] must be (time, Autopilot(...)), got {validate.shown(leg)}")
             t = validate.scalar(f"FlightPlan.legs[{k}] time", leg[0], nonnegative=True)
             if t < last:
-                raise ValueError(f"FlightPlan.legs[{k}] time {t!r} is before the leg before it ({last!r})")
+                raise ValueError(f"FlightPlan.legs[{k}] time {validate.shown(t)} "
+                                 f"is before the leg before it ({validate.shown(last)})")
             last = t
             legs.append((t, leg[1]))
         self.legs = legs

@@ -56,7 +56,8 @@ class Transform(Columnar):
         if any(given):
             if not all(given):
                 raise ValueError("Transform: give all three of right, up, forward (or an orientation), "
-                                 f"got right={right!r}, up={up!r}, forward={forward!r}")
+                                 f"got right={validate.shown(right)}, up={validate.shown(up)}, "
+                                 f"forward={validate.shown(forward)}")
             if orientation is not None:
                 raise ValueError("Transform: give either orientation or right/up/forward, not both")
             orientation = fr.frame_to_quat(right, up, forward, name="Transform frame")

@@ -84,14 +84,15 @@ class Camera:
             raise ValueError("Camera.target is None: a camera without a target; give the entity id of the "
                              "body to follow (it needs a Transform)")
         if isinstance(self.target, bool) or not isinstance(self.target, (int, np.integer)) or self.target < 0:
-            raise TypeError(f"Camera.target must be an entity id (int >= 0), got {self.target!r}")
+            raise TypeError(f"Camera.target must be an entity id (int >= 0), got {validate.shown(self.target)}")
         self.target = int(self.target)
         check_mode(self.mode)
         self.fov = validate.scalar("Camera.fov", self.fov, lo=1e-3, hi=179.0)
         self.near = validate.scalar("Camera.near", self.near, positive=True)
         self.far = validate.scalar("Camera.far", self.far, positive=True)
         if not self.far > self.near:
-            raise ValueError(f"Camera.far must be > Camera.near, got near={self.near!r}, far={self.far!r}")
+            raise ValueError(f"Camera.far must be > Camera.near, got near={validate.shown(self.near)},"
+                             f" far={validate.shown(self.far)}")
         self.chase_distance = validate.scalar("Camera.chase_distance", self.chase_distance, nonnegative=True)
         self.chase_height = validate.scalar("Camera.chase_height", self.chase_height)
         self.smoothing = validate.scalar("Camera.smoothing", self.smoothing, nonnegative=True)
@@ -108,7 +109,8 @@ class Camera:
             raise ValueError("Camera.cycle must name at least one mode")
         bad = [m for m in cycle if m not in MODES]
         if bad:
-            raise ValueError(f"Camera.cycle: modes must be among {MODES}, got {bad[0]!r} in {cycle!r}")
+            raise ValueError(f"Camera.cycle: modes must be among {MODES}, got {validate.shown(bad[0])} "
+                             f"in {validate.shown(cycle)}")
         self.cycle = cycle
         self.active = bool(self.active)
         self.target_lost = bool(self.target_lost)
@@ -121,5 +123,5 @@ class Camera:
 
 def check_mode(mode) -> str:
     if mode not in MODES:
-        raise ValueError(f"Camera.mode must be one of {MODES}, got {mode!r}")
+        raise ValueError(f"Camera.mode must be one of {MODES}, got {validate.shown(mode)}")
     return mode

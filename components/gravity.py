@@ -52,7 +52,7 @@ class GravityWell:
     def __post_init__(self):
         if (self.mu is None) == (self.mass is None):
             raise ValueError(f"GravityWell: give exactly one of mu (m^3/s^2) or mass (kg), "
-                             f"got mu={self.mu!r}, mass={self.mass!r}")
+                             f"got mu={validate.shown(self.mu)}, mass={validate.shown(self.mass)}")
         if self.mass is not None:
             self.mass = validate.scalar("GravityWell.mass", self.mass, positive=True)
             self.mu = G * self.mass
@@ -61,12 +61,12 @@ class GravityWell:
             self.mass = self.mu / G
         self.radius = validate.scalar("GravityWell.radius", self.radius, positive=True)
         if self.parent is not None and (isinstance(self.parent, bool) or not isinstance(self.parent, int)):
-            raise TypeError(f"GravityWell.parent must be an entity id (int) or None, got {self.parent!r}")
+            raise TypeError(f"GravityWell.parent must be an entity id (int) or None, got {validate.shown(self.parent)}")
         if self.soi is not None:
             self.soi = validate.scalar("GravityWell.soi", self.soi, positive=True, allow_inf=True)
             if not self.soi > self.radius:
-                raise ValueError(f"GravityWell.soi must be larger than its radius {self.radius!r} m, "
-                                 f"got {self.soi!r}")
+                raise ValueError(f"GravityWell.soi must be larger than its radius {validate.shown(self.radius)} m, "
+                                 f"got {validate.shown(self.soi)}")
 
 
 class NBody:

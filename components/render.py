@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from driftframe.framework import validate
 from driftframe.framework.model_cache import check_colour
 
 
@@ -28,6 +29,6 @@ class ModelRef:
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
-            raise TypeError(f"ModelRef.name must be a non-empty model name (str), got {self.name!r}")
+            raise TypeError(f"ModelRef.name must be a non-empty model name (str), got {validate.shown(self.name)}")
         if self.colour is not None:
             object.__setattr__(self, "colour", tuple(check_colour("ModelRef.colour", self.colour).tolist()))

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from driftframe.framework import validate
 from driftframe.framework.model_cache import declare_model_file as declare_model_file  # re-exported (PEP 484 form)
 from driftframe.framework.model_cache import declare_variant as declare_variant
 from driftframe.framework.world import World
@@ -141,7 +142,7 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
     """
     demo = load_scene(name)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+        raise ValueError(f"seed must be an int >= 0, got {validate.shown(seed)}")
     world = World(dt=getattr(demo, "DT", 1.0 / 60.0))
     try:
         script = track if track is not None else (demo.SCRIPT if scripted else None)

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from driftframe.framework import validate
 from driftframe.framework.gl import RenderTarget
 from driftframe.framework.input import HELD
 from driftframe.framework.stop_signals import StopSignals
@@ -101,7 +102,7 @@ def letterbox(window_size, aspect: float) -> tuple[int, int, int, int]:
     """
     W, H = int(window_size[0]), int(window_size[1])
     if W < 1 or H < 1:
-        raise ValueError(f"window size must be positive, got {window_size!r}")
+        raise ValueError(f"window size must be positive, got {validate.shown(window_size)}")
     if W / H > aspect:
         w, h = max(1, round(H * aspect)), H
     else:

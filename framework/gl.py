@@ -45,6 +45,8 @@ from contextlib import nullcontext
 
 import numpy as np
 
+from driftframe.framework import validate
+
 #: What to install on Debian/Ubuntu for off-screen GL (Mesa's EGL and its software rasteriser).
 APT_PACKAGES = ("libegl1", "libgl1", "libegl-mesa0", "libgl1-mesa-dri")
 APT_HINT = "apt-get install -y --no-install-recommends " + " ".join(APT_PACKAGES)
@@ -199,10 +201,10 @@ def _check_size(size) -> tuple[int, int]:
     try:
         w, h = size
     except (TypeError, ValueError):
-        raise ValueError(f"size must be (width, height) in pixels, got {size!r}") from None
+        raise ValueError(f"size must be (width, height) in pixels, got {validate.shown(size)}") from None
     for name, v in (("width", w), ("height", h)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= MAX_SIDE:
-            raise ValueError(f"render target {name} must be an int in [1, {MAX_SIDE}], got {v!r}")
+            raise ValueError(f"render target {name} must be an int in [1, {MAX_SIDE}], got {validate.shown(v)}")
     return int(w), int(h)
 
 
@@ -288,7 +290,8 @@ class RenderTarget:
         if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1 \
                 or isinstance(first_row, bool) or not isinstance(first_row, (int, np.integer)) \
                 or not 0 <= first_row <= h - rows:
-            raise ValueError(f"rows {first_row!r} + {rows!r} must lie within the target's {h}")
+            raise ValueError(f"rows {validate.shown(first_row)} + {validate.shown(rows)} "
+                             f"must lie within the target's {h}")
         if memoryview(out).nbytes != rows * w * 4:
             raise ValueError(f"out must hold {rows * w * 4} bytes ({rows} rows of {w} RGBA pixels), "
                              f"got {memoryview(out).nbytes}")

@@ -146,7 +146,8 @@ class Hold:
         s = validate.scalar("Hold.start", start, nonnegative=True)
         e = validate.scalar("Hold.end", end, nonnegative=True)
         if not e > s:
-            raise ValueError(f"Hold.end must be after Hold.start, got start={s!r}, end={e!r}")
+            raise ValueError(f"Hold.end must be after Hold.start, got start={validate.shown(s)},"
+                             f" end={validate.shown(e)}")
         for name, value in channels.items():
             if name not in CHANNELS:
                 raise TypeError(f"Hold got an unknown channel {name!r}; channels: {', '.join(CHANNELS)}, "
@@ -173,7 +174,7 @@ class Press:
     def __post_init__(self):
         validate.scalar("Press.time", self.time, nonnegative=True)
         if self.action not in PRESSED:
-            raise ValueError(f"Press.action must be one of {PRESSED}, got {self.action!r}")
+            raise ValueError(f"Press.action must be one of {PRESSED}, got {validate.shown(self.action)}")
 
 
 class _Plan:
@@ -307,7 +308,7 @@ class TrackRecorder:
             chans = {c: intent[c] for c in CHANNELS if intent[c] != 0.0}
             hold = Hold(first * dt, (first + n) * dt, kill_rotation=intent["kill_rotation"], **chans)
             if hold.steps(dt) != range(first, first + n):      # cannot happen below ~10^6 steps
-                raise ValueError(f"a hold of steps {first}..{first + n} does not round-trip at dt={dt!r}")
+                raise ValueError(f"a hold of steps {first}..{first + n} does not round-trip at dt={validate.shown(dt)}")
             events.append(hold)
         for step, action in self._presses:
             events.append(Press(step * dt, action))

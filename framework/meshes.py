@@ -58,6 +58,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from driftframe.framework import validate
+
 MODES = ("triangles", "lines")
 
 
@@ -196,7 +198,7 @@ def pyramid(length: float = 2.0, width: float = 1.2, height: float = 0.5) -> Mes
     """
     for name, val in (("length", length), ("width", width), ("height", height)):
         if not (np.isfinite(val) and val > 0):
-            raise ValueError(f"pyramid {name} must be a finite number > 0, got {val!r}")
+            raise ValueError(f"pyramid {name} must be a finite number > 0, got {validate.shown(val)}")
     zb, za = -0.25 * length, 0.75 * length
     w, h = 0.5 * width, 0.5 * height
     apex = np.array([0.0, 0.0, za])
@@ -257,7 +259,7 @@ def box(sx: float = 1.0, sy: float = 1.0, sz: float = 1.0) -> Mesh:
     """A cuboid ``sx`` x ``sy`` x ``sz`` (m) centred on the origin, faces along the axes, flat-shaded."""
     for name, val in (("sx", sx), ("sy", sy), ("sz", sz)):
         if not (np.isfinite(val) and val > 0):
-            raise ValueError(f"box {name} must be a finite number > 0, got {val!r}")
+            raise ValueError(f"box {name} must be a finite number > 0, got {validate.shown(val)}")
     corners = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]) * [sx, sy, sz]
     # corner k has x = bit 2, y = bit 1, z = bit 0; each face's quad in CCW order seen from outside
     quads = [(0, 1, 3, 2), (4, 6, 7, 5),      # -x, +x

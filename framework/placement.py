@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from driftframe.framework import broadphase as bp
+from driftframe.framework import validate
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -45,7 +46,8 @@ def in_shell(inner: float, outer: float, centre: ArrayLike = (0.0, 0.0, 0.0)) ->
     """Positions in the spherical shell ``inner <= |x - centre| <= outer`` (m): random direction,
     radius uniform in [inner, outer] (as the asteroid demo always drew them)."""
     if not (math.isfinite(inner) and math.isfinite(outer) and 0 <= inner < outer):
-        raise ValueError(f"in_shell: need 0 <= inner < outer (finite), got inner={inner!r}, outer={outer!r}")
+        raise ValueError(f"in_shell: need 0 <= inner < outer (finite), got inner={validate.shown(inner)}, "
+                         f"outer={validate.shown(outer)}")
     c = np.asarray(centre, float)
 
     def sample(rng: np.random.Generator, k: int) -> np.ndarray:
@@ -74,7 +76,7 @@ def place(rng: np.random.Generator, radii: ArrayLike, sample: Sampler, *, gap: f
         raise ValueError(f"place: radii must be a 1-D array of finite values > 0, got {bad[:3].tolist()!r}"
                          if r.ndim == 1 else f"place: radii must be 1-D, got shape {r.shape}")
     if not (math.isfinite(gap) and gap >= 0):
-        raise ValueError(f"place: gap must be a finite number >= 0, got {gap!r}")
+        raise ValueError(f"place: gap must be a finite number >= 0, got {validate.shown(gap)}")
     n = len(r)
     fixed_x = np.empty((0, 3))
     fixed_r = np.empty(0)
@@ -105,5 +107,5 @@ def place(rng: np.random.Generator, radii: ArrayLike, sample: Sampler, *, gap: f
         done[keep] = True
     if not done.all():
         raise ValueError(f"place: {int((~done).sum())} of {n} spheres found no free position in {tries} tries "
-                         f"(the region is too full for these radii and gap={gap!r})")
+                         f"(the region is too full for these radii and gap={validate.shown(gap)})")
     return pos

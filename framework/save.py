@@ -69,6 +69,7 @@ import esper
 import numpy as np
 
 from driftframe.framework import __version__
+from driftframe.framework import validate
 from driftframe.framework.inputfile import read_bytes_capped
 from driftframe.framework.output import PartFile
 from driftframe.framework.store import Columnar
@@ -437,7 +438,8 @@ def restore(world, save) -> None:
     m, where = save.manifest, save.path
     dt = decode(m["dt"], f"{where}: field 'dt'")
     if dt != world.dt:
-        raise SaveError(f"{where}: field 'dt' is {dt!r} s; the rebuilt world steps {world.dt!r} s")
+        raise SaveError(f"{where}: field 'dt' is {validate.shown(dt)} s;"
+                        f" the rebuilt world steps {validate.shown(world.dt)} s")
     mine, theirs = world.resources.get("make_world"), m.get("scene")
     if isinstance(mine, dict) and isinstance(theirs, dict) and mine.get("name") != theirs.get("name"):
         raise SaveError(f"{where}: field 'scene' is {theirs.get('name')!r}; this world is {mine.get('name')!r}")

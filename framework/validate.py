@@ -10,7 +10,20 @@ import math
 import numpy as np
 
 
-def _show(value) -> str:
+def _plain(value: object) -> object:
+    """``value`` with numpy scalars and arrays as Python numbers and lists (a message shows ``1.5``, not
+    ``np.float64(1.5)``; ``[1.0, 2.0]``, not ``array([1., 2.])``), inside lists and tuples too."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (list, tuple)) and type(value) in (list, tuple):
+        return type(value)(_plain(v) for v in value)
+    return value
+
+
+def shown(value: object) -> str:
+    """``value`` as an error message shows it: its repr with plain Python numbers, or its shape if large."""
     if isinstance(value, int) and not isinstance(value, bool) and abs(value).bit_length() > 80:
         return f"an integer of about {int(abs(value).bit_length() * 0.30103) + 1} digits"   # log10(2) digits a bit
     try:
@@ -19,7 +32,10 @@ def _show(value) -> str:
         return f"a {type(value).__name__}"
     if arr.size > 12:
         return f"array of shape {arr.shape}"
-    return repr(value.tolist() if isinstance(value, np.ndarray) else value)
+    return repr(_plain(value))
+
+
+_show = shown
 
 
 def vector(name: str, value, shape=(3,), *, allow_inf: bool = False) -> np.ndarray:
@@ -43,7 +59,7 @@ def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
            allow_inf: bool = False, lo: float | None = None, hi: float | None = None) -> float:
     """Return ``value`` as a float after range checks that name the argument."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a number, got {value!r}")
+        raise TypeError(f"{name} must be a number, got {_show(value)}")
     try:
         x = float(value)
     except OverflowError:     # an int past 1.8e308

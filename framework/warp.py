@@ -17,6 +17,8 @@ reason for the HUD.
 """
 from __future__ import annotations
 
+from driftframe.framework import validate
+
 #: The warp levels, as in most space games: x1 to x100,000 in factors of ten.
 LEVELS = (1, 10, 100, 1_000, 10_000, 100_000)
 
@@ -35,7 +37,7 @@ class TimeWarp:
     def request(self, factor: int) -> None:
         """Ask for warp ``factor`` (one of :data:`LEVELS`)."""
         if isinstance(factor, bool) or factor not in LEVELS:
-            raise ValueError(f"warp factor must be one of {LEVELS}, got {factor!r}")
+            raise ValueError(f"warp factor must be one of {LEVELS}, got {validate.shown(factor)}")
         self.requested = int(factor)
 
     def up(self) -> None:

@@ -14,6 +14,7 @@ from driftframe.components.body import AngularVelocity, Transform, Velocity
 from driftframe.components.control import FlightControl, FlightInput
 from driftframe.components.gravity import GravityWell
 from driftframe.framework import frame as fr
+from driftframe.framework import validate
 from driftframe.systems.control import ControlSystem
 from driftframe.systems.input import InputSystem
 
@@ -107,7 +108,7 @@ class AutopilotSystem(esper.Processor):
     def _state(self, ent: int, what: str):
         tf = esper.try_component(ent, Transform)
         if tf is None:
-            raise ValueError(f"Autopilot {what}: entity {ent!r} does not exist or has no Transform "
+            raise ValueError(f"Autopilot {what}: entity {validate.shown(ent)} does not exist or has no Transform "
                              f"(an unreachable target)")
         vel = esper.try_component(ent, Velocity)
         return tf.position.copy(), (vel.linear.copy() if vel is not None else np.zeros(3))

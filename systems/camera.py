@@ -33,6 +33,7 @@ import numpy as np
 from driftframe.components.body import Transform, Velocity
 from driftframe.components.camera import Camera, check_mode
 from driftframe.framework import frame as fr
+from driftframe.framework import validate
 
 _FLIP_Z = np.diag([1.0, 1.0, -1.0])
 
@@ -226,7 +227,7 @@ def switch_camera(world, mode: str | None = None, *, camera: int | None = None) 
         ent = camera
         cam = esper.try_component(ent, Camera) if esper.entity_exists(ent) else None
         if cam is None:
-            raise ValueError(f"switch_camera: entity {ent!r} has no Camera")
+            raise ValueError(f"switch_camera: entity {validate.shown(ent)} has no Camera")
     if mode is None:
         cycle = cam.cycle
         new = cycle[(cycle.index(cam.mode) + 1) % len(cycle)] if cam.mode in cycle else cycle[0]

@@ -6,6 +6,7 @@ import esper
 from driftframe.components.body import Transform
 from driftframe.components.camera import Camera
 from driftframe.components.control import FlightInput, Player
+from driftframe.framework import validate
 from driftframe.framework import warp as time_warp
 from driftframe.framework.input import CHANNELS, PRESSED, SIM_PRESSED, Track, TrackRecorder, intent_from_held
 
@@ -49,7 +50,7 @@ class InputSystem(esper.Processor):
 
     def __init__(self, track: Track | None = None):
         if track is not None and not isinstance(track, Track):
-            raise TypeError(f"track must be a framework.input.Track, got {track!r}")
+            raise TypeError(f"track must be a driftframe.Track, got {validate.shown(track)}")
         self.track = track
         self.held: set[str] = set()
         #: Proportional input from a gamepad, channel -> value in [-1, 1] (set by the window each frame).

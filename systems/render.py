@@ -310,7 +310,7 @@ class RenderSystem(esper.Processor):
             ent = self.camera
             cam = esper.try_component(ent, Camera) if esper.entity_exists(ent) else None
             if cam is None:
-                raise ValueError(f"RenderSystem.camera: entity {ent!r} has no Camera")
+                raise ValueError(f"RenderSystem.camera: entity {validate.shown(ent)} has no Camera")
         else:
             ent, cam = camera_sys.active_camera(self.world)
         tf = esper.try_component(ent, Transform)

@@ -22,6 +22,7 @@ import esper
 import moderngl
 import numpy as np
 
+from driftframe.framework import validate
 from driftframe.framework.model_cache import ModelCache, check_colour
 
 VERTEX_SHADER = """
@@ -107,7 +108,7 @@ class SkyboxSystem(esper.Processor):
 def texture_rng(seed: int) -> np.random.Generator:
     """The scene seed's ``"textures"`` stream: independent of ``default_rng(seed)``, which builds the scene."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+        raise ValueError(f"seed must be an int >= 0, got {validate.shown(seed)}")
     return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(zlib.crc32(b"textures"),)))
 
 
@@ -156,9 +157,9 @@ def starfield_faces(rng: np.random.Generator, size: int = 512, stars: int = 9000
     the same generator state gives the same bytes.
     """
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or not 16 <= size <= 4096:
-        raise ValueError(f"starfield size must be an int in [16, 4096], got {size!r}")
+        raise ValueError(f"starfield size must be an int in [16, 4096], got {validate.shown(size)}")
     if isinstance(stars, bool) or not isinstance(stars, (int, np.integer)) or not 0 <= stars <= 1_000_000:
-        raise ValueError(f"starfield stars must be an int in [0, 1000000], got {stars!r}")
+        raise ValueError(f"starfield stars must be an int in [0, 1000000], got {validate.shown(stars)}")
     size, stars = int(size), int(stars)
     band = rng.normal(size=3)
     band /= np.linalg.norm(band)                     # the band's pole
