@@ -56,6 +56,7 @@ from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact
+from driftframe.framework.quiet_step import quiet_all_pairs
 from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
 
@@ -467,6 +468,10 @@ class CollisionSystem(esper.Processor):
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
             pi, pj = self._pairs
+            if quiet_all_pairs(x, u, r, inv, live, pi, pj, dt):
+                self.stats["pairs"] = len(pi)             # what the solver would say of a quiet step
+                self._finish(lay, st, self._unchanged(n), dt)
+                return
             args = (x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, self.max_contacts, None)
             out = contact.solve_all_pairs_stick(*args) if self._stick else contact.solve_all_pairs(*args)
             if out[5] & contact.F_AGAIN:                     # a jam: the variant with the jam path, from now on
