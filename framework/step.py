@@ -149,6 +149,17 @@ class StepContext:
     def open(self) -> bool:
         return self.step >= 0
 
+    def prepare(self, t_table, v_table) -> None:
+        """Make the columns' buffers and views for the tables as they are now, without opening the context
+        (``World.prepare``: the first step then copies, as every step does, instead of allocating)."""
+        x, v = self._x, self._v
+        if x is None or x.table is not t_table or v.table is not v_table:
+            x, v = self._x, self._v = _Column(t_table, "position"), _Column(v_table, "linear")
+        x.prepare()
+        v.prepare()
+        if self.step < 0:
+            self.position = x.buf
+
     def begin(self, step: int, dt: float, t_table, v_table) -> bool:
         """Open the context for ``step`` (idempotent within a step): the start state of every row of the
         two tables (``Table`` of Transform and of Velocity). True when it was opened by this call."""

@@ -313,6 +313,8 @@ class CollisionSystem(esper.Processor):
             if self._pairs_n != n:
                 self._pairs = contact.all_pairs(n)
                 self._pairs_n = n
+            if st.bad(lay) is None:
+                quiet_all_pairs(st.x, st.u, st.r, st.inv, st.live, *self._pairs, dt)   # read only: its first call
         elif n >= 2 and st.bad(lay) is None:
             self._build_list(lay, st, dt)
         self._t_last_of(lay)

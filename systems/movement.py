@@ -64,9 +64,14 @@ class MovementSystem(esper.Processor):
         return tuple(m for m in moves if _some(m[0]))
 
     def prepare(self) -> None:
-        """The packed rows of the current bodies (see :meth:`World.prepare`)."""
+        """The packed rows of the current bodies, and the step context's buffers and the views into them
+        (see :meth:`World.prepare`)."""
+        world = self.world
         self._plan = self._moves()
-        self._plan_epoch = self.world.epoch
+        self._plan_epoch = world.epoch
+        ctx = world.step_context
+        ctx.prepare(world.table(Transform), world.table(Velocity))
+        self._views = self._views_of(ctx)
 
     def _views_of(self, ctx) -> tuple:
         """Per group of the plan: ``(x0, v0, a, x1, v1)``, views into the tables and the context where the
