@@ -643,19 +643,23 @@ class World:
         profile, total = self.profile, self.profile_total
         order = self._order[phase]
         profile.update(self._zero[phase])
+        ran = True                                  # code outside the step (or a system) ran since the last sync
         for e in order:
-            # self.sync()'s fast path, inline (it runs before every system of every step): esper's cache is
-            # clean and holds the probe list of the last sync, so no entity gained or lost a component
-            if esper._cache_dirty or esper._get_component_cache.get(_Probe) is not self._probe \
-                    or esper.current_world != name:
+            # self.sync()'s fast path, inline (it runs before every system that runs): esper's cache is
+            # clean and holds the probe list of the last sync, so no entity gained or lost a component.
+            # Only code can change that: a system skipped as idle leaves it as it was.
+            if ran and (esper._cache_dirty or esper._get_component_cache.get(_Probe) is not self._probe
+                        or esper.current_world != name):
                 self.sync()
             if e.idle_epoch != self.epoch:
                 self._idle(e)
             if e.idle:
+                ran = False
                 continue
             t0 = clock()
             e.system.process(dt)
             took = clock() - t0
+            ran = True
             key = e.key
             profile[key] += took
             total[key] += took
