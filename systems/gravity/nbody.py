@@ -1,0 +1,155 @@
+"""n-body bodies (:class:`~components.gravity.NBody`): leapfrog (kick-drift-kick) in the pull of every
+well and of each other, their straight drift met against the wells' surfaces; and the plain mutual pull of
+``NBody`` bodies in a scene without a well."""
+from __future__ import annotations
+
+import numpy as np
+
+from driftframe.components.body import Acceleration, Mass, Transform, Velocity
+from driftframe.components.gravity import G, NBody, SurfaceContact
+from driftframe.framework import kepler
+from driftframe.framework.step import advance
+from driftframe.framework.store import to_indices
+
+
+class NBodyFlight:
+    """The n-body bodies (a part of :class:`~.system.GravitySystem`)."""
+
+    def _pull_without_wells(self, dt: float) -> None:
+        """A scene with ``NBody`` bodies and no well: they attract each other all the same.
+
+        Each step kicks every NBody body's velocity by the pull of the others,
+        ``v' = v + dt * sum_j G m_j (x_j - x_i) / |x_j - x_i|^3`` (positions at
+        the step's start), then drifts it, ``x += v' dt``, into the step context
+        in place of the movement stage's prediction (without a movement stage,
+        the kick alone): symplectic Euler, first order, energy bounded; the
+        collision system meets them as any other bodies. A body of infinite
+        (or no) mass pulls nothing and is not kicked. With a well in the scene
+        they are this system's own, on the leapfrog above.
+        """
+        q = self.world.query(NBody, Transform, Velocity, Mass, optional=(Acceleration,))
+        q.refresh()
+        if len(q) < 2:
+            return
+        world = self.world
+        t_rows, v_rows = to_indices(q.rows(Transform)), to_indices(q.rows(Velocity))
+        kg = world.table(Mass).data["kg"][to_indices(q.rows(Mass))]
+        live = np.isfinite(kg)
+        if np.count_nonzero(live) < 2:
+            return
+        t_rows, v_rows, gm = t_rows[live], v_rows[live], G * kg[live]
+        a_rows = np.asarray(q.rows(Acceleration), np.intp)[live]
+        x = world.table(Transform).data["position"][t_rows]
+        d = x[None, :, :] - x[:, None, :]                       # d[i, j] = x_j - x_i, m
+        r2 = np.einsum("ijk,ijk->ij", d, d)
+        np.fill_diagonal(r2, np.inf)                            # no self-pull
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = gm[None, :] / (r2 * np.sqrt(r2))                # G m_j / r^3, 1/s^2
+        w[~np.isfinite(w)] = 0.0                                # two bodies at one point: no kick
+        v = world.table(Velocity).data["linear"][v_rows] + dt * np.einsum("ij,ijk->ik", w, d)
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        if not ctx.predicted:
+            ctx.velocity[v_rows] = v
+            return
+        has_a = a_rows >= 0
+        for sel, a in ((~has_a, None), (has_a, world.table(Acceleration).data["linear"][a_rows[has_a]])):
+            if sel.any():
+                ctx.position[t_rows[sel]], ctx.velocity[v_rows[sel]] = advance(x[sel], v[sel], a, dt)
+
+    def _accel(self, pos, X, gm):
+        """Pull of every well at positions ``pos`` and of the n-body bodies on each other (``G m``)."""
+        w = self._wells
+        acc = np.zeros_like(pos)
+        for wi in range(len(X)):
+            d = pos - X[wi]
+            r2 = np.einsum("ij,ij->i", d, d)
+            acc -= (w.mu[wi] / (r2 * np.sqrt(r2)))[:, None] * d
+        if len(pos) > 1:
+            d = pos[:, None, :] - pos[None, :, :]
+            r2 = np.einsum("ijk,ijk->ij", d, d)
+            np.fill_diagonal(r2, np.inf)
+            acc -= np.einsum("ij,ijk->ik", gm[None, :] / (r2 * np.sqrt(r2)), d)
+        return acc
+
+    def _kick(self, sel, x, v, a, X0, dt):
+        """The n-body bodies' first half kick: their straight drift over the step, ``p + u t`` (t from the
+        step's start), and each body's last contact time in the step (-inf: none)."""
+        p = x[sel]
+        u = v[sel] + 0.5 * dt * (self._accel(p, X0, self.gm[sel]) + a[sel])
+        return p, u, np.full(sel.size, -np.inf)
+
+    def _leapfrog_end(self, sel, line, a, X0, X1, dt, t0, x1, v1, events):
+        """The rest of the n-body step: the drift (met by the sphere contacts in :meth:`_contacts`, so
+        each body is on the line ``p + u t`` from its last contact on) against each well's surface (the
+        colliders' met there already, when the contact pass ran), then the second half kick."""
+        gm = self.gm[sel]
+        p, u, after = line
+        p, u = p.copy(), u.copy()
+        todo = np.arange(sel.size)
+        if self._nb_surfaces_done:
+            todo = todo[self.nb_c_rows[sel] < 0]
+        if todo.size:
+            t_hit, w_hit = self._line_surfaces(p[todo], u[todo], t0 + np.maximum(after[todo], 0.0), t0 + dt)
+            for j in np.flatnonzero(np.isfinite(t_hit)):
+                k = todo[j]
+                p[k], u[k] = self._reflect(sel[k], p[k], u[k], int(w_hit[j]), float(t_hit[j]), events)
+        q = p + u * dt
+        u = u + 0.5 * dt * (self._accel(q, X1, gm) + a[sel])
+        x1[sel] = q
+        v1[sel] = u
+
+    def _line_surfaces(self, lp, lu, t_from, t1):
+        """The first surface contact of drift lines ``lp + lu (t - t0)`` (n-body bodies, world frame,
+        ``(n, 3)``) after ``t_from`` ``(n,)``, by ``t1``: ``(time, well)`` (inf, -1: none). A root well
+        moves straight: the closed form of two lines; a moon on its conic: conservative advancement
+        (:func:`framework.kepler.time_to_touch_paths`), after a cheap test of how far the gap can close."""
+        wells = self._wells
+        X0, V0, t0, _ = self._step
+        n = lp.shape[0]
+        best_t = np.full(n, np.inf)
+        best_w = np.full(n, -1, np.intp)
+        for wi in range(len(wells)):
+            R = wells.radius[wi]
+            if wells.parent[wi] < 0:
+                d0 = lp + lu * (t_from - t0)[:, None] - (X0[wi] + V0[wi] * (t_from - t0)[:, None])
+                w_rel = lu - V0[wi]
+                aa = kepler._dot(w_rel, w_rel)
+                bb = kepler._dot(d0, w_rel)
+                cc = kepler._dot(d0, d0) - R * R
+                disc = bb * bb - aa * cc
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    s = cc / (-bb + np.sqrt(np.maximum(disc, 0.0)))     # the smaller root, without cancelling
+                t = t_from + s
+                hit = (bb < 0) & (disc >= 0) & (cc > 0) & (t <= t1)
+            else:
+                X, V = self._well_at(wi, t_from)
+                span = np.maximum(t1 - t_from, 0.0)
+                near = np.flatnonzero(kepler._norm(lp + lu * (t_from - t0)[:, None] - X) - R
+                                      <= (kepler._norm(lu - V) + self._wA[wi] * span) * span)
+                t = np.full(n, np.inf)
+                if near.size:
+                    at_line = lambda i, tt: (lp[near[i]] + lu[near[i]] * (tt - t0)[:, None], lu[near[i]])  # noqa: E731
+                    at_moon = lambda i, tt: self._well_at(wi, tt)                                          # noqa: E731
+                    t[near], _ = kepler.time_to_touch_paths(at_line, at_moon, np.full(near.size, R), t_from[near],
+                                                            np.full(near.size, t1), np.full(near.size, self._wA[wi]))
+                hit = np.isfinite(t)
+            better = hit & (t < best_t)
+            best_t[better] = t[better]
+            best_w[better] = wi
+        return best_t, best_w
+
+    def _reflect(self, k, p, u, wi, tc, events):
+        """n-body body ``self.ents[k]`` on the line ``p + u (t - t0)`` meets well ``wi``'s surface at
+        ``tc``: its velocity relative to the well reflected about the normal (elastic); returns the line
+        through the contact from then on, ``(p, u)``."""
+        t0 = self._step[2]
+        xc = p + u * (tc - t0)
+        Xc, Vc = self._well_at(wi, np.array([tc]))
+        n_hat = (xc - Xc[0]) / np.linalg.norm(xc - Xc[0])
+        w_rel = u - Vc[0]
+        un = float(w_rel @ n_hat)
+        events.append(SurfaceContact(int(self.ents[k]), self._wells.ents[wi], float(tc),
+                                     float(np.linalg.norm(w_rel)), -un))
+        u_new = w_rel - 2.0 * un * n_hat + Vc[0]
+        return xc - u_new * (tc - t0), u_new

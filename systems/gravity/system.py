@@ -1,0 +1,309 @@
+"""The gravity system: gathers the wells and bodies, runs each step's stages (crossings, rails, n-body,
+contacts) and writes its bodies' end of the step into the step context. See :mod:`driftframe.systems.gravity`."""
+from __future__ import annotations
+
+import warnings
+
+import esper
+import numpy as np
+
+from driftframe.components.body import Acceleration, Mass, Transform, Velocity
+from driftframe.components.collision import CollisionEvent, SphereCollider
+from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
+from driftframe.framework import kepler
+from driftframe.framework.step import StepContext
+from driftframe.framework.store import as_index, to_indices
+from driftframe.systems.gravity.contacts import _NO_BODIES, SphereContacts
+from driftframe.systems.gravity.crossings import Crossings
+from driftframe.systems.gravity.lookahead import LookAhead
+from driftframe.systems.gravity.movers import ContactMovers
+from driftframe.systems.gravity.nbody import NBodyFlight
+from driftframe.systems.gravity.rails import Rails
+from driftframe.systems.gravity.wells import WellPaths, _dominant, _Wells
+
+
+class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, NBodyFlight, WellPaths,
+                    esper.Processor):
+    """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody, SphereCollider; writes the step
+    context (its bodies' end of the step), Orbiting; appends SurfaceContact and CollisionEvent to world.events.  Gravity: on rails
+    (exact Kepler from an epoch, with the sphere contacts of the bodies on rails) or kick-drift-kick
+    (n-body)."""
+
+    stage = "movement"
+    name = "gravity"
+    reads = (GravityWell, Transform, Velocity, Acceleration, Mass, NBody, Orbiting, SphereCollider)
+    writes = (StepContext, Orbiting, SurfaceContact, CollisionEvent)
+    #: after the movement system's prediction, in whatever order the two were added: this system's end
+    #: of the step replaces the prediction of its bodies
+    after = ("movement",)
+
+    @property
+    def requires(self) -> tuple:
+        """Nothing to do without a well or an NBody body; while it holds bodies it runs, to hand them back
+        to movement when the last well goes (see :meth:`World.add_system`). (Read once per structure
+        epoch: the NBody look-up is esper's cached query.)"""
+        if self._wells is not None or esper.get_component(NBody):
+            return ()
+        return (GravityWell, Transform)
+
+    def __init__(self):
+        self._wells = None
+        self._n = 0
+        self._epoch_version = 0
+        self._lookahead = None                            # (epoch version, contact or None, looked up to)
+        self._epochs: dict = {}
+        self._n_col = 0
+        self._n_nb_col = 0
+        self._n_ob = 0                                    # colliders gravity does not move (obstacles)
+        self._ob_version = None
+        self._warned: set = set()
+        self.lookahead_is_bound = False
+
+
+    def _build_bodies(self, q) -> None:
+        world = self.world
+        ents = q.entities
+        wells = self._wells
+        well_of = {e: i for i, e in enumerate(wells.ents)}
+        m_rows = q.rows(Mass)
+        kg = np.where(m_rows >= 0, world.table(Mass).data["kg"][np.maximum(m_rows, 0)], 1.0)
+        roots = {e for i, e in enumerate(wells.ents) if wells.parent[i] < 0}
+        keep = np.array([int(e) not in roots for e in ents], bool) & np.isfinite(kg)
+        self.ents = ents[keep]
+        self.t_rows = as_index(to_indices(q.rows(Transform))[keep])    # a slice when contiguous
+        self.v_rows = as_index(to_indices(q.rows(Velocity))[keep])
+        self.a_rows = q.rows(Acceleration)[keep]
+        self.gm = G * kg[keep]
+        self.m_rows = m_rows[keep]
+        n = self._n = len(self.ents)
+        nb = world.query(NBody)
+        nb.refresh()
+        self.nbody = np.isin(self.ents, nb.entities)
+        # a moon orbits its parent: its well is fixed, never chosen by spheres of influence
+        self.moon_parent = np.full(n, -1, np.intp)
+        self.well_index = np.full(n, -1, np.intp)        # this body's own well (moons), else -1
+        for k, e in enumerate(self.ents):
+            i = well_of.get(int(e))
+            if i is not None:
+                self.moon_parent[k] = wells.parent[i]
+                self.well_index[k] = i
+        # the bodies on rails that collide as spheres (SphereCollider rows, -1: none). A moon is a well
+        # (bodies hit its surface); n-body bodies drift straight, and collide with each other on the drift
+        self.c_rows = np.full(n, -1, np.intp)
+        cq = world.query(SphereCollider)
+        cq.refresh()
+        if len(cq) and n:
+            ce = cq.entities
+            at = np.minimum(np.searchsorted(ce, self.ents), len(ce) - 1)
+            has = ce[at] == self.ents
+            self.c_rows[has] = to_indices(cq.rows(SphereCollider))[at[has]]
+        if len(cq):
+            # a well is met at its surface sphere; a collider of another size on it would say otherwise
+            ce, radii = cq.entities, world.table(SphereCollider).data["radius"][to_indices(cq.rows(SphereCollider))]
+            for i, e in enumerate(wells.ents):
+                at_w = int(np.searchsorted(ce, e))
+                if at_w < len(ce) and ce[at_w] == e and float(radii[at_w]) != float(wells.radius[i]):
+                    self._warn_once(f"well-collider-{e}", f"gravity: well {e} has a SphereCollider of radius "
+                                    f"{float(radii[at_w])!r} m and a surface of radius {float(wells.radius[i])!r} m; "
+                                    "bodies meet its surface (GravityWell.radius): the SphereCollider is not used")
+        self.nb_c_rows = np.where(self.nbody & (self.well_index < 0), self.c_rows, -1)
+        self.c_rows[(self.well_index >= 0) | self.nbody] = -1
+        self._n_col = int(np.count_nonzero(self.c_rows >= 0))
+        self._n_nb_col = int(np.count_nonzero(self.nb_c_rows >= 0))
+        # epochs: (state about the well, time, well); -1 = take a new one
+        self.ep_r = np.zeros((n, 3))
+        self.ep_v = np.zeros((n, 3))
+        self.ep_t = np.zeros(n)
+        self.ep_well = np.full(n, -1, np.intp)
+        self.ep_contact = np.full(n, np.inf)             # absolute time of the next surface contact
+        self.ep_chi = np.zeros(n)                         # universal anomaly at the last step (a warm start)
+        self.last_x = np.full((n, 3), np.nan)
+        self.last_v = np.full((n, 3), np.nan)
+        self._epoch_version += 1
+        orbiting = world.query(Orbiting)
+        orbiting.refresh()
+        for e in self.ents[~np.isin(self.ents, orbiting.entities)]:
+            world.add_component(int(e), Orbiting())
+        # no body may start inside a surface
+        x = world.table(Transform).data["position"][self.t_rows]
+        X = world.table(Transform).data["position"][wells.t_rows]
+        for i in range(len(wells)):
+            d = np.linalg.norm(x - X[i], axis=1)
+            inside = (d < wells.radius[i]) & (self.ents != wells.ents[i])
+            if inside.any():
+                k = int(np.flatnonzero(inside)[0])
+                raise ValueError(f"entity {int(self.ents[k])} starts {float(d[k])!r} m from the centre of "
+                                 f"well {wells.ents[i]}, inside its surface (radius {float(wells.radius[i])!r} m)")
+
+    def _build_obstacles(self, oq) -> None:
+        """The colliders gravity does not move (not bodies of this system, not wells: ``Mass(inf)``,
+        or no Velocity): obstacles that move straight at their Velocity (the movement system moves
+        them), met by the colliders on rails about a root well, exactly (inverse mass 0)."""
+        self._ob_version = True
+        ents = oq.entities
+        mine = np.isin(ents, self.ents) | np.isin(ents, np.array(self._wells.ents, np.int64))
+        keep = ~mine
+        self.ob_ents = ents[keep]
+        self.ob_t_rows = to_indices(oq.rows(Transform))[keep]
+        self.ob_v_rows = oq.rows(Velocity)[keep]
+        self.ob_c_rows = to_indices(oq.rows(SphereCollider))[keep]
+        self._n_ob = len(self.ob_ents)
+
+    def _release(self) -> None:
+        world = self.world
+        orbiting = world.query(Orbiting)
+        orbiting.refresh()
+        for e in orbiting.entities:
+            world.remove_component(int(e), Orbiting)
+        self._wells = None
+        self._n = 0
+        self._epoch_version += 1
+
+    _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "last_x", "last_v")
+
+    def _carry(self):
+        return (list(self._wells.ents), self.ents.copy(), {k: getattr(self, k) for k in self._EPOCH})
+
+    def _restore(self, old) -> None:
+        ents, arrays = old
+        if not len(ents) or not self._n:
+            return
+        common, new_i, old_i = np.intersect1d(self.ents, ents, assume_unique=True, return_indices=True)
+        for k, arr in arrays.items():
+            getattr(self, k)[new_i] = arr[old_i]
+
+    def state(self):
+        """What a save keeps of this system (see framework/save.py): each body's epoch on rails (the
+        state its conic is evaluated from) and what it last wrote, by entity; None before the first step."""
+        saved = getattr(self, "_saved", None)
+        if self._wells is None and saved is None:
+            return None
+        wells, ents, arrays = self._carry() if self._wells is not None else saved   # (a load not stepped yet)
+        return {"wells": [int(e) for e in wells], "bodies": [int(e) for e in ents],
+                "epochs": {k: v.copy() for k, v in arrays.items()}}
+
+    def restore(self, state) -> None:
+        """Take back :meth:`state` (a load): the bodies are gathered again at the next step and take
+        their saved epochs (bodies about other wells than saved start new ones)."""
+        self._wells = None
+        self._saved = None if state is None else (state["wells"], np.asarray(state["bodies"], np.int64),
+                                                  dict(state["epochs"]))
+
+    # -- the step -------------------------------------------------------------------------------
+    def process(self, dt: float) -> None:
+        world = self.world
+        wq = world.query(GravityWell, Transform)
+        changed = wq.refresh()
+        if not len(wq):
+            if self._wells is not None:               # the last well went: hand the bodies back to movement
+                self._release()
+            self._pull_without_wells(dt)
+            return
+        bq = world.query(Transform, Velocity, optional=(Acceleration, Mass))
+        if bq.refresh() or changed or self._wells is None:
+            # any structural change anywhere gives esper new lists: rebuild, but keep the epochs of the
+            # bodies that are still here about the same wells (so nothing is re-anchored for nothing)
+            old = self._carry() if self._wells is not None else getattr(self, "_saved", None)
+            self._saved = None
+            self._wells = _Wells(world, wq)
+            self._build_bodies(bq)
+            if old is not None and old[0] == self._wells.ents:
+                self._restore(old[1:])
+            self._epoch_version += 1
+            wq.refresh()                                  # Orbiting may have been added: new lists
+            bq.refresh()
+            self._ob_version = None
+        oq = world.query(Transform, SphereCollider, optional=(Velocity,))
+        if oq.refresh() or self._ob_version is None:
+            self._build_obstacles(oq)
+        n = self._n
+        if not n:
+            return
+        wells = self._wells
+        pos_t = world.table(Transform).data["position"]
+        vel_t = world.table(Velocity).data["linear"]
+        x = pos_t[self.t_rows]
+        v = vel_t[self.v_rows]
+        a = np.zeros((n, 3))
+        has_a = self.a_rows >= 0
+        thrust = np.zeros(n, bool)
+        if has_a.any():
+            a[has_a] = world.table(Acceleration).data["linear"][self.a_rows[has_a]]
+            thrust = np.any(a != 0.0, axis=1)
+        # times as step_count * dt (never summed), so a time is the same number however it was reached
+        t0 = world.step_count * dt
+        t1 = (world.step_count + 1) * dt
+        W = len(wells)
+        X0 = pos_t[wells.t_rows]
+        V0 = np.where((wells.v_rows >= 0)[:, None], vel_t[np.maximum(wells.v_rows, 0)], 0.0)
+        # root wells move at their own velocity (the movement system moves them); moons as bodies below
+        X1 = X0 + V0 * dt
+        V1 = V0.copy()
+        x1 = np.empty_like(x)
+        v1 = np.empty_like(v)
+        events = []
+        dom = _dominant(wells, x, X0, self.moon_parent) if W > 1 else np.zeros(n, np.intp)
+        if np.array_equal(x, self.last_x) and np.array_equal(v, self.last_v):
+            edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
+        else:
+            edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
+        # the obstacles at the step's start (the components: the commit stage writes their end later)
+        self._ob_x = pos_t[self.ob_t_rows]
+        has = self.ob_v_rows >= 0
+        self._ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
+        self._step = (X0, V0, t0, t1)
+        rails = ~self.nbody
+        nb = np.flatnonzero(self.nbody)
+        # sphere contacts are looked for where two or more colliders move, or one and an obstacle
+        movers = self._n_col + self._n_nb_col
+        look = movers >= 2 or (movers and self._n_ob)
+        done = crossed = None
+        if W > 1 and (wells.parent >= 0).any():
+            # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
+            done, crossed = self._crossings(rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1,
+                                            defer=(self.c_rows >= 0) if look else None)
+        else:
+            self.ep_cross = None
+        ends = {}
+        self._wA = np.zeros(W)                            # a bound on each well centre's acceleration
+        for wi in range(W):                               # parents first: a moon is placed before its bodies
+            sel = np.flatnonzero(rails & (dom == wi))
+            if sel.size:
+                ends[wi] = (sel, *self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, t0, t1, events, look,
+                                              done, crossed))
+            # wells whose parent is wi: their state at t1 is now known (a moon is never touched by a
+            # sphere contact: it is a well)
+            for wj in np.flatnonzero(wells.parent == wi):
+                kk = int(np.flatnonzero(self.well_index == wj)[0])
+                sel_w, r, u = ends[wi][0], ends[wi][1], ends[wi][2]
+                p = int(np.searchsorted(sel_w, kk))
+                X1[wj] = X1[wi] + r[p]
+                V1[wj] = V1[wi] + u[p] + (0.5 * dt * a[kk] if thrust[kk] else 0.0)
+                _, _, A_m, _ = kepler.arc_boxes(x[kk:kk + 1] - X0[wi], v[kk:kk + 1] - V0[wi], r[p:p + 1], u[p:p + 1],
+                                                dt, wells.mu[wi], wells.radius[wi], np.zeros(1, bool))
+                self._wA[wj] = A_m[0] + self._wA[wi]
+        line = None
+        if nb.size:
+            line = self._kick(nb, x, v, a, X0, dt)
+        touched = _NO_BODIES
+        self._nb_surfaces_done = False
+        if look:
+            # every sphere contact of the step, in time order: on rails, on the n-body drift, obstacles
+            touched, line = self._contacts(ends, nb, line, x, v, a, X0, V0, X1, t0, t1, events)
+        for wi, (sel, r, u, chi, guess) in ends.items():
+            self._rails_end(sel, wi, r, u, chi, guess, touched, a, thrust, X1, V1, t1, x1, v1)
+        if nb.size:
+            self._leapfrog_end(nb, line, a, X0, X1, dt, t0, x1, v1, events)
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        ctx.position[self.t_rows] = x1
+        ctx.velocity[self.v_rows] = v1
+        self.last_x = x1
+        self.last_v = v1
+        for ev in events:
+            world.emit(ev)
+
+    def _warn_once(self, key: str, text: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            warnings.warn(text, RuntimeWarning, stacklevel=4)
