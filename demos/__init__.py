@@ -3,7 +3,8 @@
 A demo module defines ``TITLE``, ``DESCRIPTION`` (one line), ``SECONDS``
 (default recording length), ``SCRIPT`` (a :class:`framework.input.Track`
 that shows what the demo is for), optionally ``SEEDED = False`` (its build draws
-nothing from ``rng``) and ``build(world, rng)``, which creates
+nothing from ``rng``) and ``SKY`` (``"lines"``: the articles' green line cube instead of the
+starfield), and ``build(world, rng)``, which creates
 its entities with components and nothing else. Behaviour lives in
 ``systems/``.
 """

@@ -6,6 +6,7 @@ TITLE = "Rotation"
 DESCRIPTION = "direct control: the ship turns only while a key is held; velocity persists"
 SEEDED = False     # build() draws nothing from rng: every seed gives the same scene (the CLI says so)
 SECONDS = 12.0
+SKY = "lines"      # the articles' green line cube: its grid shows every turn of the ship
 
 # yaw right, burn, pitch up while drifting, burn again, roll, brake by thrusting backwards
 SCRIPT = Track((

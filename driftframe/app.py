@@ -180,16 +180,20 @@ def load_kernels(name: str, *, seed: int = 0) -> None:
 
 
 def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tuple[int, int] | str = (1280, 720), *,
-                     camera: str | None = None, hud: bool = True, sky: str = "lines", **options: Any) -> RenderSystem:
+                     camera: str | None = None, hud: bool = True, sky: str | bool | None = None,
+                     **options: Any) -> RenderSystem:
     """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.
 
     ``camera``: start in ``"cockpit"``, ``"chase"`` or ``"overhead"`` (default: as the demo
-    built it). ``sky``: ``"lines"`` (the green line cube, the default) or
-    ``"starfield"`` (a star cube map made from the world's seed), or False
-    for none. Returns the :class:`~systems.render.RenderSystem`.
+    built it). ``sky``: ``"starfield"`` (a star cube map made from the world's seed),
+    ``"lines"`` (the articles' green line cube), False for none, or None (the default):
+    the demo's ``SKY``, else the starfield. Returns the :class:`~systems.render.RenderSystem`.
     """
     from driftframe.systems import camera as camera_sys
-    from driftframe.systems.render import attach
+    from driftframe.systems.render import attach, default_sky
+
+    if sky is None:
+        sky = default_sky(world.resources.get("demo"))
 
     size = parse_size(size) if isinstance(size, str) else size
     from driftframe.framework.gl import current

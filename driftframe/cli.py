@@ -50,10 +50,11 @@ DEFAULT_SEED = _DefaultSeed(0)
 
 
 class _DefaultSky(str):
-    """The sky when --sky is not given: "lines", but recognisable (``record --track`` takes the track's)."""
+    """The sky when --sky is not given: the demo's (``SKY``, else the starfield), recognisable
+    (``record --track`` takes the track's)."""
 
 
-DEFAULT_SKY = _DefaultSky("lines")
+DEFAULT_SKY = _DefaultSky("starfield")
 
 
 def _blur(text):
@@ -162,7 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("--camera", choices=CAMERAS, default=None,
                         help="camera to start with (default: the demo's own)")
     common.add_argument("--sky", choices=SKIES, default=DEFAULT_SKY,
-                        help="skybox: the green line cube (default) or a starfield made from the seed")
+                        help="sky: a starfield made from the seed (the default; the rotation demo: lines) or the "
+                             "articles' green line cube")
 
     rec = sub.add_parser("record", parents=[common], help="record a demo off-screen to MP4, GIF or PNG frames",
                          description="Render DEMO off-screen, one frame per simulated frame, following the "
@@ -293,7 +295,7 @@ def cmd_list(args) -> int:
     return 0
 
 
-def _load_demo(name, seed=None, sky: str = "lines"):
+def _load_demo(name, seed=None, sky: str = "starfield"):
     """Demo ``name`` or the scene ``module:function`` (:func:`driftframe.app.load_scene`); a UsageError
     otherwise. ``seed``: the --seed given; a demo that takes none says so (stderr) instead of ignoring it."""
     from driftframe.app import is_scene_path, load_scene
@@ -304,6 +306,9 @@ def _load_demo(name, seed=None, sky: str = "lines"):
     except (LookupError, ValueError) as e:
         raise UsageError(str(e)) from None
     if seed is not None and seed is not DEFAULT_SEED and not getattr(demo, "SEEDED", True):
+        if sky is DEFAULT_SKY:
+            from driftframe.systems.render import default_sky
+            sky = default_sky(demo)
         what = "only the starfield sky" if sky == "starfield" else "nothing"
         print(f"driftframe: note: the {name} demo takes no seed (it is the same every run); "
               f"--seed {seed} changes {what}", file=sys.stderr)
@@ -464,6 +469,9 @@ def cmd_record(args) -> int:
     _distinct_paths(**{"-o": out, "--hash-log": args.hash_log, "--track": args.track, "--from": args.from_save})
     _output_names(**{"-o": out, "--hash-log": args.hash_log})
     track = _apply_track(args, demo)
+    if args.sky is DEFAULT_SKY:
+        from driftframe.systems.render import default_sky
+        args.sky = default_sky(demo)
     saved = _open_save(args)
     _output_file("--hash-log", args.hash_log, args.overwrite)
     seconds = args.seconds if args.seconds is not None else demo.SECONDS
@@ -537,7 +545,10 @@ def demo_dt(demo) -> float:
 def cmd_play(args) -> int:
     from driftframe.framework.bindings import load_bindings
     from driftframe.window import PlayError, check_display, play
-    _load_demo(args.demo, args.seed, args.sky)
+    demo = _load_demo(args.demo, args.seed, args.sky)
+    if args.sky is DEFAULT_SKY:
+        from driftframe.systems.render import default_sky
+        args.sky = default_sky(demo)
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")
     import tempfile

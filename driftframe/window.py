@@ -209,7 +209,7 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
          state_out: str | None = None, screenshot_dir: str = ".", bindings: Bindings | None = None,
          save_track: str | None = None, hash_log: str | None = None, frames: int | None = None,
          overlay: bool = False, interpolate: bool = True, loop_options: dict[str, Any] | None = None,
-         setup: Callable[[World], object] | None = None, quiet: bool = False, sky: str = "lines",
+         setup: Callable[[World], object] | None = None, quiet: bool = False, sky: str | None = None,
          overwrite: bool = False, handle_signals: bool = True) -> int:
     """Open a window and fly ``name`` until Esc, the window is closed, or ``frames`` frames.
 
@@ -227,7 +227,7 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
     whole step, and stderr says where. Outputs follow
     :mod:`framework.output` (an existing file is refused unless ``overwrite``).
 
-    ``sky``: ``"lines"`` or ``"starfield"`` (see :func:`driftframe.app.attach_rendering`).
+    ``sky``: ``"starfield"`` or ``"lines"``; None: the demo's (see :func:`driftframe.app.attach_rendering`).
     ``bindings``: a :class:`~framework.bindings.Bindings` (default: the
     defaults). ``save_track``: on quit, write the flight as a track file.
     ``hash_log``: one ``STEP HASH`` line per step. ``frames``: quit after so
@@ -242,6 +242,7 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
 
     from driftframe.app import load_scene
     from driftframe.framework.world import World
+    from driftframe.systems.render import default_sky
 
     bindings = bindings or Bindings()
     if isinstance(name, World):
@@ -251,11 +252,13 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
             raise ValueError("play: the world has rendering attached already; play attaches its own "
                              "(call play(world) on a world without attach_rendering)")
         demo = _OwnWorld(name)
+        sky = default_sky(None) if sky is None else sky
         info = dict(seed=int(name.resources.get("seed", seed)), camera=camera, sky=str(sky))
     else:
         if not isinstance(name, str):
             raise TypeError(f"play: give a demo name, 'module:function' or a World, got {type(name).__name__}")
         demo = load_scene(name)
+        sky = default_sky(demo) if sky is None else sky
         info = dict(demo=name, seed=int(seed), camera=camera, sky=str(sky))
     glfw = _glfw()
     flight = _Flight(save_track, overwrite, info)

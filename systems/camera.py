@@ -144,20 +144,27 @@ def update_camera(ent: int, cam: Camera, dt: float, *, snap: bool = False) -> Tr
         cam.target_lost = True
         return tf
     cam.target_lost = False
-    p_t = tt.position
-    q_t = tt.orientation
     if tf is None:
         tf = Transform()
         esper.add_component(ent, tf)
         snap = True
+    tf.position, tf.orientation = eye_pose(cam, tt, tf.orientation, dt, snap=snap)
+    return tf
+
+
+def eye_pose(cam: Camera, target: Transform, q_prev, dt: float, *, snap: bool = False
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``(position, orientation)`` of a camera's eye on ``target`` (its Transform); writes nothing.
+
+    ``q_prev``: the eye's orientation one step ago (the chase camera's smoothing starts
+    from it); ``snap`` (or ``smoothing == 0``): the goal at once.
+    """
+    p_t = target.position
+    q_t = target.orientation
     if cam.mode == "cockpit":
-        tf.orientation = q_t
-        tf.position = p_t + fr.rotate(q_t, np.asarray(cam.cockpit_offset))
-        return tf
+        return p_t + fr.rotate(q_t, np.asarray(cam.cockpit_offset)), q_t
     if cam.mode == "overhead":
-        tf.orientation = overhead_rotation(cam.overhead_up)
-        tf.position = p_t + np.array([0.0, cam.overhead_height, 0.0])
-        return tf
+        return p_t + np.array([0.0, cam.overhead_height, 0.0]), overhead_rotation(cam.overhead_up)
     vel = esper.try_component(cam.target, Velocity)
     d = chase_direction(cam, q_t, None if vel is None else vel.linear)
     # the eye's up stays as close as possible to the target's up: it rolls with the ship
@@ -167,11 +174,24 @@ def update_camera(ent: int, cam: Camera, dt: float, *, snap: bool = False) -> Tr
     else:
         # first-order lag with time constant tau: exact for any dt, so frame-rate independent
         alpha = 1.0 - math.exp(-dt / cam.smoothing)
-        q = slerp(tf.orientation, q_goal, alpha)
-    tf.orientation = q
+        q = slerp(q_prev, q_goal, alpha)
     # behind (-forward) and above (+up) the target, in the eye's own smoothed frame
-    tf.position = p_t + fr.rotate(q, np.array([0.0, cam.chase_height, -cam.chase_distance]))
-    return tf
+    return p_t + fr.rotate(q, np.array([0.0, cam.chase_height, -cam.chase_distance])), q
+
+
+def placed_pose(ent: int, cam: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """The eye pose of camera entity ``ent`` as drawn now, writing nothing: its Transform once the camera
+    system has placed it, else the snapped pose on its target (a camera made since the last step)."""
+    tf = esper.try_component(ent, Transform)
+    if tf is not None:
+        return tf.position.copy(), tf.orientation.copy()
+    tt = _target_transform(ent, cam)
+    if tt is None:
+        why = "has no Transform" if esper.entity_exists(cam.target) else "does not exist"
+        raise ValueError(f"Camera on entity {ent}: target entity {cam.target} {why} (a camera without a "
+                         "target); give the entity id of a body with a Transform")
+    check_mode(cam.mode)
+    return eye_pose(cam, tt, tt.orientation, 0.0, snap=True)
 
 
 class CameraSystem(esper.Processor):

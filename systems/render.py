@@ -161,8 +161,7 @@ class RenderSystem(esper.Processor):
 
     stage = "render"
     reads = (Transform, ModelRef, Camera)
-    # the camera's eye Transform, placed here when the camera system has not run yet
-    writes = (Transform,)
+    writes = ()         # pixels only: the camera stage alone places the eye
 
     def __init__(self, ctx, cache: ModelCache, target: RenderTarget, *, lod: bool = True, cull: bool = True,
                  instanced: bool = True, lod_tolerance_px: float = 0.5,
@@ -305,7 +304,8 @@ class RenderSystem(esper.Processor):
         self._prog = self._prog_draw = None
 
     # -- the frame -------------------------------------------------------------------------
-    def _camera(self) -> tuple[int, Camera, Transform]:
+    def _camera(self) -> tuple[int, Camera, np.ndarray, np.ndarray]:
+        """The camera drawn from: entity, Camera, eye position and orientation (read, never written)."""
         if self.camera is not None:
             ent = self.camera
             cam = esper.try_component(ent, Camera) if esper.entity_exists(ent) else None
@@ -313,17 +313,15 @@ class RenderSystem(esper.Processor):
                 raise ValueError(f"RenderSystem.camera: entity {validate.shown(ent)} has no Camera")
         else:
             ent, cam = camera_sys.active_camera(self.world)
-        tf = esper.try_component(ent, Transform)
-        if tf is None:                      # the camera system has not run yet: place it now
-            tf = camera_sys.update_camera(ent, cam, self.world.dt, snap=True)
-        return ent, cam, tf
+        # a camera made since the last step has no eye yet: drawn from its snapped pose, which the
+        # camera stage (its only writer) gives it at the next step
+        eye, q_eye = camera_sys.placed_pose(ent, cam)
+        return ent, cam, eye, q_eye
 
     def process(self, dt: float) -> None:
         if self._prog is None:
             raise RuntimeError("RenderSystem was released (world closed)")
-        ent_cam, cam, tf = self._camera()
-        eye = tf.position.copy()
-        q_eye = tf.orientation.copy()
+        ent_cam, cam, eye, q_eye = self._camera()
         if self.poses is not None:
             eye, q_eye = self.poses.blend_one(ent_cam, eye, q_eye)
         w, h = self.target.size
@@ -468,6 +466,15 @@ class RenderSystem(esper.Processor):
 
 
 SKIES = ("lines", "starfield")
+
+
+def default_sky(scene) -> str:
+    """A scene's sky when none is asked for: its module's ``SKY`` (the rotation demo keeps the
+    articles' green lines, which show its turns), else the starfield."""
+    sky = getattr(scene, "SKY", "starfield")
+    if sky not in SKIES:
+        raise ValueError(f"{getattr(scene, '__name__', scene)!s}.SKY must be one of {SKIES}, got {sky!r}")
+    return sky
 
 
 def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = None, skybox=True,

@@ -51,8 +51,8 @@ class SkyboxSystem(esper.Processor):
     ``clip = P V_rot p`` with ``V_rot`` the view without translation; drawn at
     depth 1 behind every model. ``model``: the cache's line model to draw
     (default ``"skybox"``, a unit cube with a 4 x 4 grid per face);
-    ``colour``: RGB (default: the model's green). Must run after the
-    :class:`~systems.render.RenderSystem` it is given (``attach`` adds it so).
+    ``colour``: RGB (default: the model's green). Its ``after`` names the type of the
+    render system it is given, so the world runs it after the models whatever the adding order.
     """
 
     stage = "render"
@@ -62,6 +62,7 @@ class SkyboxSystem(esper.Processor):
     def __init__(self, ctx, cache: ModelCache, render, *, model: str = "skybox", colour=None):
         self.ctx = ctx
         self.render = render
+        self.after = (type(render),)    # the scheduler runs it after the models it draws behind
         m = cache.get(model)
         if m.meshes.mode != "lines":
             raise ValueError(f"SkyboxSystem: model {model!r} must be made of lines, got {m.meshes.mode!r}")
@@ -71,16 +72,11 @@ class SkyboxSystem(esper.Processor):
         self._prog = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
         self._vao = ctx.vertex_array(self._prog, [(vbo, "3f 12x", "in_position")],
                                      index_buffer=ibo, index_element_size=4)
-        self._drawn_frame = 0
 
     def process(self, dt: float) -> None:
         if self._prog is None:
             raise RuntimeError("SkyboxSystem was released (world closed)")
         r = self.render
-        if r.frame == self._drawn_frame:
-            raise RuntimeError("SkyboxSystem must run after its RenderSystem in the render stage "
-                               "(driftframe.attach_rendering adds them in that order)")
-        self._drawn_frame = r.frame
         vp = r.projection @ r.view_rotation_only @ np.diag([*self.scale, 1.0])
         self._prog["u_view_proj"].write(vp.astype(np.float32).T.tobytes())
         self._prog["u_colour"].value = self.colour
@@ -236,8 +232,8 @@ class StarfieldSystem(esper.Processor):
     array in OpenGL face order) is made and uploaded once, here. Each
     frame one full-screen triangle at depth 1 looks up the sky along
     ``(P V_rot)^-1 (x, y, 1, 1)``, the pixel's view direction, behind every
-    model. Must run after the :class:`~systems.render.RenderSystem` it is
-    given (``attach(..., skybox="starfield")`` adds it so).
+    model. Its ``after`` names the type of the render system it is given, so the world runs it
+    after the models whatever the adding order.
     """
 
     stage = "render"
@@ -247,6 +243,7 @@ class StarfieldSystem(esper.Processor):
     def __init__(self, ctx, render, *, seed: int = 0, size: int = 512, stars: int = 9000, faces=None):
         self.ctx = ctx
         self.render = render
+        self.after = (type(render),)    # the scheduler runs it after the models it draws behind
         self.seed = seed
         if faces is None:
             faces = starfield_faces(texture_rng(seed), size, stars)
@@ -260,16 +257,11 @@ class StarfieldSystem(esper.Processor):
         self._filter = None
         self._prog = ctx.program(vertex_shader=STAR_VERTEX_SHADER, fragment_shader=STAR_FRAGMENT_SHADER)
         self._vao = ctx.vertex_array(self._prog, [])
-        self._drawn_frame = 0
 
     def process(self, dt: float) -> None:
         if self._prog is None:
             raise RuntimeError("StarfieldSystem was released (world closed)")
         r = self.render
-        if r.frame == self._drawn_frame:
-            raise RuntimeError("StarfieldSystem must run after its RenderSystem in the render stage "
-                               "(driftframe.attach_rendering adds them in that order)")
-        self._drawn_frame = r.frame
         # texels per pixel mid-screen: (size/2) / f_px, f_px = projection[1, 1] h/2 pixels per unit.
         # Magnified (< 1, a 1280x720 frame): plain bilinear; minified (small previews): mipmaps, so
         # stars do not sparkle in and out as the view turns. On llvmpipe the mipmapped lookup costs

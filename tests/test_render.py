@@ -354,3 +354,17 @@ def test_attach_fills_the_world_resources_and_close_releases_them(ctx):
     w.close()
     assert res["render_target"].fbo is None and res["model_cache"].buffers_alive == 0
     assert ctx.version_code >= 330                          # the shared context lives on
+
+
+def test_a_camera_made_after_attach_is_drawn_from_its_target_and_only_the_camera_stage_places_it(make):
+    w, eye, render = make()
+    w.create_entity(Transform((0.0, 0.0, 10.0)), ModelRef("sphere", colour=(1.0, 1.0, 1.0)))
+    before = frame(w, render)
+    for ent, cam in list(esper.get_component(Camera)):
+        cam.active = False
+    second = w.create_entity(Camera(target=eye, mode="cockpit", fov=FOV, near=0.1, far=1000.0))
+    np.testing.assert_array_equal(frame(w, render), before)          # the same eye, snapped on the target
+    assert render.camera_entity == second
+    assert esper.try_component(second, Transform) is None             # render wrote nothing
+    w.step()
+    assert esper.try_component(second, Transform) is not None          # the camera stage did

@@ -277,3 +277,33 @@ def test_starfield_uses_mipmaps_only_where_the_view_shrinks_the_texture(ctx):
     import moderngl
     assert filters[(1280, 720)] == (moderngl.LINEAR, moderngl.LINEAR)
     assert filters[(160, 90)] == (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+
+
+@pytest.mark.parametrize("kind", ["lines", "starfield"])
+def test_a_sky_added_before_its_render_system_still_draws_behind_the_models(ctx, kind):
+    from driftframe.framework.gl import RenderTarget
+    from driftframe.framework.model_cache import ModelCache
+    from driftframe.systems.render import RenderSystem
+    from driftframe.systems.skybox import SkyboxSystem, StarfieldSystem
+
+    w = World()
+    try:
+        eye = w.create_entity(Transform())
+        w.create_entity(Camera(target=eye, mode="cockpit", fov=70.0))
+        w.create_entity(Transform((0.0, 0.0, 4.0)), ModelRef("sphere", colour=(1.0, 0.0, 0.0)))
+        cache, target = ModelCache(ctx), RenderTarget(ctx, (64, 48))
+        w.resources["model_cache"], w.resources["render_target"] = cache, target
+        render = RenderSystem(ctx, cache, target)
+        sky = (SkyboxSystem(ctx, cache, render) if kind == "lines"
+               else StarfieldSystem(ctx, render, size=16, stars=50))
+        w.add_system(sky)                       # first: its after= (the render system's type) orders it
+        w.add_system(render)
+        w.step()
+        w.render()
+        rgba = render.read_rgba()
+        r, g, b = rgba[24, 32, :3].tolist()
+        assert r > 100 and g < 10 and b < 10            # the sphere, not the sky painted over it
+        names = [type(e.system).__name__ for e in w._order["frame"]]
+        assert names.index("RenderSystem") < names.index(type(sky).__name__)
+    finally:
+        w.close()
