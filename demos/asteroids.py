@@ -1,11 +1,12 @@
-"""asteroids — the ship flies into a cluster of fifty asteroids that share one sphere mesh (Framework 0.0.5)."""
+"""asteroids — the ship flies into a cluster of fifty asteroids, scaled variants of four rock meshes (Framework 0.0.5)."""
 import numpy as np
 
 from driftframe.demos.parts import asteroid_field, balls, chase_camera, ship
 from driftframe.framework.input import Hold, Press, Track
+from driftframe.framework.model_cache import declare_variant
 
 TITLE = "Asteroids"
-DESCRIPTION = "fifty scaled asteroids, elastic collisions, skybox, chase and cockpit cameras"
+DESCRIPTION = "fifty scaled rocks, elastic collisions, a starfield, chase and cockpit cameras"
 SECONDS = 20.0
 FIELD = (0.0, 0.0, 70.0)      # centre of the cluster, m: straight ahead of the ship
 PEBBLE = (0.0, 0.0, 36.0)     # a small rock on the ship's path, m
@@ -33,6 +34,8 @@ def build(world, rng):
     chase_camera(world, me, mode="chase")
     # 1.8 t against the ship's 10 t: the ship slows from 4.2 to 2.9 m/s, the pebble leaves at 7.1 m/s
     balls(world, [PEBBLE], [(0.0, 0.0, 0.0)], 0.6, mass=DENSITY * 4 / 3 * np.pi * 0.6 ** 3, colour=(0.7, 0.62, 0.5))
+    # the pebble looks like a rock too; its ModelRef keeps its name, so the state hash is unchanged
+    declare_variant(world, "sphere_r0.6", "rock2", scale=0.6)
     # dense enough (50 rocks in 30 m) for a collision every second or two, all in front of the ship
     asteroid_field(world, rng, 50, inner=0.0, outer=30.0, radii=(0.6, 3.5), speed=1.5, centre=FIELD,
                    density=DENSITY, keep_clear=[(PEBBLE, 3.0), ((0.0, 0.0, 0.0), 12.0)])

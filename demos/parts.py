@@ -13,6 +13,7 @@ from driftframe.components.control import FlightControl, FlightInput, Player, Ro
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
 from driftframe.framework import placement
+from driftframe.framework.meshes import ROCK_SHAPES
 
 
 def ship(world, *, mode: str = "momentum", position=(0.0, 0.0, 0.0), forward=(0.0, 0.0, 1.0),
@@ -58,7 +59,10 @@ def balls(world, positions, velocities, radius: float, *, mass: float = 1.0, col
 def asteroid_field(world, rng, n: int, *, inner: float, outer: float, radii=(0.5, 3.0),
                    speed: float = 1.0, spin: float = 0.4, variants: int = 50, density: float = 2000.0,
                    centre=(0.0, 0.0, 0.0), keep_clear=()) -> list[int]:
-    """``n`` asteroids in a spherical shell about ``centre`` (m), sizes drawn from ``variants`` scaled spheres.
+    """``n`` asteroids in a spherical shell about ``centre`` (m), sizes drawn from ``variants`` scaled rocks.
+
+    Each variant is one of the model cache's four rock shapes scaled to its collision radius:
+    the rock lies inside its collision sphere (collisions stay spheres, the rock's bounding one).
 
     Mass = density * 4/3 pi r^3 (kg); random drift velocity (~``speed`` m/s)
     and spin (~``spin`` rad/s). Asteroids never overlap each other, nor the
@@ -67,7 +71,8 @@ def asteroid_field(world, rng, n: int, *, inner: float, outer: float, radii=(0.5
     from driftframe.framework.model_cache import declare_variant
 
     sizes = np.sort(rng.uniform(*radii, variants))
-    names = [declare_variant(world, f"asteroid_{i}", "sphere", scale=float(r),
+    # the look: variant i is rock shape i mod 4, each inside its collision sphere (no draw from rng)
+    names = [declare_variant(world, f"asteroid_{i}", f"rock{i % ROCK_SHAPES}", scale=float(r),
                              colour=tuple(np.clip(rng.uniform(0.4, 0.6) * (1 + rng.normal(0, 0.04, 3)), 0, 1))) for i, r in enumerate(sizes)]
     kind = rng.integers(0, variants, n)
     r = sizes[kind]

@@ -20,6 +20,8 @@ The meshes the framework builds itself:
 * :func:`pyramid` — the articles' ship: a four-sided pyramid whose apex (the
   nose) points along local +z, centred on its centre of mass (a solid
   pyramid's centroid is 1/4 of the way from base to apex), flat-shaded.
+* :func:`rock_lods` — a rock: a seeded noise-displaced icosphere (lumps and craters),
+  stretched, flat-shaded, bounded by the unit sphere, at four levels of detail.
 * :func:`box` — a flat-shaded cuboid centred on the origin (a table top, a
   wall); its scaled variants share its buffers.
 * :func:`line_cube` — the skybox: the edges of a unit cube (side 1, centred),
@@ -311,6 +313,70 @@ def ship_hull() -> Mesh:
     if volume_centroid(v, f)[0] < 0:                                  # make the winding outward, whichever it was
         f = f[:, ::-1]
     return flat_shaded("ship", v, f, recentre=True)
+
+
+#: The built-in rock shapes (``"rock0"`` .. ``"rock3"`` in every model cache) and their levels of detail.
+ROCK_SHAPES = 4
+ROCK_LEVELS = (1, 2, 3, 4)
+
+
+def rock_radius(d: np.ndarray, seed: int) -> np.ndarray:
+    """Radius of rock ``seed`` along unit directions ``d`` (N, 3), before the rock is scaled to fit.
+
+    ``r(d) = 1 + lumps + craters``: lumps are three octaves of random plane waves
+    ``a cos(f d.c + phase)`` (6, 12 and 24 waves, amplitudes 0.10 / 0.04 / 0.015 over
+    sqrt(count), frequencies 1.5 / 3.5 / 8 rad); craters are 3-6 bowls ``depth (x^2 - 1)`` for
+    ``x = angle / size < 1`` with a raised rim ``0.3 depth exp(-((x - 1) / 0.25)^2)``. A smooth
+    function of direction: every level of detail samples the same surface.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(0x726F636B,)))   # "rock"
+    r = np.ones(len(d))
+    for count, amp, freq in ((6, 0.10, 1.5), (12, 0.04, 3.5), (24, 0.015, 8.0)):
+        c = rng.normal(size=(count, 3))
+        c /= np.linalg.norm(c, axis=1, keepdims=True)
+        phase = rng.uniform(0.0, 2.0 * np.pi, count)
+        r += amp / np.sqrt(count) * np.cos(freq * (d @ c.T) + phase).sum(axis=1)
+    n = int(rng.integers(3, 7))
+    c = rng.normal(size=(n, 3))
+    c /= np.linalg.norm(c, axis=1, keepdims=True)
+    size = rng.uniform(0.25, 0.55, n)                     # angular radius of each crater, rad
+    depth = rng.uniform(0.04, 0.09, n)
+    x = np.arccos(np.clip(d @ c.T, -1.0, 1.0)) / size
+    r += (np.where(x < 1.0, x * x - 1.0, 0.0) * depth + 0.3 * depth * np.exp(-((x - 1.0) / 0.25) ** 2)).sum(axis=1)
+    return r
+
+
+@functools.lru_cache(maxsize=ROCK_SHAPES)
+def rock_lods(seed: int, levels=ROCK_LEVELS) -> tuple[Mesh, ...]:
+    """Rock ``seed``: a noise-displaced icosphere (:func:`rock_radius`) at each level, coarsest first.
+
+    Each level is the icosphere of that level with every vertex pushed out to
+    ``rock_radius`` along its direction, stretched by a random ``diag(1, 0.7-0.95,
+    0.55-0.85)`` in a random frame (no rock is round), moved so the finest level's centre of
+    mass is the origin and scaled so the farthest vertex of any level is 1 m from it: the unit
+    sphere bounds the rock, and a variant scaled to a collider's radius fits inside that sphere
+    (collisions stay spheres). Flat-shaded: each facet catches the light on its own.
+    ``lod_error`` is the icosphere level's (the chord error of a smooth surface of that size).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"rock seed must be an int >= 0, got {validate.shown(seed)}")
+    rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(0x73686170,)))   # "shap"
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    stretch = q @ np.diag([1.0, rng.uniform(0.7, 0.95), rng.uniform(0.55, 0.85)]) @ q.T
+    shapes = []
+    for level in levels:
+        base = icosphere(level)
+        d = base.vertices.astype(np.float64)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        shapes.append(((d * rock_radius(d, seed)[:, None]) @ stretch, base.indices.reshape(-1, 3).astype(np.int64),
+                       base.lod_error))
+    centre = volume_centroid(*shapes[-1][:2])[1]
+    reach = max(np.linalg.norm(v - centre, axis=1).max() for v, _, _ in shapes)
+    out = []
+    for level, (v, f, err) in zip(levels, shapes):
+        m = flat_shaded(f"rock{seed}_{level}", (v - centre) / reach, f)
+        out.append(Mesh(m.name, m.vertices, m.normals, m.indices, "triangles", lod_error=err))
+    return tuple(out)
 
 
 @functools.lru_cache(maxsize=16)

@@ -28,7 +28,10 @@ Built-in models (defined by every cache unless ``builtins=False``):
   along +z (forward), light blue;
 * ``"box"`` — a unit cube (side 1 m), grey: scaled variants make table tops,
   walls, slabs;
-* ``"skybox"`` — the unit line cube with a 4 x 4 grid on each face, green.
+* ``"skybox"`` — the unit line cube with a 4 x 4 grid on each face, green;
+* ``"rock0"`` .. ``"rock3"`` — four rock shapes (:func:`framework.meshes.rock_lods`: lumps,
+  craters, stretched, flat-shaded), each inside the unit sphere, four levels of detail each:
+  fifty asteroid sizes are variants of four rocks and still four vertex buffers per level.
 """
 from __future__ import annotations
 
@@ -48,6 +51,7 @@ if TYPE_CHECKING:
 GREY = (0.62, 0.60, 0.58)
 SHIP_BLUE = (0.55, 0.75, 1.0)
 SKY_GREEN = (0.15, 0.85, 0.25)
+ROCK_GREY = (0.55, 0.50, 0.45)
 
 
 def check_colour(name: str, colour) -> np.ndarray:
@@ -144,6 +148,8 @@ class ModelCache:
             self.define("ship", meshes.ship_hull(), colour=SHIP_BLUE)
             self.define("box", meshes.box(), colour=GREY)
             self.define("skybox", meshes.line_cube(4), colour=SKY_GREEN)
+            for k in range(meshes.ROCK_SHAPES):
+                self.define(f"rock{k}", meshes.rock_lods(k), colour=ROCK_GREY)
 
     # -- entries -----------------------------------------------------------------
     def _check_name(self, name) -> str:

@@ -1,0 +1,62 @@
+"""The look of the demos: rock meshes (shared by their scaled variants), the default sky."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from driftframe.framework import meshes
+
+
+def test_rocks_are_bounded_by_the_unit_sphere_centred_on_their_mass_and_not_round():
+    for k in range(meshes.ROCK_SHAPES):
+        lods = meshes.rock_lods(k)
+        assert [m.primitive_count for m in lods] == [20 * 4 ** lv for lv in meshes.ROCK_LEVELS]
+        assert max(m.radius for m in lods) == pytest.approx(1.0, abs=1e-6)      # the collision sphere bounds it
+        fine = lods[-1]
+        f = np.arange(len(fine.vertices)).reshape(-1, 3)
+        volume, centre = meshes.volume_centroid(fine.vertices.astype(np.float64), f)
+        assert np.abs(centre).max() < 1e-5                                        # spins about its mass
+        assert volume > 0                                                         # wound outward
+        r = np.linalg.norm(fine.vertices, axis=1)
+        assert r.min() < 0.75 * r.max()                                           # lumpy and stretched
+    # seeded: the same shape each time, another seed another shape
+    a, b = meshes.rock_lods(0)[-1], meshes.rock_lods(1)[-1]
+    assert not np.array_equal(a.vertices, b.vertices)
+    meshes.rock_lods.cache_clear()
+    np.testing.assert_array_equal(meshes.rock_lods(0)[-1].vertices, a.vertices)
+    with pytest.raises(ValueError, match="rock seed must be an int >= 0, got -1"):
+        meshes.rock_lods(-1)
+
+
+@pytest.mark.gl
+def test_fifty_rock_variants_share_one_vertex_buffer_per_shape_and_level(ctx):
+    from driftframe.framework.model_cache import ModelCache
+
+    cache = ModelCache(ctx)
+    try:
+        before = cache.buffers_created
+        variants = [cache.variant(f"asteroid_{i}", f"rock{i % meshes.ROCK_SHAPES}", scale=0.5 + 0.1 * i)
+                    for i in range(50)]
+        vbos = {id(vbo) for v in variants for vbo, _ in cache.buffers(v)}
+        levels = len(meshes.ROCK_LEVELS)
+        assert len(vbos) == meshes.ROCK_SHAPES * levels
+        assert cache.buffers_created - before == 2 * meshes.ROCK_SHAPES * levels   # vertex + index, once each
+        assert cache.buffers(variants[0]) is cache.buffers(variants[4])             # same shape: same buffers
+    finally:
+        cache.release()
+
+
+def test_the_asteroids_are_rocks_and_the_rotation_demo_keeps_the_green_lines():
+    from driftframe import demos
+    from driftframe.app import make_world
+    from driftframe.systems.render import default_sky
+
+    world, demo = make_world("asteroids", seed=0)
+    try:
+        bases = {base for name, (base, _, _) in world.resources["model_variants"].items()
+                 if name.startswith("asteroid_")}
+        assert bases == {f"rock{k}" for k in range(meshes.ROCK_SHAPES)}
+    finally:
+        world.close()
+    assert default_sky(demos.load("asteroids")) == "starfield"
+    assert default_sky(demos.load("rotation")) == "lines"
