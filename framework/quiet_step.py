@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from driftframe.framework.contact import TOUCH, toi
+from driftframe.framework.contact import TOUCH, gather_bodies, toi
 from driftframe.framework.kernels import kernel
 
 
@@ -41,3 +41,17 @@ def quiet_all_pairs(x, u, r, inv, live, pi, pj, dt):
         if tp >= 0.0:
             return False
     return True
+
+
+@kernel(error_model="numpy", no_cfunc_wrapper=True)
+def gather_quiet(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,
+                 x0, v0, a, inv, r, e, x, u, live, pi, pj):
+    """:func:`contact.gather_bodies` and then, when every body is valid and one moves,
+    :func:`quiet_all_pairs` over the pairs ``pi, pj``, in one call (a small scene's step otherwise pays
+    the call twice). Returns ``(bad, moving, quiet)``; ``quiet`` is False when it was not tested."""
+    bad, moving = gather_bodies(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,
+                                x0, v0, a, inv, r, e, x, u, live)
+    quiet = False
+    if bad == 0 and moving:
+        quiet = quiet_all_pairs(x, u, r, inv, live, pi, pj, dt)
+    return bad, moving, quiet

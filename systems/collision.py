@@ -56,7 +56,7 @@ from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact
-from driftframe.framework.quiet_step import quiet_all_pairs
+from driftframe.framework.quiet_step import gather_quiet, quiet_all_pairs
 from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
 
@@ -188,6 +188,13 @@ class State:
         self.n_bad, self.moving = contact.gather_bodies(*args, float(dt), *self._out)
         return self
 
+    def gather_quiet(self, lay: _Layout, dt: float, pairs: tuple) -> bool:
+        """:meth:`gather`, and whether the step is quiet for the candidate ``pairs`` (``(pi, pj)``; see
+        :func:`~driftframe.framework.quiet_step.gather_quiet`: False when a body is not valid or none moves)."""
+        args = self.columns(lay)
+        self.n_bad, self.moving, quiet = gather_quiet(*args, float(dt), *self._out, *pairs)
+        return quiet
+
     def end_of_step(self, dt: float):
         """x1, v1 of every body in free flight (no contact)."""
         return advance(self.x0, self.v0, self.a, dt)
@@ -310,11 +317,7 @@ class CollisionSystem(esper.Processor):
         st = State.of(self.world, lay).gather(lay, dt)
         n = lay.n
         if not self._uses_list(n):
-            if self._pairs_n != n:
-                self._pairs = contact.all_pairs(n)
-                self._pairs_n = n
-            if st.bad(lay) is None:
-                quiet_all_pairs(st.x, st.u, st.r, st.inv, st.live, *self._pairs, dt)   # read only: its first call
+            st.gather_quiet(lay, dt, self._all_pairs(n))     # read only here: its first call
         elif n >= 2 and st.bad(lay) is None:
             self._build_list(lay, st, dt)
         self._t_last_of(lay)
@@ -355,7 +358,17 @@ class CollisionSystem(esper.Processor):
         self.stats.update(_ZERO_STATS)
         if lay.n == 0:
             return
-        st = State.of(self.world, lay).gather(lay, dt)
+        st = State.of(self.world, lay)
+        if self.method == "continuous" and lay.n >= 2 and not self._uses_list(lay.n):
+            if st.gather_quiet(lay, dt, self._all_pairs(lay.n)):
+                self.stats["pairs"] = len(self._pairs[0])    # what the solver would say of a quiet step
+                if self._bad:
+                    self._bad.clear()
+                self._finish(lay, st, self._unchanged(lay.n), dt)
+                return
+            self._continuous(lay, st, dt, tested=True)
+            return
+        st.gather(lay, dt)
         if self.method == "articles":
             from driftframe.systems.collision_baseline import articles_step
             x, v, events = articles_step(st, lay, dt, self._now(), self.events, self.world.step_count)
@@ -441,7 +454,16 @@ class CollisionSystem(esper.Processor):
         return z
 
     # -- continuous -----------------------------------------------------------
-    def _continuous(self, lay: _Layout, st: State, dt: float) -> None:
+    def _all_pairs(self, n: int) -> tuple:
+        """``(pi, pj)``: every pair of ``n`` bodies (kept for this n only)."""
+        if self._pairs_n != n:
+            self._pairs = contact.all_pairs(n)
+            self._pairs_n = n
+        return self._pairs
+
+    def _continuous(self, lay: _Layout, st: State, dt: float, tested: bool = False) -> None:
+        """The continuous solver's step (``tested``: the quiet-step test was made on this state and
+        said no)."""
         n = lay.n
         bad = st.bad(lay)
         live = st.live
@@ -466,11 +488,8 @@ class CollisionSystem(esper.Processor):
         t_last = self._t_last_of(lay)                      # absolute: the kernel makes it relative to now
 
         if not self._uses_list(n):
-            if self._pairs_n != n:                           # every pair (kept for this n only)
-                self._pairs = contact.all_pairs(n)
-                self._pairs_n = n
-            pi, pj = self._pairs
-            if quiet_all_pairs(x, u, r, inv, live, pi, pj, dt):
+            pi, pj = self._all_pairs(n)
+            if not tested and quiet_all_pairs(x, u, r, inv, live, pi, pj, dt):
                 self.stats["pairs"] = len(pi)             # what the solver would say of a quiet step
                 self._finish(lay, st, self._unchanged(n), dt)
                 return
