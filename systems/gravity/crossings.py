@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from driftframe.framework import kepler
+from driftframe.systems.gravity.context import GravityStep
 
 #: Most sphere-of-influence changes one body may make in one step (in and out of a moon's sphere is two).
 MAX_CROSSINGS = 4
@@ -18,7 +19,7 @@ MAX_CROSSINGS = 4
 class Crossings:
     """Sphere-of-influence changes (a part of :class:`~.system.GravitySystem`)."""
 
-    def _crossings(self, rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1, defer=None):
+    def _crossings(self, step: GravityStep, rails, dom, defer=None) -> tuple[np.ndarray, np.ndarray]:
         """Sphere-of-influence changes within the step, at their exact times (patched conics): a body
         on rails about well ``w`` enters a moon ``m`` of ``w`` where its conic comes within ``soi_m``
         of the moon's (:func:`framework.kepler.time_to_touch` about ``w``, approaching), and leaves a
@@ -31,22 +32,21 @@ class Crossings:
         crossed (``dom`` is updated to each body's well at the step's end)."""
         wells = self._wells
         W, n = len(wells), self._n
-        dt = t1 - t0
+        t0, t1 = step.t0, step.t1
         done = np.zeros(n, bool)
         for wi in range(W):
             sel = np.flatnonzero(rails & (dom == wi))
             if sel.size:
-                self._take_epochs(sel, wi, x, v, a, thrust, edited, X0, V0, t0, dt)
+                self._take_epochs(step, sel, wi)
                 done[sel] = True
         crossed = np.zeros(n, bool)
         movers = rails & (self.well_index < 0)            # (a moon keeps its parent, whatever the spheres say)
         self.ep_cross = np.full(n, np.inf)
         self.cross_to = np.full(n, -1, np.intp)
         t_from = np.full(n, t0)
-        state = (x, v, a, X0, V0, t0)
         for _ in range(MAX_CROSSINGS):
             k = np.flatnonzero(movers & (t_from < t1))
-            best_t, best_w = self._next_crossing(k, t_from[k], t1, state)
+            best_t, best_w = self._next_crossing(step, k, t_from[k], from_start=True)
             hit = best_t <= t1
             if defer is not None:
                 later = hit & defer[k]
@@ -64,16 +64,16 @@ class Crossings:
         dom[crossed] = self.ep_well[crossed]
         return done, crossed
 
-    def _next_crossing(self, k, t_from, t1, state=None):
+    def _next_crossing(self, step: GravityStep, k, t_from, *, from_start: bool = False):
         """The first sphere-of-influence crossing of bodies ``k`` on rails (current epochs) in
-        ``[t_from, t1]``, before any surface contact: ``(time, new well)`` (inf, -1: none). ``state``:
-        the step-start table state, used for bodies looked at from the step's start (no Kepler solve)."""
+        ``[t_from, t1]``, before any surface contact: ``(time, new well)`` (inf, -1: none). ``from_start``:
+        the bodies looked at from the step's start take their state there from the step (no Kepler solve)."""
         wells = self._wells
         best_t = np.full(k.size, np.inf)
         best_w = np.full(k.size, -1, np.intp)
         if not k.size:
             return best_t, best_w
-        X0, V0, t0, _ = self._step
+        X0, V0, t0, t1 = step.X0, step.V0, step.t0, step.t1
         for wi in np.unique(self.ep_well[k]):
             wi = int(wi)
             moons = np.flatnonzero(wells.parent == wi)
@@ -85,14 +85,13 @@ class Crossings:
             upto = np.minimum(t1, self.ep_contact[kw])      # (a surface contact first: its own conic after)
             span = np.maximum(upto - tf, 0.0)
             # the state at t_from: at the step's start the table's (no Kepler solve), else from the epoch
-            later = tf > t0 if state is not None else np.ones(kw.size, bool)
+            later = tf > t0 if from_start else np.ones(kw.size, bool)
             r = np.empty((kw.size, 3))
             u = np.empty((kw.size, 3))
             if (~later).any():
-                x, v, a, _, _, _ = state
                 ke = kw[~later]
-                r[~later] = x[ke] - X0[wi]
-                u[~later] = v[ke] - V0[wi] + 0.5 * (t1 - t0) * a[ke]
+                r[~later] = step.x[ke] - X0[wi]
+                u[~later] = step.v[ke] - V0[wi] + 0.5 * step.dt * step.a[ke]     # (thrust: the first half kick)
             if later.any():
                 kl = kw[later]
                 r[later], u[later] = kepler.propagate(self.ep_r[kl], self.ep_v[kl], mu, tf[later] - self.ep_t[kl])
@@ -146,12 +145,12 @@ class Crossings:
         self.ep_contact[k] = tc + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], wells.mu[new],
                                                         wells.radius[new], np.inf)[0]
 
-    def _recross(self, ks, t_from, t1):
+    def _recross(self, step: GravityStep, ks, t_from: float) -> None:
         """Bodies ``ks`` on rails are on a new conic from ``t_from``: their next sphere-of-influence
         crossing in the step."""
         if self.ep_cross is None or not len(ks):
             return
         ks = np.asarray(ks, np.intp)
-        t, w = self._next_crossing(ks, np.full(ks.size, float(t_from)), t1)
+        t, w = self._next_crossing(step, ks, np.full(ks.size, float(t_from)))
         self.ep_cross[ks] = t
         self.cross_to[ks] = w

@@ -9,6 +9,7 @@ from driftframe.components.collision import SphereCollider
 from driftframe.components.gravity import GravityWell
 from driftframe.framework import broadphase as bp
 from driftframe.framework import kepler
+from driftframe.systems.gravity.context import OBSTACLE, RAILS, Movers
 from driftframe.systems.gravity.movers import _broad_method
 from driftframe.systems.gravity.wells import _dominant, _Wells
 
@@ -157,7 +158,8 @@ class LookAhead:
         """next_sphere_contact's look at the pairs in different frames on rails: colliders on rails about
         different wells, and about a moon against an obstacle, on their world-frame paths
         (:func:`framework.kepler.time_to_touch_paths`) from the last step's epochs and wells."""
-        if self._wells is None or not self._n_col or not horizon > 0 or getattr(self, "_step", None) is None:
+        last = self._last_step                            # (the wells' and obstacles' states it started from)
+        if self._wells is None or not self._n_col or not horizon > 0 or last is None:
             return None
         wells = self._wells
         cs = np.flatnonzero((self.c_rows >= 0) & (self.ep_well >= 0))
@@ -171,13 +173,13 @@ class LookAhead:
         col = world.table(SphereCollider).data
         n_ob = self._n_ob
         M = cs.size + n_ob
-        mv = {"kind": np.concatenate([np.zeros(cs.size, np.intp), np.full(n_ob, 2, np.intp)]),
-              "body": np.concatenate([cs, np.arange(n_ob)]),
-              "well": np.concatenate([w_of, np.full(n_ob, -1, np.intp)]),
-              "rad": np.concatenate([col["radius"][self.c_rows[cs]], col["radius"][self.ob_c_rows]]).astype(np.float64),
-              "lp": np.concatenate([np.zeros((cs.size, 3)), self._ob_x]),
-              "lu": np.concatenate([np.zeros((cs.size, 3)), self._ob_v])}
-        pos, vel = self._movers_at(mv, np.arange(M), np.full(M, now))
+        mv = Movers(kind=np.concatenate([np.full(cs.size, RAILS, np.intp), np.full(n_ob, OBSTACLE, np.intp)]),
+                    body=np.concatenate([cs, np.arange(n_ob)]),
+                    well=np.concatenate([w_of, np.full(n_ob, -1, np.intp)]),
+                    rad=np.concatenate([col["radius"][self.c_rows[cs]], col["radius"][self.ob_c_rows]]).astype(np.float64),
+                    lp=np.concatenate([np.zeros((cs.size, 3)), last.ob_x]),
+                    lu=np.concatenate([np.zeros((cs.size, 3)), last.ob_v]))
+        pos, vel = self._movers_at(last, mv, np.arange(M), np.full(M, now))
         # a box each can reach within the horizon: its speed now, and a bound on its acceleration (no body
         # on rails comes nearer its well than the surface; a moon nearer its parent than the parent's)
         acc = np.zeros(M)
@@ -188,28 +190,28 @@ class LookAhead:
                 w = int(wells.parent[w])
             acc[: cs.size][w_of == wi] = chain
         h = horizon
-        half = kepler._norm(vel) * h + 0.5 * acc * h * h + mv["rad"]
+        half = kepler._norm(vel) * h + 0.5 * acc * h * h + mv.rad
         lo, hi = pos - half[:, None], pos + half[:, None]
         pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
         pa, pb = pa.astype(np.intp), pb.astype(np.intp)
-        kind, well = mv["kind"], mv["well"]
-        cross = (kind[pa] == 0) & (((kind[pb] == 0) & (well[pa] != well[pb]))
-                                   | ((kind[pb] == 2) & (wells.parent[np.maximum(well[pa], 0)] >= 0)))
+        kind, well = mv.kind, mv.well
+        cross = (kind[pa] == RAILS) & (((kind[pb] == RAILS) & (well[pa] != well[pb]))
+                                   | ((kind[pb] == OBSTACLE) & (wells.parent[np.maximum(well[pa], 0)] >= 0)))
         pa, pb = pa[cross], pb[cross]
         if not pa.size:
             return None
-        ka = mv["body"][pa]
+        ka = mv.body[pa]
         upto = np.minimum(end, np.minimum(self.ep_contact[ka],
-                                          np.where(kind[pb] == 0, self.ep_contact[mv["body"][pb]], np.inf)))
-        t, _ = kepler.time_to_touch_paths(lambda i, tt: self._movers_at(mv, pa[i], tt),
-                                          lambda i, tt: self._movers_at(mv, pb[i], tt),
-                                          mv["rad"][pa] + mv["rad"][pb], np.full(pa.size, now), upto,
+                                          np.where(kind[pb] == RAILS, self.ep_contact[mv.body[pb]], np.inf)))
+        t, _ = kepler.time_to_touch_paths(lambda i, tt: self._movers_at(last, mv, pa[i], tt),
+                                          lambda i, tt: self._movers_at(last, mv, pb[i], tt),
+                                          mv.rad[pa] + mv.rad[pb], np.full(pa.size, now), upto,
                                           acc[pa] + acc[pb])
         t = np.where(now <= upto, t, np.inf)
         k = int(np.argmin(t))
         if not np.isfinite(t[k]):
             return None
-        name = lambda m: int(self.ob_ents[mv["body"][m]]) if kind[m] == 2 else int(self.ents[mv["body"][m]])  # noqa: E731
+        name = lambda m: int(self.ob_ents[mv.body[m]]) if kind[m] == OBSTACLE else int(self.ents[mv.body[m]])  # noqa: E731
         a, b = sorted((name(pa[k]), name(pb[k])))
         return float(t[k]), a, b
 

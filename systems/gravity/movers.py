@@ -7,6 +7,7 @@ import numpy as np
 from driftframe.components.collision import SphereCollider
 from driftframe.framework import broadphase as bp
 from driftframe.framework import kepler
+from driftframe.systems.gravity.context import LINE, OBSTACLE, RAILS, Drift, GravityStep, Movers
 
 #: The broad phase sweeps while the boxes would overlap on the sweep axis at most this many times per
 #: box (thin boxes: short steps), else it takes the grid (measured: sweep 1.5 ms vs grid 2.8 ms for
@@ -67,13 +68,13 @@ class _PairTimes:
             self.tc = np.concatenate([self.tc, np.full(a.size, np.nan)])
 
 
-def _overlapping(mv, c, pairs) -> list:
+def _overlapping(mv: Movers, c: int, pairs: _PairTimes) -> list:
     """The pairs mover ``c``'s (new) box makes that are not candidates yet (obstacle pairs left out)."""
-    lo, hi, kind = mv["lo"], mv["hi"], mv["kind"]
+    lo, hi, kind = mv.lo, mv.hi, mv.kind
     over = np.all((lo[c] <= hi) & (hi[c] >= lo), axis=1)
     over[c] = False
-    if kind[c] == 2:
-        over &= kind != 2
+    if kind[c] == OBSTACLE:
+        over &= kind != OBSTACLE
     have = set(pairs.pb[pairs.pa == c].tolist()) | set(pairs.pa[pairs.pb == c].tolist())
     return [(min(c, int(o)), max(c, int(o))) for o in np.flatnonzero(over) if int(o) not in have]
 
@@ -81,13 +82,14 @@ def _overlapping(mv, c, pairs) -> list:
 class ContactMovers:
     """The contact pass's movers and candidate pairs (a part of :class:`~.system.GravitySystem`)."""
 
-    def _near(self, pa, pb, ball, p0, p1, rad, A, rho, span, mu):
+    def _near(self, mv: Movers, pa, pb, span: float, mu: float):
         """Which of the candidate pairs ``(pa, pb)`` (movers on rails about one well) are not proven apart
         for the whole step without solving Kepler's equation: the separation ``d(t)`` leaves the chord between its two
         ends by at most ``A_d span^2 / 8``, with ``A_d`` the bound on ``|d''|`` (the sum of the two
         pulls, or the tidal ``2 mu D / (rho - D/2)^3`` for a pair never more than ``D`` apart; see
         kepler.time_to_touch), so a chord that stays farther than that plus ``r_a + r_b`` from zero
         is a pair that cannot touch. Bodies that touch a surface in the step are kept (two conics)."""
+        p0, p1, rad, A, rho, ball = mv.P0, mv.P1, mv.rad, mv.A, mv.rho, mv.ball
         dA = p0[pb] - p0[pa]
         dB = p1[pb] - p1[pa]
         e = dB - dA
@@ -104,51 +106,46 @@ class ContactMovers:
         slack = 0.125 * acc * span * span + 1e-12 * (kepler._norm(p0[pa]) + kepler._norm(p0[pb])) + 1e-6
         return (closest - slack <= rad[pa] + rad[pb]) | ball[pa] | ball[pb]
 
-    def _movers_at(self, mv, ms, t):
-        """Positions and velocities (world frame) of movers ``ms`` at absolute times ``t``."""
-        t0 = self._step[2]
-        kind, body, well = mv["kind"][ms], mv["body"][ms], mv["well"][ms]
+    def _movers_at(self, step: GravityStep, mv: Movers, ms, t):
+        """Positions and velocities (world frame) of movers ``ms`` at absolute times ``t`` (the lines and the
+        root wells from their states at the start of ``step``)."""
+        t0 = step.t0
+        kind, body, well = mv.kind[ms], mv.body[ms], mv.well[ms]
         pos = np.empty((ms.size, 3))
         vel = np.empty((ms.size, 3))
-        line = kind != 0
+        line = kind != RAILS                              # (a line or an obstacle)
         if line.any():
-            pos[line] = mv["lp"][ms[line]] + mv["lu"][ms[line]] * (t[line] - t0)[:, None]
-            vel[line] = mv["lu"][ms[line]]
+            pos[line] = mv.lp[ms[line]] + mv.lu[ms[line]] * (t[line] - t0)[:, None]
+            vel[line] = mv.lu[ms[line]]
         for wi in np.unique(well[~line]):
             m = ~line & (well == wi)
             k = body[m]
             r, u = kepler.propagate(self.ep_r[k], self.ep_v[k], self._wells.mu[wi], t[m] - self.ep_t[k])
-            P, V = self._well_at(int(wi), t[m])
+            P, V = self._well_at(step, int(wi), t[m])
             pos[m] = P + r
             vel[m] = V + u
         return pos, vel
 
-    def _rail_boxes(self, wi, rad, p0, w0, p1, w1, span, ball):
+    def _rail_boxes(self, step: GravityStep, wi: int, rad, p0, w0, p1, w1, span: float, ball):
         """World boxes, bounds ``A`` (on the pull relative to the well) and ``rho`` of colliders of radii
         ``rad`` on rails about well ``wi``, from their states ``p0, w0`` about it at the start of the span
         to ``p1, w1`` at its end: kepler.arc_boxes about the well, then moved into the world frame by the
         box of the well centre's own path over the step (a point for a well at rest)."""
         wells = self._wells
         lo, hi, A, rho = kepler.arc_boxes(p0, w0, p1, w1, span, wells.mu[wi], wells.radius[wi], ball, rad)
-        X0, _, t0, t1 = self._step
-        a, b = X0[wi], self._X1[wi]
+        a, b = step.X0[wi], step.X1[wi]
         if np.array_equal(a, b):
             if not a.any():                               # (a well at rest at the origin: the usual case)
                 return lo, hi, A, rho
             return lo + a, hi + a, A, rho
-        grow = 0.125 * self._wA[wi] * (t1 - t0) ** 2
+        grow = 0.125 * step.wA[wi] * step.dt ** 2
         return lo + (np.minimum(a, b) - grow), hi + (np.maximum(a, b) + grow), A, rho
 
-    def _movers(self, ends, nb, line, x, v, a, X0, V0, t0, t1):
-        """The contact pass's movers, as columns of one dict: ``kind`` (0 rails, 1 n-body line,
-        2 obstacle), ``body`` (index into this system's bodies, or the obstacle's), ``well`` (rails: its
-        well, else -1), ``rad``; lines' ``lp, lu`` (world position at the step's start, velocity);
-        world boxes ``lo, hi`` over the step; the pull bound ``A`` and distance bound ``rho`` about the
-        well and the well centre's own acceleration bound ``wA`` (rails; 0 on a line), ``root`` (rails
-        about a root well); ``P0, P1, ball`` (rails: the states about the well at the span's ends, and
-        whether its box is the cube it can reach) for the pruning; ``after`` (a line's last contact);
-        ``groups``: the rails movers' slices, one per well (rails movers first, then lines)."""
-        span = t1 - t0
+    def _movers(self, step: GravityStep, ends: dict, nb, drift: Drift | None) -> Movers:
+        """The contact pass's movers (see :class:`~.context.Movers`): the colliders on rails of each well's
+        end ``ends[wi]``, the n-body colliders ``nb`` on their ``drift``, the obstacles."""
+        span = step.dt
+        x, v, a, t0, t1 = step.x, step.v, step.a, step.t0, step.t1
         col = self.world.table(SphereCollider).data
         kinds, bodies, wells_of, rads = [], [], [], []
         p0s, p1s, w0s, w1s, balls = [], [], [], [], []
@@ -163,8 +160,8 @@ class ContactMovers:
                     continue
                 pc = np.flatnonzero(is_c)
                 g = cs
-            p0 = x[g] - X0[wi]
-            w0 = v[g] - V0[wi]
+            p0 = x[g] - step.X0[wi]
+            w0 = v[g] - step.V0[wi]
             if a.any():
                 w0 += 0.5 * span * a[g]                   # (thrust: after the first half kick)
             late = self.ep_t[g] > t0
@@ -173,7 +170,7 @@ class ContactMovers:
                 # the sphere they can reach from there (their path before was about another well)
                 p0[late] = self.ep_r[cs[late]]
                 w0[late] = self.ep_v[cs[late]]
-            kinds.append(np.zeros(cs.size, np.intp))
+            kinds.append(np.full(cs.size, RAILS, np.intp))
             bodies.append(cs)
             wells_of.append(np.full(cs.size, wi, np.intp))
             rads.append(col["radius"][self.c_rows[g]].astype(np.float64))
@@ -184,80 +181,79 @@ class ContactMovers:
             balls.append((self.ep_contact[g] <= t1) | late)
         n_rail = sum(b.size for b in bodies)
         lp, lu = [], []
-        if line is not None:
-            p, u, _ = line
+        if drift is not None:
+            p, u = drift.p, drift.u
             k = np.flatnonzero(self.nb_c_rows[nb] >= 0)
             if k.size:
-                kinds.append(np.ones(k.size, np.intp))
+                kinds.append(np.full(k.size, LINE, np.intp))
                 bodies.append(nb[k])
                 wells_of.append(np.full(k.size, -1, np.intp))
                 rads.append(col["radius"][self.nb_c_rows[nb[k]]].astype(np.float64))
                 lp.append(p[k])
                 lu.append(u[k])
         if self._n_ob:
-            kinds.append(np.full(self._n_ob, 2, np.intp))
+            kinds.append(np.full(self._n_ob, OBSTACLE, np.intp))
             bodies.append(np.arange(self._n_ob))
             wells_of.append(np.full(self._n_ob, -1, np.intp))
             rads.append(col["radius"][self.ob_c_rows].astype(np.float64))
-            lp.append(self._ob_x)
-            lu.append(self._ob_v)
+            lp.append(step.ob_x)
+            lu.append(step.ob_v)
         one = len(kinds) == 1
         cat = (lambda parts: parts[0]) if one else np.concatenate            # noqa: E731
-        mv = {"kind": cat(kinds), "body": cat(bodies), "well": cat(wells_of), "rad": cat(rads),
-              "lp": np.concatenate([np.zeros((n_rail, 3))] + lp) if lp else None,
-              "lu": np.concatenate([np.zeros((n_rail, 3))] + lu) if lu else None}
-        M = mv["kind"].size
-        kind, well, rad = mv["kind"], mv["well"], mv["rad"]
+        mv = Movers(kind=cat(kinds), body=cat(bodies), well=cat(wells_of), rad=cat(rads),
+                    lp=np.concatenate([np.zeros((n_rail, 3))] + lp) if lp else None,
+                    lu=np.concatenate([np.zeros((n_rail, 3))] + lu) if lu else None)
+        M = mv.kind.size
+        kind, well, rad = mv.kind, mv.well, mv.rad
         groups, at = [], 0
         for p0 in p0s:
             groups.append((int(well[at]), slice(at, at + p0.shape[0])))
             at += p0.shape[0]
-        mv["groups"] = groups
+        mv.groups = groups
         if one and n_rail:                                # (one well's colliders and nothing else: no copies)
             wi = groups[0][0]
-            mv["lo"], mv["hi"], mv["A"], mv["rho"] = self._rail_boxes(wi, rad, p0s[0], w0s[0], p1s[0], w1s[0],
-                                                                      span, balls[0])
-            mv["P0"], mv["P1"], mv["ball"] = p0s[0], p1s[0], balls[0]
-            mv["wA"] = np.full(M, self._wA[wi])
-            mv["root"] = np.full(M, self._wells.parent[wi] < 0)
+            mv.lo, mv.hi, mv.A, mv.rho = self._rail_boxes(step, wi, rad, p0s[0], w0s[0], p1s[0], w1s[0],
+                                                          span, balls[0])
+            mv.P0, mv.P1, mv.ball = p0s[0], p1s[0], balls[0]
+            mv.wA = np.full(M, step.wA[wi])
+            mv.root = np.full(M, self._wells.parent[wi] < 0)
         else:
             lo, hi = np.empty((M, 3)), np.empty((M, 3))
-            mv["A"], mv["rho"] = np.zeros(M), np.zeros(M)         # 0 on a line
-            mv["P0"], mv["P1"], mv["ball"] = np.zeros((M, 3)), np.zeros((M, 3)), np.zeros(M, bool)
+            mv.A, mv.rho = np.zeros(M), np.zeros(M)         # 0 on a line
+            mv.P0, mv.P1, mv.ball = np.zeros((M, 3)), np.zeros((M, 3)), np.zeros(M, bool)
             for k, (wi, ms) in enumerate(groups):
-                lo[ms], hi[ms], mv["A"][ms], mv["rho"][ms] = self._rail_boxes(wi, rad[ms], p0s[k], w0s[k], p1s[k],
-                                                                              w1s[k], span, balls[k])
-                mv["P0"][ms], mv["P1"][ms], mv["ball"][ms] = p0s[k], p1s[k], balls[k]
-            lines = np.flatnonzero(kind != 0)
+                lo[ms], hi[ms], mv.A[ms], mv.rho[ms] = self._rail_boxes(step, wi, rad[ms], p0s[k], w0s[k], p1s[k],
+                                                                        w1s[k], span, balls[k])
+                mv.P0[ms], mv.P1[ms], mv.ball[ms] = p0s[k], p1s[k], balls[k]
+            lines = np.flatnonzero(kind != RAILS)
             if lines.size:
-                q0 = mv["lp"][lines]
-                q1 = q0 + mv["lu"][lines] * span
+                q0 = mv.lp[lines]
+                q1 = q0 + mv.lu[lines] * span
                 lo[lines] = np.minimum(q0, q1) - rad[lines, None]
                 hi[lines] = np.maximum(q0, q1) + rad[lines, None]
-            mv["lo"], mv["hi"] = lo, hi
-            mv["wA"] = np.where(kind == 0, self._wA[np.maximum(well, 0)], 0.0)
-            mv["root"] = np.where(kind == 0, self._wells.parent[np.maximum(well, 0)] < 0, False)
-        mv["after"] = np.full(M, -np.inf)
+            mv.lo, mv.hi = lo, hi
+            mv.wA = np.where(kind == RAILS, step.wA[np.maximum(well, 0)], 0.0)
+            mv.root = np.where(kind == RAILS, self._wells.parent[np.maximum(well, 0)] < 0, False)
+        mv.after = np.full(M, -np.inf)
         return mv
 
-    def _candidates(self, mv, span):
+    def _candidates(self, mv: Movers, span: float):
         """The pairs of movers whose boxes meet (``i < j``: a rails mover before a line), less obstacle
         pairs and the pairs on rails about one well whose chords prove them apart (``_near``)."""
-        kind, well = mv["kind"], mv["well"]
-        lo, hi = mv["lo"], mv["hi"]
+        kind, well = mv.kind, mv.well
+        lo, hi = mv.lo, mv.hi
         pa, pb = bp.box_pairs(lo, hi, _broad_method(lo, hi))
         pa, pb = pa.astype(np.intp), pb.astype(np.intp)
         if self._n_ob > 1:
-            keep = ~((kind[pa] == 2) & (kind[pb] == 2))  # obstacle with obstacle: not ours
+            keep = ~((kind[pa] == OBSTACLE) & (kind[pb] == OBSTACLE))  # obstacle with obstacle: not ours
             pa, pb = pa[keep], pb[keep]
         mu = self._wells.mu
-        near = lambda i, j, wi: self._near(i, j, mv["ball"], mv["P0"], mv["P1"], mv["rad"], mv["A"],  # noqa: E731
-                                           mv["rho"], span, mu[wi])
-        groups = mv["groups"]
+        near = lambda i, j, wi: self._near(mv, i, j, span, mu[wi])                                # noqa: E731
+        groups = mv.groups
         if len(groups) == 1 and groups[0][1].stop == kind.size:      # (all on rails about one well)
             keep = near(pa, pb, groups[0][0])
             return pa[keep], pb[keep]
-        same = (kind[pa] == 0) & (kind[pb] == 0) & (well[pa] == well[pb])
+        same = (kind[pa] == RAILS) & (kind[pb] == RAILS) & (well[pa] == well[pb])
         if same.any():
             keep = np.ones(pa.size, bool)
             for wi in np.unique(well[pa[same]]):
@@ -266,33 +262,33 @@ class ContactMovers:
             pa, pb = pa[keep], pb[keep]
         return pa, pb
 
-    def _rebox(self, mv, m, tp, t0, t1):
+    def _rebox(self, step: GravityStep, mv: Movers, m: int, tp: float) -> None:
         """Mover ``m`` is on a new path from ``tp``: its box (and bounds) from there to ``t1``."""
-        if mv["kind"][m] == 0:
-            i = mv["body"][m]
-            wi = int(mv["well"][m])
+        t0, t1 = step.t0, step.t1
+        if mv.kind[m] == RAILS:
+            i = mv.body[m]
+            wi = int(mv.well[m])
             pe, we = kepler.propagate(self.ep_r[i:i + 1], self.ep_v[i:i + 1], self._wells.mu[wi], t1 - self.ep_t[i])
             ms = np.array([m])
-            mv["lo"][ms], mv["hi"][ms], mv["A"][ms], mv["rho"][ms] = self._rail_boxes(
-                wi, mv["rad"][ms], self.ep_r[i:i + 1], self.ep_v[i:i + 1], pe, we, t1 - tp,
+            mv.lo[ms], mv.hi[ms], mv.A[ms], mv.rho[ms] = self._rail_boxes(
+                step, wi, mv.rad[ms], self.ep_r[i:i + 1], self.ep_v[i:i + 1], pe, we, t1 - tp,
                 np.array([self.ep_contact[i] <= t1]))
         else:
-            q0 = mv["lp"][m] + mv["lu"][m] * (tp - t0)
-            q1 = mv["lp"][m] + mv["lu"][m] * (t1 - t0)
-            mv["lo"][m] = np.minimum(q0, q1) - mv["rad"][m]
-            mv["hi"][m] = np.maximum(q0, q1) + mv["rad"][m]
+            q0 = mv.lp[m] + mv.lu[m] * (tp - t0)
+            q1 = mv.lp[m] + mv.lu[m] * (t1 - t0)
+            mv.lo[m] = np.minimum(q0, q1) - mv.rad[m]
+            mv.hi[m] = np.maximum(q0, q1) + mv.rad[m]
 
-    def _lines_after(self, mv, nb, line, t0):
-        """The n-body drift lines after the pass: ``(p, u, since)``, ``since`` each body's last contact in
-        the step (s from its start; -inf: none)."""
-        if line is None:
+    def _lines_after(self, step: GravityStep, mv: Movers, nb, drift: Drift | None) -> Drift | None:
+        """The n-body drifts after the pass, each from its last contact in the step."""
+        if drift is None:
             return None
         k = np.flatnonzero(self.nb_c_rows[nb] >= 0)
         if not k.size:
-            return line
-        ms = np.flatnonzero(mv["kind"] == 1)
-        p, u = line[0].copy(), line[1].copy()
-        p[k], u[k] = mv["lp"][ms], mv["lu"][ms]
+            return drift
+        ms = np.flatnonzero(mv.kind == LINE)
+        p, u = drift.p.copy(), drift.u.copy()
+        p[k], u[k] = mv.lp[ms], mv.lu[ms]
         since = np.full(nb.size, -np.inf)
-        since[k] = mv["after"][ms] - t0
-        return p, u, since
+        since[k] = mv.after[ms] - step.t0
+        return Drift(p, u, since)

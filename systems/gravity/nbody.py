@@ -10,6 +10,7 @@ from driftframe.components.gravity import G, NBody, SurfaceContact
 from driftframe.framework import kepler
 from driftframe.framework.step import advance
 from driftframe.framework.store import to_indices
+from driftframe.systems.gravity.context import Drift, GravityStep
 
 
 class NBodyFlight:
@@ -72,40 +73,41 @@ class NBodyFlight:
             acc -= np.einsum("ij,ijk->ik", gm[None, :] / (r2 * np.sqrt(r2)), d)
         return acc
 
-    def _kick(self, sel, x, v, a, X0, dt):
+    def _kick(self, step: GravityStep, sel) -> Drift:
         """The n-body bodies' first half kick: their straight drift over the step, ``p + u t`` (t from the
-        step's start), and each body's last contact time in the step (-inf: none)."""
-        p = x[sel]
-        u = v[sel] + 0.5 * dt * (self._accel(p, X0, self.gm[sel]) + a[sel])
-        return p, u, np.full(sel.size, -np.inf)
+        step's start), no contact yet."""
+        p = step.x[sel]
+        u = step.v[sel] + 0.5 * step.dt * (self._accel(p, step.X0, self.gm[sel]) + step.a[sel])
+        return Drift(p, u, np.full(sel.size, -np.inf))
 
-    def _leapfrog_end(self, sel, line, a, X0, X1, dt, t0, x1, v1, events):
+    def _leapfrog_end(self, step: GravityStep, sel, drift: Drift, surfaces_met: bool) -> None:
         """The rest of the n-body step: the drift (met by the sphere contacts in :meth:`_contacts`, so
         each body is on the line ``p + u t`` from its last contact on) against each well's surface (the
-        colliders' met there already, when the contact pass ran), then the second half kick."""
+        colliders' met there already, when the contact pass ran: ``surfaces_met``), then the second half
+        kick, into ``step.x1, step.v1``."""
         gm = self.gm[sel]
-        p, u, after = line
-        p, u = p.copy(), u.copy()
+        dt, t0 = step.dt, step.t0
+        p, u = drift.p.copy(), drift.u.copy()
         todo = np.arange(sel.size)
-        if self._nb_surfaces_done:
+        if surfaces_met:
             todo = todo[self.nb_c_rows[sel] < 0]
         if todo.size:
-            t_hit, w_hit = self._line_surfaces(p[todo], u[todo], t0 + np.maximum(after[todo], 0.0), t0 + dt)
+            t_hit, w_hit = self._line_surfaces(step, p[todo], u[todo], t0 + np.maximum(drift.since[todo], 0.0))
             for j in np.flatnonzero(np.isfinite(t_hit)):
                 k = todo[j]
-                p[k], u[k] = self._reflect(sel[k], p[k], u[k], int(w_hit[j]), float(t_hit[j]), events)
+                p[k], u[k] = self._reflect(step, sel[k], p[k], u[k], int(w_hit[j]), float(t_hit[j]))
         q = p + u * dt
-        u = u + 0.5 * dt * (self._accel(q, X1, gm) + a[sel])
-        x1[sel] = q
-        v1[sel] = u
+        u = u + 0.5 * dt * (self._accel(q, step.X1, gm) + step.a[sel])
+        step.x1[sel] = q
+        step.v1[sel] = u
 
-    def _line_surfaces(self, lp, lu, t_from, t1):
+    def _line_surfaces(self, step: GravityStep, lp, lu, t_from):
         """The first surface contact of drift lines ``lp + lu (t - t0)`` (n-body bodies, world frame,
-        ``(n, 3)``) after ``t_from`` ``(n,)``, by ``t1``: ``(time, well)`` (inf, -1: none). A root well
+        ``(n, 3)``) after ``t_from`` ``(n,)``, by the step's end: ``(time, well)`` (inf, -1: none). A root well
         moves straight: the closed form of two lines; a moon on its conic: conservative advancement
         (:func:`framework.kepler.time_to_touch_paths`), after a cheap test of how far the gap can close."""
         wells = self._wells
-        X0, V0, t0, _ = self._step
+        X0, V0, t0, t1 = step.X0, step.V0, step.t0, step.t1
         n = lp.shape[0]
         best_t = np.full(n, np.inf)
         best_w = np.full(n, -1, np.intp)
@@ -123,33 +125,33 @@ class NBodyFlight:
                 t = t_from + s
                 hit = (bb < 0) & (disc >= 0) & (cc > 0) & (t <= t1)
             else:
-                X, V = self._well_at(wi, t_from)
+                X, V = self._well_at(step, wi, t_from)
                 span = np.maximum(t1 - t_from, 0.0)
                 near = np.flatnonzero(kepler._norm(lp + lu * (t_from - t0)[:, None] - X) - R
-                                      <= (kepler._norm(lu - V) + self._wA[wi] * span) * span)
+                                      <= (kepler._norm(lu - V) + step.wA[wi] * span) * span)
                 t = np.full(n, np.inf)
                 if near.size:
                     at_line = lambda i, tt: (lp[near[i]] + lu[near[i]] * (tt - t0)[:, None], lu[near[i]])  # noqa: E731
-                    at_moon = lambda i, tt: self._well_at(wi, tt)                                          # noqa: E731
+                    at_moon = lambda i, tt: self._well_at(step, wi, tt)                                    # noqa: E731
                     t[near], _ = kepler.time_to_touch_paths(at_line, at_moon, np.full(near.size, R), t_from[near],
-                                                            np.full(near.size, t1), np.full(near.size, self._wA[wi]))
+                                                            np.full(near.size, t1), np.full(near.size, step.wA[wi]))
                 hit = np.isfinite(t)
             better = hit & (t < best_t)
             best_t[better] = t[better]
             best_w[better] = wi
         return best_t, best_w
 
-    def _reflect(self, k, p, u, wi, tc, events):
+    def _reflect(self, step: GravityStep, k, p, u, wi: int, tc: float):
         """n-body body ``self.ents[k]`` on the line ``p + u (t - t0)`` meets well ``wi``'s surface at
         ``tc``: its velocity relative to the well reflected about the normal (elastic); returns the line
         through the contact from then on, ``(p, u)``."""
-        t0 = self._step[2]
+        t0 = step.t0
         xc = p + u * (tc - t0)
-        Xc, Vc = self._well_at(wi, np.array([tc]))
+        Xc, Vc = self._well_at(step, wi, np.array([tc]))
         n_hat = (xc - Xc[0]) / np.linalg.norm(xc - Xc[0])
         w_rel = u - Vc[0]
         un = float(w_rel @ n_hat)
-        events.append(SurfaceContact(int(self.ents[k]), self._wells.ents[wi], float(tc),
+        step.events.append(SurfaceContact(int(self.ents[k]), self._wells.ents[wi], float(tc),
                                      float(np.linalg.norm(w_rel)), -un))
         u_new = w_rel - 2.0 * un * n_hat + Vc[0]
         return xc - u_new * (tc - t0), u_new

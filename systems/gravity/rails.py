@@ -12,6 +12,7 @@ import numpy as np
 
 from driftframe.components.gravity import SurfaceContact
 from driftframe.framework import kepler
+from driftframe.systems.gravity.context import GravityStep, RailsEnd
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
 MAX_CONTACTS = 4
@@ -20,50 +21,51 @@ MAX_CONTACTS = 4
 class Rails:
     """The bodies on rails (a part of :class:`~.system.GravitySystem`)."""
 
-    def _take_epochs(self, sel, wi, x, v, a, thrust, edited, X0, V0, t0, dt, done=None):
+    def _take_epochs(self, step: GravityStep, sel, wi: int, done=None) -> None:
         """A new epoch at ``t0`` about well ``wi`` for those of bodies ``sel`` whose engine fires, whose
         well changed, or that someone else moved (not those in ``done``: taken already this step)."""
         g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
-        new = thrust[g] | edited[g] | (self.ep_well[g] != wi)
+        new = step.thrust[g] | step.edited[g] | (self.ep_well[g] != wi)
         if done is not None:
             new &= ~done[g]
         if new.any():
             mu, R = self._wells.mu[wi], self._wells.radius[wi]
             self._epoch_version += 1
             k = sel[new]
-            self.ep_r[k] = x[k] - X0[wi]
-            self.ep_v[k] = v[k] - V0[wi] + 0.5 * dt * a[k]           # thrust: the first half kick
+            t0 = step.t0
+            self.ep_r[k] = step.x[k] - step.X0[wi]
+            self.ep_v[k] = step.v[k] - step.V0[wi] + 0.5 * step.dt * step.a[k]     # thrust: the first half kick
             self.ep_t[k] = t0
             self.ep_well[k] = wi
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
 
-    def _rails(self, sel, wi, x, v, a, thrust, edited, X0, V0, t0, t1, events, look, done=None, crossed=None):
+    def _rails(self, step: GravityStep, sel, wi: int, look: bool, done=None, crossed=None) -> RailsEnd:
         """Bodies ``sel`` on rails about well ``wi``: their epochs for the step, the surface contacts of
         those whose contacts are not looked for in :meth:`_contacts` (there the colliders meet the
         surface in time order with everything else), and their states about the well at ``t1``
-        (before any sphere contact): ``r, u, chi, guess``."""
-        wells = self._wells
-        mu = wells.mu[wi]
-        dt = t1 - t0
+        (before any sphere contact)."""
+        mu = self._wells.mu[wi]
         g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
-        self._take_epochs(sel, wi, x, v, a, thrust, edited, X0, V0, t0, dt, done)
+        self._take_epochs(step, sel, wi, done)
         plain = sel[self.c_rows[sel] < 0] if look else sel
         if plain.size:
-            self._surfaces(plain, wi, t1, events)
+            self._surfaces(plain, wi, step.t1, step.events)
         # from the epoch for the whole time since (no error carried from step to step), warm-started
-        # from the last step's chi moved on by its Taylor series (kepler.next_chi; the state at the
-        # step's start is the last step's result). The guess changes how fast the solver converges,
-        # and where only within its few ulp.
-        guess = kepler.next_chi(self.ep_chi[g], x[g], v[g], mu, t1 - t0, origin=(X0[wi], V0[wi]))
+        # from the last step's chi moved on by its Taylor series over the step (kepler.next_chi; the
+        # state at the step's start is the last step's result). The guess changes how fast the solver
+        # converges, and where only within its few ulp.
+        guess = kepler.next_chi(self.ep_chi[g], step.x[g], step.v[g], mu, step.dt, origin=(step.X0[wi], step.V0[wi]))
         if crossed is not None and crossed[g].any():
             guess[crossed[g]] = np.nan                     # (it started the step about another well: no guess)
-        r, u, chi = self._epoch(wi, sel, mu).at(t1 - self.ep_t[g], guess)
-        return r, u, chi, guess
+        r, u, chi = self._epoch(wi, sel, mu).at(step.t1 - self.ep_t[g], guess)
+        return RailsEnd(sel, r, u, chi, guess)
 
-    def _rails_end(self, sel, wi, r, u, chi, guess, touched, a, thrust, X1, V1, t1, x1, v1):
-        """The end-of-step states of bodies ``sel`` about well ``wi``: again from their new epochs where a
-        sphere contact ``touched`` them, then thrust's second half kick."""
+    def _rails_end(self, step: GravityStep, wi: int, end: RailsEnd, touched) -> None:
+        """The end-of-step states of a well's bodies (``step.x1, step.v1``): again from their new epochs
+        where a sphere contact ``touched`` them, then thrust's second half kick."""
+        sel, r, u, chi = end.sel, end.r, end.u, end.chi
+        t1, dt, a, thrust = step.t1, step.dt, step.a, step.thrust
         mu = self._wells.mu[wi]
         g = slice(None) if sel.size == self._n else sel
         if touched.size:
@@ -72,23 +74,22 @@ class Rails:
             if mine.size:
                 p = np.searchsorted(sel, mine)
                 r[p], u[p], chi[p] = kepler.Epoch(self.ep_r[mine], self.ep_v[mine], mu).at(
-                    t1 - self.ep_t[mine], guess[p])
+                    t1 - self.ep_t[mine], end.guess[p])
         self.ep_chi[g] = chi
-        dt = t1 - self._step[2]
         th = thrust[g]
         if th.any():
             # the second half kick; the state after it is the next step's epoch (taken then, as thrust)
             u[th] += 0.5 * dt * a[sel[th]]
-        x1[g] = X1[wi] + r
-        v1[g] = V1[wi] + u
+        step.x1[g] = step.X1[wi] + r
+        step.v1[g] = step.V1[wi] + u
         if touched.size:
             # colliders that changed sphere of influence in the contact pass: about their new well
             away = touched[np.isin(touched, sel) & (self.ep_well[touched] != wi)]
             for c in away:
                 wj = int(self.ep_well[c])
                 rr, uu = kepler.propagate(self.ep_r[c], self.ep_v[c], self._wells.mu[wj], t1 - self.ep_t[c])
-                x1[c] = X1[wj] + rr
-                v1[c] = V1[wj] + uu + (0.5 * dt * a[c] if thrust[c] else 0.0)
+                step.x1[c] = step.X1[wj] + rr
+                step.v1[c] = step.V1[wj] + uu + (0.5 * dt * a[c] if thrust[c] else 0.0)
                 self.ep_chi[c] = 0.0
         if th.any():
             self.ep_well[sel[th]] = -1

@@ -14,6 +14,7 @@ from driftframe.framework import kepler
 from driftframe.framework.step import StepContext
 from driftframe.framework.store import as_index, to_indices
 from driftframe.systems.gravity.contacts import _NO_BODIES, SphereContacts
+from driftframe.systems.gravity.context import GravityStep, PassResult, RailsEnd
 from driftframe.systems.gravity.crossings import Crossings
 from driftframe.systems.gravity.lookahead import LookAhead
 from driftframe.systems.gravity.movers import ContactMovers
@@ -57,6 +58,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         self._n_ob = 0                                    # colliders gravity does not move (obstacles)
         self._ob_version = None
         self._warned: set = set()
+        self._last_step: GravityStep | None = None       # (the look-ahead evaluates from the last step)
         self.lookahead_is_bound = False
 
 
@@ -216,10 +218,54 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         oq = world.query(Transform, SphereCollider, optional=(Velocity,))
         if oq.refresh() or self._ob_version is None:
             self._build_obstacles(oq)
-        n = self._n
-        if not n:
+        if not self._n:
             return
-        wells = self._wells
+        step = self._begin(dt)
+        self._last_step = step                            # (the look-ahead evaluates from the last step)
+        n, W, wells = self._n, len(self._wells), self._wells
+        dom = _dominant(wells, step.x, step.X0, self.moon_parent) if W > 1 else np.zeros(n, np.intp)
+        rails = ~self.nbody
+        nb = np.flatnonzero(self.nbody)
+        # sphere contacts are looked for where two or more colliders move, or one and an obstacle
+        movers = self._n_col + self._n_nb_col
+        look = movers >= 2 or (movers and self._n_ob)
+        done = crossed = None
+        if W > 1 and (wells.parent >= 0).any():
+            # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
+            done, crossed = self._crossings(step, rails, dom, defer=(self.c_rows >= 0) if look else None)
+        else:
+            self.ep_cross = None
+        ends: dict[int, RailsEnd] = {}
+        for wi in range(W):                               # parents first: a moon is placed before its bodies
+            sel = np.flatnonzero(rails & (dom == wi))
+            if sel.size:
+                ends[wi] = self._rails(step, sel, wi, look, done, crossed)
+            # wells whose parent is wi: their state at t1 is now known (a moon is never touched by a
+            # sphere contact: it is a well)
+            for wj in np.flatnonzero(wells.parent == wi):
+                self._place_moon(step, int(wj), ends[wi])
+        drift = self._kick(step, nb) if nb.size else None
+        passed = PassResult(_NO_BODIES, drift, False)
+        if look:
+            # every sphere contact of the step, in time order: on rails, on the n-body drift, obstacles
+            passed = self._contacts(step, ends, nb, drift)
+        for wi, end in ends.items():
+            self._rails_end(step, wi, end, passed.touched)
+        if nb.size:
+            self._leapfrog_end(step, nb, passed.drift, passed.surfaces_met)
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        ctx.position[self.t_rows] = step.x1
+        ctx.velocity[self.v_rows] = step.v1
+        self.last_x = step.x1
+        self.last_v = step.v1
+        for ev in step.events:
+            world.emit(ev)
+
+    def _begin(self, dt: float) -> GravityStep:
+        """The step's context: its times as given, the wells' and the bodies' states at its start."""
+        world = self.world
+        n, wells = self._n, self._wells
         pos_t = world.table(Transform).data["position"]
         vel_t = world.table(Velocity).data["linear"]
         x = pos_t[self.t_rows]
@@ -230,78 +276,37 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         if has_a.any():
             a[has_a] = world.table(Acceleration).data["linear"][self.a_rows[has_a]]
             thrust = np.any(a != 0.0, axis=1)
-        # times as step_count * dt (never summed), so a time is the same number however it was reached
-        t0 = world.step_count * dt
-        t1 = (world.step_count + 1) * dt
-        W = len(wells)
         X0 = pos_t[wells.t_rows]
         V0 = np.where((wells.v_rows >= 0)[:, None], vel_t[np.maximum(wells.v_rows, 0)], 0.0)
-        # root wells move at their own velocity (the movement system moves them); moons as bodies below
-        X1 = X0 + V0 * dt
-        V1 = V0.copy()
-        x1 = np.empty_like(x)
-        v1 = np.empty_like(v)
-        events = []
-        dom = _dominant(wells, x, X0, self.moon_parent) if W > 1 else np.zeros(n, np.intp)
         if np.array_equal(x, self.last_x) and np.array_equal(v, self.last_v):
             edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
         else:
             edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
         # the obstacles at the step's start (the components: the commit stage writes their end later)
-        self._ob_x = pos_t[self.ob_t_rows]
         has = self.ob_v_rows >= 0
-        self._ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
-        self._step = (X0, V0, t0, t1)
-        rails = ~self.nbody
-        nb = np.flatnonzero(self.nbody)
-        # sphere contacts are looked for where two or more colliders move, or one and an obstacle
-        movers = self._n_col + self._n_nb_col
-        look = movers >= 2 or (movers and self._n_ob)
-        done = crossed = None
-        if W > 1 and (wells.parent >= 0).any():
-            # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
-            done, crossed = self._crossings(rails, dom, x, v, a, thrust, edited, X0, V0, t0, t1,
-                                            defer=(self.c_rows >= 0) if look else None)
-        else:
-            self.ep_cross = None
-        ends = {}
-        self._wA = np.zeros(W)                            # a bound on each well centre's acceleration
-        for wi in range(W):                               # parents first: a moon is placed before its bodies
-            sel = np.flatnonzero(rails & (dom == wi))
-            if sel.size:
-                ends[wi] = (sel, *self._rails(sel, wi, x, v, a, thrust, edited, X0, V0, t0, t1, events, look,
-                                              done, crossed))
-            # wells whose parent is wi: their state at t1 is now known (a moon is never touched by a
-            # sphere contact: it is a well)
-            for wj in np.flatnonzero(wells.parent == wi):
-                kk = int(np.flatnonzero(self.well_index == wj)[0])
-                sel_w, r, u = ends[wi][0], ends[wi][1], ends[wi][2]
-                p = int(np.searchsorted(sel_w, kk))
-                X1[wj] = X1[wi] + r[p]
-                V1[wj] = V1[wi] + u[p] + (0.5 * dt * a[kk] if thrust[kk] else 0.0)
-                _, _, A_m, _ = kepler.arc_boxes(x[kk:kk + 1] - X0[wi], v[kk:kk + 1] - V0[wi], r[p:p + 1], u[p:p + 1],
-                                                dt, wells.mu[wi], wells.radius[wi], np.zeros(1, bool))
-                self._wA[wj] = A_m[0] + self._wA[wi]
-        line = None
-        if nb.size:
-            line = self._kick(nb, x, v, a, X0, dt)
-        touched = _NO_BODIES
-        self._nb_surfaces_done = False
-        if look:
-            # every sphere contact of the step, in time order: on rails, on the n-body drift, obstacles
-            touched, line = self._contacts(ends, nb, line, x, v, a, X0, V0, X1, t0, t1, events)
-        for wi, (sel, r, u, chi, guess) in ends.items():
-            self._rails_end(sel, wi, r, u, chi, guess, touched, a, thrust, X1, V1, t1, x1, v1)
-        if nb.size:
-            self._leapfrog_end(nb, line, a, X0, X1, dt, t0, x1, v1, events)
-        ctx = world.step_context
-        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
-        ctx.position[self.t_rows] = x1
-        ctx.velocity[self.v_rows] = v1
-        self.last_x = x1
-        self.last_v = v1
-        for ev in events:
-            world.emit(ev)
+        # times as step_count * dt (never summed), so a time is the same number however it was reached;
+        # root wells move at their own velocity (the movement system moves them); moons as bodies
+        return GravityStep(t0=world.step_count * dt, t1=(world.step_count + 1) * dt, dt=dt,
+                           X0=X0, V0=V0, X1=X0 + V0 * dt, V1=V0.copy(), wA=np.zeros(len(wells)),
+                           x=x, v=v, a=a, thrust=thrust, edited=edited,
+                           ob_x=pos_t[self.ob_t_rows],
+                           ob_v=np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0),
+                           x1=np.empty_like(x), v1=np.empty_like(v), events=[])
+
+    def _place_moon(self, step: GravityStep, wj: int, end: RailsEnd) -> None:
+        """Moon ``wj``'s centre at ``t1`` from its parent's bodies' end (it is one of them), and the bound
+        on its acceleration over the step (its pull about the parent's, plus the parent's own)."""
+        wells = self._wells
+        wi = int(wells.parent[wj])
+        kk = int(np.flatnonzero(self.well_index == wj)[0])
+        p = int(np.searchsorted(end.sel, kk))
+        r, u = end.r, end.u
+        step.X1[wj] = step.X1[wi] + r[p]
+        step.V1[wj] = step.V1[wi] + u[p] + (0.5 * step.dt * step.a[kk] if step.thrust[kk] else 0.0)
+        _, _, A_m, _ = kepler.arc_boxes(step.x[kk:kk + 1] - step.X0[wi], step.v[kk:kk + 1] - step.V0[wi],
+                                        r[p:p + 1], u[p:p + 1], step.dt, wells.mu[wi], wells.radius[wi],
+                                        np.zeros(1, bool))
+        step.wA[wj] = A_m[0] + step.wA[wi]
 
     def _warn_once(self, key: str, text: str) -> None:
         if key not in self._warned:

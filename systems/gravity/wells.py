@@ -13,6 +13,7 @@ from driftframe.components.body import Transform, Velocity
 from driftframe.components.gravity import GravityWell
 from driftframe.framework import kepler
 from driftframe.framework.store import to_indices
+from driftframe.systems.gravity.context import GravityStep
 
 
 class _Wells:
@@ -96,10 +97,11 @@ def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
 class WellPaths:
     """Where each well's centre is at a time in the step (a part of :class:`~.system.GravitySystem`)."""
 
-    def _well_at(self, wi, t):
+    def _well_at(self, step: GravityStep, wi: int, t):
         """Well ``wi``'s centre at absolute times ``t`` ``(n,)`` in the step: positions, velocities (world
-        frame). A root well moves straight; a moon on its conic about its parent."""
-        X0, V0, t0, _ = self._step
+        frame). A root well moves straight from its state at the start of ``step``; a moon on its conic about its
+        parent."""
+        X0, V0, t0 = step.X0, step.V0, step.t0
         wells = self._wells
         t = np.asarray(t, dtype=np.float64)
         p = wells.parent[wi]
@@ -108,5 +110,5 @@ class WellPaths:
         kk = int(np.flatnonzero(self.well_index == wi)[0])
         r, v = kepler.propagate(np.broadcast_to(self.ep_r[kk], (t.size, 3)), np.broadcast_to(self.ep_v[kk], (t.size, 3)),
                                 wells.mu[p], t - self.ep_t[kk])
-        P, Vp = self._well_at(int(p), t)
+        P, Vp = self._well_at(step, int(p), t)
         return P + r, Vp + v
