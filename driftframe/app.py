@@ -181,13 +181,15 @@ def load_kernels(name: str, *, seed: int = 0) -> None:
 
 def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tuple[int, int] | str = (1280, 720), *,
                      camera: str | None = None, hud: bool = True, sky: str | bool | None = None,
-                     **options: Any) -> RenderSystem:
+                     sound: bool = True, **options: Any) -> RenderSystem:
     """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.
 
     ``camera``: start in ``"cockpit"``, ``"chase"`` or ``"overhead"`` (default: as the demo
     built it). ``sky``: ``"starfield"`` (a star cube map made from the world's seed),
     ``"lines"`` (the articles' green line cube), False for none, or None (the default):
-    the demo's ``SKY``, else the starfield. Returns the :class:`~systems.render.RenderSystem`.
+    the demo's ``SKY``, else the starfield. ``sound``: add the sound cues of impacts and thrust
+    (:mod:`systems.sound`: an MP4 recording gets a sound track, ``play`` plays them). Returns the
+    :class:`~systems.render.RenderSystem`.
     """
     from driftframe.systems import camera as camera_sys
     from driftframe.systems.render import attach, default_sky
@@ -210,6 +212,9 @@ def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tu
         if hud:
             from driftframe.systems.hud import HudSystem
             world.add_system(HudSystem(render))
+    if sound:
+        from driftframe.systems.sound import attach as attach_sound
+        attach_sound(world)
     if camera is not None:
         camera_sys.switch_camera(world, camera)
     return render

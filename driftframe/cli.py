@@ -192,6 +192,8 @@ def build_parser() -> argparse.ArgumentParser:
                           f"{X264_CRF.get(X264_PRESET, X264_DEFAULT_CRF)} for {X264_PRESET} and "
                           f"{X264_DEFAULT_CRF} for the others, about the same picture)")
     rec.add_argument("--quiet", action="store_true", help="no progress bar")
+    rec.add_argument("--no-audio", action="store_true",
+                     help="MP4: leave out the sound track (impacts and thrust, synthesised from the events)")
     rec.add_argument("--track", default=None, metavar="FILE",
                      help="fly the track FILE (from `play --save-track`) instead of the demo's script; its "
                           "seed, camera, sky and length are used unless --seed, --camera, --sky, --seconds say "
@@ -221,6 +223,8 @@ def build_parser() -> argparse.ArgumentParser:
     play.add_argument("--frames", type=_int_at_least("frames"), default=None, metavar="N",
                       help="quit after N frames (the closing line gives the frame rate)")
     play.add_argument("--overlay", action="store_true", help="start with the F3 overlay shown")
+    play.add_argument("--mute", action="store_true",
+                      help="no sound (impacts and thrust through the sound card; none there: a one-line warning)")
     play.add_argument("--no-interpolation", action="store_true",
                       help="draw the state after the last step instead of poses between steps")
 
@@ -512,7 +516,7 @@ def cmd_record(args) -> int:
                 log = attach_hash_log(world, args.hash_log, overwrite=args.overwrite)
             result = record(world, out, frames=frames, fps=args.fps, steps_per_frame=k, progress=not args.quiet,
                             overwrite=args.overwrite, motion_blur=args.motion_blur, interpolate=poses,
-                            preset=args.preset or X264_PRESET, crf=args.crf)
+                            preset=args.preset or X264_PRESET, crf=args.crf, audio=not args.no_audio)
         finally:
             world.close()                           # the hash log is moved into place here, however it ended
     except OutputExistsError as e:                  # early, or at record()'s own check (made meanwhile)
@@ -575,7 +579,7 @@ def cmd_play(args) -> int:
                     screenshot_dir=args.screenshots, sky=args.sky, bindings=bindings,
                     save_track=args.save_track,
                     hash_log=args.hash_log, frames=args.frames, overlay=args.overlay,
-                    interpolate=not args.no_interpolation, overwrite=args.overwrite)
+                    interpolate=not args.no_interpolation, overwrite=args.overwrite, sound=not args.mute)
     except PlayError as e:
         raise UsageError(str(e)) from None
 

@@ -210,7 +210,7 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
          save_track: str | None = None, hash_log: str | None = None, frames: int | None = None,
          overlay: bool = False, interpolate: bool = True, loop_options: dict[str, Any] | None = None,
          setup: Callable[[World], object] | None = None, quiet: bool = False, sky: str | None = None,
-         overwrite: bool = False, handle_signals: bool = True) -> int:
+         overwrite: bool = False, handle_signals: bool = True, sound: bool = True) -> int:
     """Open a window and fly ``name`` until Esc, the window is closed, or ``frames`` frames.
 
     ``name``: a demo (``"asteroids"``), your scene as ``"module:function"``
@@ -228,6 +228,8 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
     :mod:`framework.output` (an existing file is refused unless ``overwrite``).
 
     ``sky``: ``"starfield"`` or ``"lines"``; None: the demo's (see :func:`driftframe.app.attach_rendering`).
+    ``sound``: play the impacts and the engine (:mod:`driftframe.speaker`; no output device: one
+    line on stderr, and the flight goes on silently); False: muted.
     ``bindings``: a :class:`~framework.bindings.Bindings` (default: the
     defaults). ``save_track``: on quit, write the flight as a track file.
     ``hash_log``: one ``STEP HASH`` line per step. ``frames``: quit after so
@@ -267,7 +269,7 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
                         state_out=state_out, screenshot_dir=screenshot_dir, bindings=bindings,
                         save_track=save_track, hash_log=hash_log, frames=frames, overlay=overlay,
                         interpolate=interpolate, loop_options=loop_options, setup=setup, quiet=quiet, sky=sky,
-                        overwrite=overwrite)
+                        overwrite=overwrite, sound=sound)
     if flight.errors:
         for line in flight.errors:
             print(f"driftframe: error: {line}", file=sys.stderr)
@@ -373,9 +375,10 @@ def _on_lost_display(glfw, flight):
 
 
 def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, screenshot_dir, bindings, save_track,
-          hash_log, frames, overlay, interpolate, loop_options, setup, quiet, sky, overwrite):
+          hash_log, frames, overlay, interpolate, loop_options, setup, quiet, sky, overwrite, sound):
     """:func:`play`'s body, under its signal handlers; returns the signal that stopped it, or None."""
     from driftframe.app import attach_rendering, make_world
+    from driftframe.framework.audio import RATE
     from driftframe.framework.bindings import gamepad_actions, gamepad_channels
     from driftframe.framework.gl import wrap_current_context
     from driftframe.framework.hashlog import attach_hash_log
@@ -391,6 +394,7 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
     win = open_window(glfw, size, f"driftframe - {demo.TITLE}")
     restore_x = _on_lost_display(glfw, flight)
     world = None
+    speaker = None
     stopped = None
     shots: list[str] = []
     try:
@@ -403,7 +407,14 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
         else:
             world, demo = make_world(name, seed=seed, scripted=False)
         target = LetterboxTarget.for_window(ctx, glfw.get_framebuffer_size(win), size[0] / size[1])
-        render = attach_rendering(world, ctx, target=target, camera=camera, sky=sky)
+        render = attach_rendering(world, ctx, target=target, camera=camera, sky=sky, sound=False)
+        soundtrack = None
+        if sound:
+            from driftframe.speaker import open_speaker
+            from driftframe.systems.sound import attach as attach_sound
+            speaker = open_speaker(quiet=quiet)
+            if speaker is not None:             # (no device: no cues either)
+                soundtrack = attach_sound(world)
         hud = world.get_system(HudSystem)
         inputs = world.get_system(InputSystem)
         interp = attach_interpolation(world, render) if interpolate else None
@@ -551,6 +562,9 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
                 else:
                     hud.overlay = None
                 world.render()
+                if soundtrack is not None:          # the frame's sounds, as many samples as wall time has passed
+                    due = round((time.perf_counter() - t_start) * RATE)
+                    speaker.feed(soundtrack.take(due - soundtrack.samples, world.time))
                 if ui["screenshot"]:
                     ui["screenshot"] = False
                     shots.append(_screenshot(render, label.replace(":", "-"), world.step_count, screenshot_dir))
@@ -600,6 +614,8 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
                       file=sys.stderr)
         raise
     finally:
+        if speaker is not None:
+            speaker.close()
         if world is not None:
             world.close()
         glfw.destroy_window(win)

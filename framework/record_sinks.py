@@ -53,6 +53,10 @@ class _Sink:
     def write(self, raw) -> None:
         raise NotImplementedError
 
+    def write_audio(self, samples) -> None:
+        """A block of mono float32 sound samples (only a sink opened with a sound track takes them)."""
+        raise NotImplementedError(f"{type(self).__name__} has no sound track")
+
     def finish(self) -> None:
         """Complete the temporary output (a valid file with the frames written so far)."""
 
@@ -72,7 +76,7 @@ class _H264Sink(_Sink):
     frame reaches x264 without a copy into a second process.
     """
 
-    def __init__(self, tmp, size, fps, *, crf: int, preset: str, pixel_format: str = "rgba"):
+    def __init__(self, tmp, size, fps, *, crf: int, preset: str, pixel_format: str = "rgba", audio: bool = False):
         super().__init__(tmp, size, fps)
         import av
         from av.video.reformatter import VideoReformatter
@@ -97,6 +101,7 @@ class _H264Sink(_Sink):
                 stream.width, stream.height = w, h
                 stream.pix_fmt = "nv12" if pixel_format == "nv12" else "yuv420p"
                 stream.thread_count = X264_THREADS      # the bitstream depends on the thread count
+                self._sound = _SoundTrack(av, self._out) if audio else None
             except BaseException:
                 self._out.close()
                 raise
@@ -129,9 +134,19 @@ class _H264Sink(_Sink):
         self._mux(frame)
         self.count += 1
 
+    def write_audio(self, samples) -> None:
+        if self._sound is None:
+            super().write_audio(samples)
+        try:
+            self._sound.write(samples)
+        except self._av.FFmpegError as e:
+            raise self._failed("(AAC) failed while receiving sound", e) from None
+
     def finish(self) -> None:
         self._mux(None)                                 # x264's last frames
         try:
+            if self._sound is not None:
+                self._sound.finish()
             self._out.close()                           # the index (moov) goes at the end
         except self._av.FFmpegError as e:
             raise self._failed("failed to finish the video", e) from None
@@ -143,6 +158,57 @@ class _H264Sink(_Sink):
             pass
         super().abort()
 
+
+
+class _SoundTrack:
+    """An MP4's AAC-LC sound track (FFmpeg's own AAC encoder), mono at :data:`framework.audio.RATE` Hz.
+
+    Blocks of any length are cut into the encoder's frames (1,024 samples), each stamped with its
+    first sample's index, so the packets depend only on the samples: the same bytes every run.
+    The last frame may be short (AAC allows it): the track ends with the last sample given.
+    """
+
+    BITRATE = 96_000
+
+    def __init__(self, av, out):
+        from driftframe.framework.audio import RATE
+
+        self._av = av
+        self._out = out
+        self.stream = out.add_stream("aac", rate=RATE)
+        self.stream.layout = "mono"
+        self.stream.bit_rate = self.BITRATE
+        self.stream.codec_context.flags |= 1 << 23      # AV_CODEC_FLAG_BITEXACT
+        self._held = np.zeros(0, np.float32)
+        self._pts = 0
+        #: Samples given so far.
+        self.samples = 0
+
+    def _encode(self, block) -> None:
+        frame = self._av.AudioFrame.from_ndarray(np.ascontiguousarray(block, np.float32)[None, :],
+                                                 format="fltp", layout="mono")
+        frame.sample_rate = self.stream.rate
+        frame.pts = self._pts
+        self._pts += block.shape[0]
+        for packet in self.stream.encode(frame):
+            self._out.mux(packet)
+
+    def write(self, samples) -> None:
+        samples = np.asarray(samples, np.float32).ravel()
+        self.samples += len(samples)
+        held = np.concatenate([self._held, samples]) if len(self._held) else samples
+        size = self.stream.codec_context.frame_size or 1024
+        whole = len(held) // size * size
+        for a in range(0, whole, size):
+            self._encode(held[a:a + size])
+        self._held = held[whole:].copy()
+
+    def finish(self) -> None:
+        if len(self._held):
+            self._encode(self._held)
+            self._held = np.zeros(0, np.float32)
+        for packet in self.stream.encode(None):
+            self._out.mux(packet)
 
 
 # GIF blocks (GIF89a spec): '!' extension, ',' image descriptor, ';' trailer.
@@ -300,12 +366,14 @@ class _PngSink(_Sink):
 
 
 def open_sink(fmt: str, tmp: Path, size: tuple[int, int], fps: Fraction, *, crf: int, preset: str, nv12: bool,
-              gif_scale: float) -> _Sink:
+              gif_scale: float, audio: bool = False) -> _Sink:
     """The sink for ``fmt`` (``"mp4"``, ``"gif"``, ``"png"``) writing to ``tmp``; if it cannot start, ``tmp`` is
-    removed and the error raised. ``nv12``: MP4 frames come converted (else RGBA, for FFmpeg's scaler)."""
+    removed and the error raised. ``nv12``: MP4 frames come converted (else RGBA, for FFmpeg's scaler).
+    ``audio``: the MP4 gets a sound track (:class:`_SoundTrack`)."""
     try:
         if fmt == "mp4":
-            return _H264Sink(tmp, size, fps, crf=crf, preset=preset, pixel_format="nv12" if nv12 else "rgba")
+            return _H264Sink(tmp, size, fps, crf=crf, preset=preset, pixel_format="nv12" if nv12 else "rgba",
+                             audio=audio)
         if fmt == "gif":
             return _GifSink(tmp, size, fps, scale=gif_scale)
         return _PngSink(tmp, size, fps)

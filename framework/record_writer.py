@@ -7,6 +7,15 @@ import threading
 from driftframe.framework.record_sinks import _Sink
 
 
+class _Audio:
+    """A block of samples on the writer's queue (frames are plain bytes)."""
+
+    __slots__ = ("samples",)
+
+    def __init__(self, samples):
+        self.samples = samples
+
+
 class _Writer:
     """Feeds a sink from a bounded queue on a background thread, so encoding overlaps rendering.
 
@@ -39,7 +48,10 @@ class _Writer:
                 return
             if self._error is None:
                 try:
-                    self.sink.write(item)
+                    if type(item) is _Audio:
+                        self.sink.write_audio(item.samples)
+                    else:
+                        self.sink.write(item)
                 except BaseException as e:   # noqa: BLE001 - handed to the caller
                     self._error = e
 
@@ -47,6 +59,12 @@ class _Writer:
         if self._error is not None:
             raise self._error
         self._q.put(raw)
+
+    def put_audio(self, samples) -> None:
+        """A block of sound samples for the sink's sound track, after the frame put before it."""
+        if self._error is not None:
+            raise self._error
+        self._q.put(_Audio(samples))
 
     def close(self) -> None:
         """Wait until every queued frame is written; re-raise the thread's error if any. Idempotent."""

@@ -97,6 +97,7 @@ from driftframe.framework.record_nv12 import YUV_PATHS, _banded_nv12, _cpu_nv12,
 from driftframe.framework.record_sinks import (GIF_MAX_DELAY, X264_CRF, X264_DEFAULT_CRF, X264_PRESET,  # noqa: F401
                                                X264_PRESETS, X264_THREADS, X264_TUNING, _BT709, _GifSink, _H264Sink,
                                                _PngSink, _Sink, open_sink)
+from driftframe.framework.audio import frame_samples
 from driftframe.framework.record_writer import _Writer
 from driftframe.framework.stop_signals import STOP_SIGNALS, Interrupted, StopSignals, raise_interrupted  # noqa: F401
 from driftframe.framework.stop_signals import signal_name as _signal_name
@@ -144,6 +145,7 @@ class _Plan:
     gif_scale: float
     target: Any                     # the world's render target (framework.gl.RenderTarget)
     size: tuple[int, int]
+    soundtrack: Any = None          # the world's framework.audio.Soundtrack, for an MP4 with a sound track
 
     @property
     def nv12(self) -> bool:
@@ -155,7 +157,7 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
            progress: bool = True, before_step=None, gif_scale: float = 0.5, crf: int | None = None,
            preset: str = X264_PRESET, overwrite: bool = False, format: str | None = None,
            motion_blur: int = 1, interpolate=None, handle_signals: bool = True,
-           yuv: str = "cpu") -> RecordResult:
+           yuv: str = "cpu", audio: bool = True) -> RecordResult:
     """Step, render and write ``frames`` frames of ``world`` to ``path`` (.mp4, .gif or a directory).
 
     ``fps``: playback rate (default ``1 / (dt * steps_per_frame)``: real
@@ -173,6 +175,9 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     ``/``). ``motion_blur``: sub-frames averaged per frame (1: none), posed by
     ``interpolate`` (see the module docstring). ``handle_signals``: turn
     SIGTERM and SIGHUP into an interrupt while recording (main thread only).
+    ``audio``: an MP4 of a world with a soundtrack (:func:`systems.sound.attach`;
+    ``attach_rendering`` adds one) gets an AAC track of its sounds, one block of
+    samples per frame (:mod:`framework.audio`); False leaves it out.
     ``yuv``: for MP4, where frames become NV12: ``"cpu"`` (default,
     :mod:`framework.yuv` on this thread), ``"gpu"`` (a shader; an off-screen
     target whose width is a multiple of 4) or ``"ffmpeg"`` (RGBA handed to
@@ -182,13 +187,13 @@ def record(world, path, *, frames: int, fps: float | None = None, steps_per_fram
     """
     plan = _checked(world, path, frames=frames, fps=fps, steps_per_frame=steps_per_frame, before_step=before_step,
                     gif_scale=gif_scale, crf=crf, preset=preset, format=format, motion_blur=motion_blur,
-                    interpolate=interpolate, yuv=yuv)
+                    interpolate=interpolate, yuv=yuv, audio=audio)
     make_parent(plan.path)
     # from the first file made to the last: SIGTERM / SIGHUP become an interrupt, never debris
     with StopSignals(handle_signals) as stop:
         tmp = prepare_path(plan.path, plan.fmt, bool(overwrite))
         sink = open_sink(plan.fmt, tmp, plan.size, plan.rate, crf=plan.crf, preset=plan.preset, nv12=plan.nv12,
-                         gif_scale=gif_scale)
+                         gif_scale=gif_scale, audio=plan.soundtrack is not None)
         try:
             grab, converter = _frame_source(world, plan, interpolate)
         except BaseException:
@@ -219,7 +224,7 @@ def _positive_int(name: str, value) -> int:
 
 
 def _checked(world, path, *, frames, fps, steps_per_frame, before_step, gif_scale, crf, preset, format,
-             motion_blur, interpolate, yuv) -> _Plan:
+             motion_blur, interpolate, yuv, audio=True) -> _Plan:
     """:func:`record`'s arguments checked, before anything is made: a clear error for the first bad one."""
     frames = _positive_int("frames", frames)
     steps_per_frame = _positive_int("steps_per_frame", steps_per_frame)
@@ -263,8 +268,9 @@ def _checked(world, path, *, frames, fps, steps_per_frame, before_step, gif_scal
     if yuv == "gpu" and (fmt != "mp4" or getattr(target, "is_screen", True) or size[0] % 4):
         raise ValueError(f"yuv='gpu' needs an MP4 output from an off-screen target whose width is a multiple of 4, "
                          f"got {fmt} at {size[0]}x{size[1]}")
+    soundtrack = world.resources.get("soundtrack") if audio and fmt == "mp4" else None
     return _Plan(Path(os.fspath(path)), fmt, frames, steps_per_frame, motion_blur, rate, int(crf), preset, yuv,
-                 gif_scale, target, size)
+                 gif_scale, target, size, soundtrack)
 
 
 def _frame_source(world, plan: _Plan, interpolate):
@@ -321,6 +327,8 @@ def _write(world, plan: _Plan, sink: _Sink, tmp: Path, grab, stop: StopSignals, 
                 if not blur:
                     world.render()
                 writer.put(grab())
+                if plan.soundtrack is not None:       # the frame's sounds, sample-exact in the frame's time
+                    writer.put_audio(plan.soundtrack.take(frame_samples(plan.rate, done), world.time))
                 done += 1
                 bar.update(1)
             else:

@@ -588,7 +588,7 @@ def test_mp4_defaults_are_the_measured_preset_and_its_crf(scene, tmp_path, monke
     monkeypatch.setattr(record_sinks, "_H264Sink", spy)
     record(scene(), tmp_path / "a.mp4", frames=2, progress=False)
     assert seen == {"crf": recorder.X264_CRF[recorder.X264_PRESET], "preset": recorder.X264_PRESET,
-                    "pixel_format": "nv12"}
+                    "pixel_format": "nv12", "audio": False}      # (a world without a soundtrack)
     record(scene(), tmp_path / "b.mp4", frames=2, progress=False, preset="veryfast")
     assert seen["crf"] == recorder.X264_DEFAULT_CRF            # a preset without its own crf gets 20
     record(scene(), tmp_path / "c.mp4", frames=2, progress=False, preset="ultrafast", crf=np.int64(30))

@@ -1,0 +1,78 @@
+"""Sound cues from the frame's events: impacts from contacts, the engine from the player's throttle.
+
+The system only *describes* sounds: it adds cues to the world's
+:class:`~framework.audio.Soundtrack` (``world.resources["soundtrack"]``,
+added by :func:`attach`). Who hears them takes the samples: the recorder
+muxes them into the MP4 as an AAC track, the window plays them
+(:mod:`driftframe.window`). Nothing here touches the simulation.
+"""
+from __future__ import annotations
+
+import esper
+
+from driftframe.components.body import Mass
+from driftframe.components.collision import CollisionEvent, SphereCollider
+from driftframe.components.control import FlightInput, Player
+from driftframe.components.gravity import GravityWell, SurfaceContact
+from driftframe.framework.audio import Soundtrack
+
+
+class SoundSystem(esper.Processor):
+    """Reads the frame's CollisionEvent and SurfaceContact, Mass, SphereCollider, the player's FlightInput;
+    writes cues into its :class:`~framework.audio.Soundtrack`.
+
+    A contact's loudness is the closing speed its impulse took out,
+    ``J (1/m_a + 1/m_b)`` m/s (an immovable body's ``1/m`` is 0), its pitch
+    from the smaller collider radius; a surface contact's loudness is twice its
+    ``normal_speed`` (an elastic bounce reverses it), its size the well's
+    radius. The engine follows ``|throttle|``. Runs once per presented frame;
+    a frame rendered again without a step between (motion blur's sub-frames)
+    adds nothing.
+    """
+
+    stage = "render"
+    reads = (Mass, SphereCollider, FlightInput, Player, GravityWell)
+    writes = ()
+
+    def __init__(self, soundtrack: Soundtrack):
+        self.soundtrack = soundtrack
+        self._heard_step = -1
+
+    def process(self, dt: float) -> None:
+        world = self.world
+        if world.step_count == self._heard_step:
+            return
+        self._heard_step = world.step_count
+        track = self.soundtrack
+        for ev in world.events:
+            if isinstance(ev, CollisionEvent):
+                inv = sum(_inverse_mass(e) for e in (ev.a, ev.b))
+                track.impact(ev.time, ev.impulse * inv, min(_radius(ev.a), _radius(ev.b)))
+            elif isinstance(ev, SurfaceContact):
+                well = esper.try_component(ev.well, GravityWell) if esper.entity_exists(ev.well) else None
+                track.impact(ev.time, 2.0 * abs(ev.normal_speed), 1.0 if well is None else float(well.radius))
+        level = 0.0
+        for _, (_, flight) in esper.get_components(Player, FlightInput):
+            level = max(level, abs(float(flight.throttle)))
+        track.thrust(level)
+
+
+def _inverse_mass(ent: int) -> float:
+    m = esper.try_component(ent, Mass) if esper.entity_exists(ent) else None
+    return 1.0 if m is None else m.inverse          # (no Mass: 1 kg, the contact solver's default)
+
+
+def _radius(ent: int) -> float:
+    c = esper.try_component(ent, SphereCollider) if esper.entity_exists(ent) else None
+    return 1.0 if c is None else float(c.radius)
+
+
+def attach(world) -> Soundtrack:
+    """Add a :class:`SoundSystem` and its soundtrack (``world.resources["soundtrack"]``, starting at the
+    world's time); returns the soundtrack. Attaching twice returns the one there."""
+    track = world.resources.get("soundtrack")
+    if track is None:
+        track = Soundtrack(world.time)
+        world.resources["soundtrack"] = track
+        world.add_system(SoundSystem(track))
+    return track
