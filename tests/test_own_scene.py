@@ -151,7 +151,13 @@ def test_a_demo_that_takes_no_seed_says_so():
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         assert main(["record", "cradle", "--seed", "3", "--fps", "7"]) == 2     # stops at --fps, after the note
-    assert "the cradle demo takes no seed" in err.getvalue() and "--seed 3 changes nothing" in err.getvalue()
+    # (its default sky is the starfield, which the seed makes)
+    assert "the cradle demo takes no seed" in err.getvalue() and "--seed 3 changes only the starfield sky" \
+        in err.getvalue()
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["record", "cradle", "--seed", "3", "--sky", "lines", "--fps", "7"]) == 2
+    assert "--seed 3 changes nothing" in err.getvalue()
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         assert main(["record", "asteroids", "--seed", "3", "--fps", "7"]) == 2
