@@ -147,6 +147,7 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
     means = {}
     worsts = {}
     firsts = {}
+    cpu_first = {}
     most = 0
     rise, change, over = {}, {}, {}
     for rep in range(repeats):
@@ -177,6 +178,7 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
             times.setdefault(k, []).extend(t)
             means.setdefault(k, []).append(float(np.mean(t)))
             firsts.setdefault(k, []).append(float(t[0]))
+            cpu_first.setdefault(k, []).append(cpu[k][-len(t)])
             worsts.setdefault(k, []).append(float(np.max(t)))
             if energy:
                 ch = (kinetic(sims[k]) - k0[k]) / k0[k]
@@ -190,7 +192,8 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
                "worst_ratio": float(np.median(np.array(worsts[k]) / np.array(means[k]))),
                "p99": float(np.percentile(t, 99)), "first": float(t[0]),
                "first_med": float(np.median(firsts[k])), "first_worst": float(np.max(firsts[k])),
-               "cpu_mean": float(np.mean(cpu[k])), "cpu_worst": float(np.max(cpu[k]))} for k, t in times.items()}
+               "cpu_mean": float(np.mean(cpu[k])), "cpu_worst": float(np.max(cpu[k])),
+               "cpu_first": float(np.median(cpu_first[k]))} for k, t in times.items()}
     for k in times:
         if energy:
             out[k]["rise"] = rise[k]
@@ -204,6 +207,20 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
     out["driftframe"]["stats"] = dict(d.cs.stats)
     out["driftframe"]["max_contacts"] = most
     return out
+
+
+def worst_cases(quick: bool) -> list:
+    """(key, label, scene maker, steps) of issue 24's classes of scene (``stress_scenes``)."""
+    from benchmarks.small_scenes import billiard_break
+    return [("struck", f"touching crystal of {(8 if quick else 15) ** 3:,} struck once",
+             lambda: S.struck_crystal(8 if quick else 15), 20),
+            ("fast", "5 bodies at 300 m/s through a field of 2,000", lambda: S.fast_movers(2000), 40),
+            ("jammed", f"jammed FCC clump of {4 * (5 if quick else 8) ** 3:,} hit at 20 m/s",
+             lambda: S.jammed_clump(5 if quick else 8), 20),
+            ("mixed", "radius ratio 300: one large sphere among 4,000", lambda: S.mixed_sizes(4000), 40),
+            ("tunnel", "tunnel sweep: 1 fast sphere down a line of 20", S.tunnel_sweep, 60),
+            ("graze", "10 grazing pairs (near misses and touches)", S.grazing_pairs, 60),
+            ("break16", "16-ball break", billiard_break, 60)]
 
 
 def first_step(make, *, bullet=True):
@@ -299,6 +316,9 @@ def main(argv=None) -> int:
         res[f"field{n}"] = run_scene(lambda: S.field(n), st, bullet=bullet, block=max(2, min(10, st // 4)),
                                      repeats=5 * R if n <= 500 else (R if n <= 10_000 else 1))
     res["head_on"] = run_scene(S.head_on, 2000 if not q else 300, bullet=bullet, block=100)
+    # -- the worst cases of issue 24: each one's worst step against pybullet's in the same run --
+    for key, _, make, n_steps in worst_cases(q):
+        res[key] = run_scene(make, n_steps, bullet=bullet, block=5, repeats=R)
     d = Drift(S.head_on())
     d.step()
     stage = []
@@ -447,6 +467,26 @@ def report(res, quick, bullet, started):
         first_rows.append([name, _ms(d["first_med"]), _ms(d["first_worst"]), _ms(d["median"]),
                            f"{d['first_med'] / d['median']:.2f}", "the scene's event (every contact is in step 1): "
                            "its bar is first step <= 50 ms, above"])
+    # issue 24: every class's worst step at most 2x pybullet's worst step (CPU time, same run)
+    worst_rows = []
+    for key, name, _, n_steps in worst_cases(quick) + [("conv0.0", "200 converging, e = 0", None, 0)]:
+        if key not in res:
+            continue
+        d, p = res[key]["driftframe"], res[key].get("pybullet", {})
+        ratio = d["cpu_worst"] / p.get("cpu_worst", math.nan)
+        text = f"worst {_ms(d['cpu_worst'])} ms CPU = {ratio:.2f}x pybullet's"
+        row = [name, f"{_ms(d['cpu_worst'])} / {_ms(d['worst'])}", f"{_ms(d['cpu_mean'])} / {_ms(d['mean'])}",
+               _ms(d["cpu_first"]), f"{_ms(p.get('cpu_worst', math.nan))} / {_ms(p.get('worst', math.nan))}",
+               f"{_ms(p.get('cpu_mean', math.nan))} / {_ms(p.get('mean', math.nan))}",
+               _ms(p.get("cpu_first", math.nan)), f"{ratio:.2f}", bar(f"worst step {name}", ratio <= 2.0, text)]
+        if key == "jammed":                        # first contact steps: at most 2x pybullet's first step
+            fr = d["cpu_first"] / p.get("cpu_first", math.nan)
+            row[-1] += "; first step " + bar("first step of the jammed clump", fr <= 2.0,
+                                             f"first {_ms(d['cpu_first'])} ms CPU = {fr:.2f}x pybullet's")
+        worst_rows.append(row)
+    worst_table = common.table(["scene", "driftframe worst ms: CPU / wall", "mean: CPU / wall", "first, CPU",
+                                "pybullet worst: CPU / wall", "mean: CPU / wall", "first, CPU",
+                                "worst / pybullet's worst (CPU)", "worst <= 2x pybullet's"], worst_rows)
     first_table = common.table(["scene", "first step ms (median of the runs)", "worst first step", "median step ms",
                                 "first / median", "first <= 2x median"], first_rows)
     met = sum(v[1] == "met" for v in verdicts)
@@ -467,6 +507,12 @@ the step itself cost).
 {'' if bullet else 'pybullet is not installed here: its column is empty.'}
 
 {table}
+
+The worst cases (issue 24): scenes of each class the outside measurement found slow, each run
+{reps} times interleaved with pybullet; worst and mean step over all the runs, the first step the median
+of the runs. The bar is on the worst step in CPU time (the machine is shared).
+
+{worst_table}
 
 First step after `world.prepare()` (issue 20): the first step of each run from a fresh scene (the world
 prepared as a game does when a level has loaded), the median over the runs, against the scene's median step.

@@ -111,3 +111,81 @@ def world_of(scene, *, broadphase="auto", **kw):
     ids = w.create_entities(Transform.bulk(n, position=x), Velocity.bulk(n, linear=v), Mass.bulk(n, kg=m),
                             SphereCollider.bulk(n, radius=r, restitution=e))
     return w, cs, ids
+
+
+# -- the worst cases of issue 24 (scenes the project had not seen), one function per class ------------------
+def struck_crystal(n_side: int = 15, r: float = 0.5, speed: float = 5.0):
+    """A touching simple-cubic crystal at rest (``n_side^3`` spheres, every one touching its 6 neighbours),
+    struck once along a diagonal by one more sphere, 0.01 r from a corner ball, at ``speed`` m/s: the
+    contact spreads through the whole island in the step it lands."""
+    x, _, rad, m, e = crystal("sc", n_side, r=r, speed=0.0)
+    d = np.ones(3) / math.sqrt(3.0)
+    striker = -d * (2 * r * 1.005)                       # just off the corner ball at the origin
+    x = np.concatenate([x, striker[None]])
+    v = np.zeros_like(x)
+    v[-1] = d * speed
+    return x, v, np.full(len(x), r), np.ones(len(x)), np.ones(len(x))
+
+
+def fast_movers(n: int = 2000, n_fast: int = 5, speed: float = 300.0, seed: int = 0):
+    """A slow field (:func:`field`, ``n`` bodies at 5 %, 1 m/s) crossed by ``n_fast`` of its own bodies
+    sent through its centre at ``speed`` m/s (hundreds of m/s: tens of radii a step)."""
+    x, v, r, m, e = field(n, 0.05, seed=seed, speed=1.0)
+    centre = x.mean(axis=0)
+    rng = np.random.default_rng(seed + 1)
+    for k in rng.choice(n, n_fast, replace=False):
+        d = centre - x[k]
+        v[k] = speed * d / np.linalg.norm(d)
+    return x, v, r, m, e
+
+
+def jammed_clump(n_side: int = 8, r: float = 0.5, speed: float = 20.0, seed: int = 0):
+    """A jammed clump: a touching FCC crystal (``4 n_side^3`` spheres, 12 neighbours each) whose spheres
+    jostle at up to 0.1 m/s, hit by one fast sphere (``speed`` m/s) 0.01 r from a face ball: tens of
+    thousands of contacts in the first step."""
+    x, v, rad, m, e = crystal("fcc", n_side, seed=seed, r=r, speed=0.1)
+    lo = x[np.argmin(x[:, 0])]
+    striker = lo - np.array([2 * r * 1.005, 0.0, 0.0])
+    x = np.concatenate([x, striker[None]])
+    v = np.concatenate([v, [[speed, 0.0, 0.0]]])
+    return x, v, np.full(len(x), r), np.ones(len(x)), np.ones(len(x))
+
+
+def mixed_sizes(n: int = 4000, ratio: float = 300.0, seed: int = 0, r_small: float = 0.1):
+    """One large sphere (radius ``ratio * r_small``) among ``n`` small ones at 5 % of the free volume,
+    moving at 1 m/s; the large one drifts through them at 2 m/s."""
+    rng = np.random.default_rng(seed)
+    big = ratio * r_small
+    r = np.full(n + 1, r_small)
+    r[0] = big
+    side = ((4 / 3 * np.pi * (r[1:] ** 3).sum() / 0.05) + (2 * big) ** 3) ** (1 / 3)
+    x = placement.place(rng, r, placement.in_box((0, 0, 0), (side, side, side)))
+    v = rng.uniform(-1, 1, (n + 1, 3))
+    v[0] = (2.0, 0.0, 0.0)
+    return x, v, r, r ** 3 / r_small ** 3, np.ones(n + 1)
+
+
+def tunnel_sweep(n: int = 20, speed: float = 200.0):
+    """A small fast sphere (r 0.1 m, ``speed`` m/s: 33 m a step) sent down a line of ``n`` spheres at rest,
+    1 m apart, off their centres by half a radius: it hits the first and the rest follow."""
+    x = np.zeros((n + 1, 3))
+    x[1:, 0] = 5.0 + np.arange(n) * 1.0
+    x[0] = (0.0, 0.2, 0.0)
+    v = np.zeros((n + 1, 3))
+    v[0] = (speed, 0.0, 0.0)
+    r = np.full(n + 1, 0.3)
+    r[0] = 0.1
+    return x, v, r, np.ones(n + 1), np.ones(n + 1)
+
+
+def grazing_pairs(n_pairs: int = 10, speed: float = 5.0):
+    """``n_pairs`` head-on pairs whose paths pass 1e-9 of a diameter apart (a near miss: never a contact)
+    and as many that just touch (a graze), 10 m apart from each other."""
+    x, v = [], []
+    for k in range(n_pairs):
+        gap = 1.0 + (1e-9 if k % 2 else -1e-6)           # centres' closest distance / (r_a + r_b)
+        y = 10.0 * k
+        x += [(-3.0, y, 0.0), (3.0, y + gap, 0.0)]
+        v += [(speed, 0.0, 0.0), (-speed, 0.0, 0.0)]
+    n = 2 * n_pairs
+    return np.array(x), np.array(v, float), np.full(n, 0.5), np.ones(n), np.ones(n)

@@ -316,12 +316,37 @@ class CollisionSystem(esper.Processor):
         dt = self.world.dt
         st = State.of(self.world, lay).gather(lay, dt)
         n = lay.n
-        if not self._uses_list(n):
+        listed = self._uses_list(n)
+        if not listed:
             st.gather_quiet(lay, dt, self._all_pairs(n))     # read only here: its first call
         elif n >= 2 and st.bad(lay) is None:
             self._build_list(lay, st, dt)
-        self._t_last_of(lay)
+        t_last = self._t_last_of(lay)
         self._unchanged(n)
+        if n >= 2 and st.bad(lay) is None and self.method == "continuous":
+            self._load_solvers(st, t_last, dt, listed)
+
+    def _load_solvers(self, st: State, t_last: np.ndarray, dt: float, listed: bool) -> None:
+        """Load (from the kernel cache, or compile) the solver this scene's steps call, without calling it,
+        and its jam-path variant where a restitution below 1 can jam (inelastic collapse): numba loads a
+        kernel at its first call, and the jam variant's first call came in the step that first jams
+        (about 15 ms there). Types only: nothing is solved."""
+        if listed:
+            nl = self._list
+            centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
+            lst = (nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width), int(nl.budget),
+                   self._tosweep, self._newlo, self._newhi)
+            pi, pj = self._pi, self._pj
+            solvers = (contact.solve_listed, contact.solve_listed_stick)
+        else:
+            lst = None
+            pi, pj = self._pairs
+            solvers = (contact.solve_all_pairs, contact.solve_all_pairs_stick)
+        t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
+        args = (st.x, st.u, st.r, st.inv, st.e, st.live, t_last, 0.0, pi, pj, float(dt), float(t_c),
+                self.max_contacts, lst)
+        for solve in solvers if float(st.e.min()) < 1.0 else solvers[:1]:
+            solve.compile(tuple(solve.typeof_pyval(a) for a in args))
 
     def _uses_list(self, n: int) -> bool:
         """Whether a step of ``n`` colliders takes its candidate pairs from the neighbour list."""
