@@ -212,8 +212,8 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
 def worst_cases(quick: bool) -> list:
     """(key, label, scene maker, steps) of issue 24's classes of scene (``stress_scenes``)."""
     from benchmarks.small_scenes import billiard_break
-    return [("struck", f"touching crystal of {(8 if quick else 15) ** 3:,} struck once",
-             lambda: S.struck_crystal(8 if quick else 15), 20),
+    return [("struck", f"touching FCC crystal of {4 * (5 if quick else 8) ** 3:,} at rest, struck once",
+             lambda: S.struck_crystal(5 if quick else 8), 20),
             ("fast", "5 bodies at 300 m/s through a field of 2,000", lambda: S.fast_movers(2000), 40),
             ("jammed", f"jammed FCC clump of {4 * (5 if quick else 8) ** 3:,} hit at 20 m/s",
              lambda: S.jammed_clump(5 if quick else 8), 20),
