@@ -181,14 +181,15 @@ def load_kernels(name: str, *, seed: int = 0) -> None:
 
 def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tuple[int, int] | str = (1280, 720), *,
                      camera: str | None = None, hud: bool = True, sky: str | bool | None = None,
-                     sound: bool = True, **options: Any) -> RenderSystem:
+                     sound: bool = True, effects: bool = True, **options: Any) -> RenderSystem:
     """Attach rendering (model cache, cameras, skybox, render system, HUD) to a built world.
 
     ``camera``: start in ``"cockpit"``, ``"chase"`` or ``"overhead"`` (default: as the demo
     built it). ``sky``: ``"starfield"`` (a star cube map made from the world's seed),
     ``"lines"`` (the articles' green line cube), False for none, or None (the default):
     the demo's ``SKY``, else the starfield. ``sound``: add the sound cues of impacts and thrust
-    (:mod:`systems.sound`: an MP4 recording gets a sound track, ``play`` plays them). Returns the
+    (:mod:`systems.sound`: an MP4 recording gets a sound track, ``play`` plays them). ``effects``: sparks
+    and a flash at every contact, the engine's plume (:mod:`systems.effects`). Returns the
     :class:`~systems.render.RenderSystem`.
     """
     from driftframe.systems import camera as camera_sys
@@ -209,6 +210,9 @@ def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tu
         for vname, (base, scale, colour) in world.resources.get("model_variants", {}).items():
             if vname not in cache:
                 cache.variant(vname, base, scale=scale, colour=colour)
+        if effects:
+            from driftframe.systems.effects import EffectsSystem
+            world.add_system(EffectsSystem(render))
         if hud:
             from driftframe.systems.hud import HudSystem
             world.add_system(HudSystem(render))

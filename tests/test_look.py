@@ -60,3 +60,26 @@ def test_the_asteroids_are_rocks_and_the_rotation_demo_keeps_the_green_lines():
         world.close()
     assert default_sky(demos.load("asteroids")) == "starfield"
     assert default_sky(demos.load("rotation")) == "lines"
+
+
+@pytest.mark.gl
+def test_a_contact_shows_sparks_the_same_every_run_and_the_simulation_does_not_see_them():
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.systems.effects import EffectsSystem
+
+    def run(effects):
+        world, _ = make_world("cradle")
+        try:
+            render = attach_rendering(world, size=(64, 48), hud=False, sky="lines", sound=False, effects=effects)
+            world.step(61)                           # the striker hits the row at t = 1.0 s (step 60)
+            world.render()
+            fx = world.get_system(EffectsSystem)
+            return render.read_rgba().copy(), world.state_hash(), fx.drawn if fx else 0
+        finally:
+            world.close()
+
+    (a, ha, n), (b, hb, _), (bare, h0, _) = run(True), run(True), run(False)
+    assert n > 6                                     # a burst of sparks and a flash
+    np.testing.assert_array_equal(a, b)              # deterministic
+    assert ha == hb == h0                            # presentation only
+    assert np.any(a != bare)
