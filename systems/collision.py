@@ -346,7 +346,8 @@ class CollisionSystem(esper.Processor):
         args = (st.x, st.u, st.r, st.inv, st.e, st.live, t_last, 0.0, pi, pj, float(dt), float(t_c),
                 self.max_contacts, lst)
         for solve in solvers if float(st.e.min()) < 1.0 else solvers[:1]:
-            solve.compile(tuple(solve.typeof_pyval(a) for a in args))
+            if hasattr(solve, "compile"):                  # (a plain function under NUMBA_DISABLE_JIT)
+                solve.compile(tuple(solve.typeof_pyval(a) for a in args))
 
     def _uses_list(self, n: int) -> bool:
         """Whether a step of ``n`` colliders takes its candidate pairs from the neighbour list."""
