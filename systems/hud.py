@@ -2,6 +2,8 @@
 in a scene with gravity also the orbit readouts and the predicted orbit line (``systems/readouts.py``)."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import esper
 import moderngl
 import numpy as np
@@ -44,24 +46,36 @@ void main() {
 """
 
 
-class FontAtlas:
-    """Printable ASCII rasterised once (Pillow's bundled FreeType font) into one texture."""
+#: The HUD font: a subset of DejaVu Sans shipped with driftframe (framework/fonts/LICENSE.txt).
+FONT_FILE = Path(__file__).resolve().parent.parent / "framework" / "fonts" / "DejaVuSans-HUD.ttf"
+#: Characters the atlas holds: printable Latin-1, some Greek (Δ, μ, π, ω...), arrows and maths signs;
+#: anything else is drawn as "?".
+CHARS = "".join(chr(c) for c in [*range(0x20, 0x7F), *range(0xA1, 0x100), 0x0394, 0x03A9, 0x03B1, 0x03B2,
+                                 0x03B3, 0x03B4, 0x03B5, 0x03B8, 0x03BB, 0x03BC, 0x03C0, 0x03C3, 0x03C4, 0x03C9,
+                                 0x2190, 0x2191, 0x2192, 0x2193, 0x2022, 0x2026, 0x2212, 0x2248, 0x2260, 0x2264,
+                                 0x2265, 0x221E, 0x2013, 0x2014])
 
-    FIRST, LAST, COLUMNS = 32, 126, 16
+
+class FontAtlas:
+    """:data:`CHARS` rasterised once from :data:`FONT_FILE` (FreeType, through Pillow) into one texture."""
+
+    COLUMNS = 16
 
     def __init__(self, ctx, pixel_size: int):
         from PIL import Image, ImageDraw, ImageFont
 
-        font = ImageFont.load_default(size=pixel_size)
+        font = ImageFont.truetype(str(FONT_FILE), size=pixel_size)
         ascent, descent = font.getmetrics()
-        chars = [chr(c) for c in range(self.FIRST, self.LAST + 1)]
-        self.advance = {ch: float(font.getlength(ch)) for ch in chars}
-        self.cell = (int(np.ceil(max(self.advance.values()))) + 2, ascent + descent + 2)
-        rows = -(-len(chars) // self.COLUMNS)
+        self.index = {c: i for i, c in enumerate(CHARS)}
+        self.advance = {ch: float(font.getlength(ch)) for ch in CHARS}
+        # a cell holds the widest glyph's ink (some overhang their advance) and the line's height
+        ink = max(font.getbbox(c)[2] for c in CHARS)
+        self.cell = (int(np.ceil(max(max(self.advance.values()), ink))) + 2, ascent + descent + 2)
+        rows = -(-len(CHARS) // self.COLUMNS)
         cw, ch_ = self.cell
         img = Image.new("L", (cw * self.COLUMNS, ch_ * rows), 0)
         draw = ImageDraw.Draw(img)
-        for i, c in enumerate(chars):
+        for i, c in enumerate(CHARS):
             draw.text(((i % self.COLUMNS) * cw + 1, (i // self.COLUMNS) * ch_ + 1), c, fill=255, font=font)
         self.image_size = img.size
         self.line_height = ch_
@@ -75,9 +89,9 @@ class FontAtlas:
         out = []
         pen = x
         for c in text:
-            if not self.FIRST <= ord(c) <= self.LAST:
+            if c not in self.index:
                 c = "?"
-            i = ord(c) - self.FIRST
+            i = self.index[c]
             u0, v0 = (i % self.COLUMNS) * cw / iw, (i // self.COLUMNS) * ch / ih
             u1, v1 = u0 + cw / iw, v0 + ch / ih
             x0, y0, x1, y1 = pen - 1, y - 1, pen - 1 + cw, y - 1 + ch

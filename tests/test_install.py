@@ -44,7 +44,8 @@ def test_the_wheel_is_pure_python_and_holds_the_package_and_nothing_else(wheel):
     for sub in ("framework", "components", "systems", "demos"):         # the folders mapped to subpackages
         expected |= {f"driftframe/{sub}/{p.relative_to(ROOT / sub).as_posix()}" for p in (ROOT / sub).rglob("*.py")}
     assert expected <= set(files), sorted(expected - set(files))[:5]
-    assert set(files) - expected == {"driftframe/py.typed"}, sorted(set(files) - expected)[:5]
+    assert set(files) - expected == {"driftframe/py.typed", "driftframe/framework/fonts/DejaVuSans-HUD.ttf",
+                                     "driftframe/framework/fonts/LICENSE.txt"}, sorted(set(files) - expected)[:5]
     assert not [n for n in names if "__pycache__" in n or n.endswith((".pyc", ".so"))
                 or n.split("/")[0] in ("tests", "benchmarks", "docs")]
     assert "Requires-Dist: numba" in metadata and "Requires-Python: >=3.11" in metadata

@@ -83,3 +83,26 @@ def test_a_contact_shows_sparks_the_same_every_run_and_the_simulation_does_not_s
     np.testing.assert_array_equal(a, b)              # deterministic
     assert ha == hb == h0                            # presentation only
     assert np.any(a != bare)
+
+
+@pytest.mark.gl
+def test_the_hud_font_has_latin_1_and_the_signs_a_flight_needs(ctx):
+    from driftframe.systems.hud import FontAtlas
+
+    font = FontAtlas(ctx, 18)
+    try:
+        atlas = np.frombuffer(font.texture.read(), np.uint8).reshape(font.image_size[1], font.image_size[0])
+        cw, ch = font.cell
+
+        def ink(c):
+            i = font.index[c]
+            r, k = divmod(i, font.COLUMNS)
+            return atlas[r * ch:(r + 1) * ch, k * cw:(k + 1) * cw].astype(int)
+
+        question = ink("?")
+        for c in "Δ°×±→éßµ½ÅΩπ≈":
+            assert c in font.index and ink(c).sum() > 0 and not np.array_equal(ink(c), question), c
+        assert not np.array_equal(ink("Δ"), ink("A"))
+        assert len(font.quads("Δv 12 m/s → 45°", 0, 0)) == 6 * 15          # two triangles a character
+    finally:
+        font.release()
