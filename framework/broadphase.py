@@ -777,8 +777,10 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
 def _territory(r, d, skin_steps):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
-    Room for ``skin_steps`` steps at the body's own speed ``d`` per step (at least the median's; never
-    thinner than a millionth of the median radius, for scenes at rest); a body whose skin dwarfs the
+    Room for ``skin_steps`` steps at the body's own speed ``d`` per step (at least the median's, and at
+    least 2 % of the median radius a step: a scene at rest, a crystal or a pile, gets a skin of 0.16 r,
+    so the bodies an impact sets moving stay inside their territory instead of each being swept again
+    in every wave of the impact); a body whose skin dwarfs the
     others' (more than 8 median skins + 4 largest radii; a bullet among asteroids) would make huge
     cells and many pairs: it is swept instead."""
     n = r.shape[0]
@@ -787,7 +789,7 @@ def _territory(r, d, skin_steps):
     reach = np.empty(n)
     if n == 0:
         return skin, swept, reach
-    floor_ = max(median(d), 1e-6 * median(r))
+    floor_ = max(median(d), 0.02 * median(r))
     for k in range(n):
         skin[k] = skin_steps * max(d[k], floor_)
     big = r[0]
