@@ -288,11 +288,11 @@ def snapshot(world) -> tuple[dict, dict]:
     for _, system in _systems(world):
         rebuilt.update(getattr(system, "rebuilt_resources", ()))
     for key, value in world.resources.items():
+        if key in rebuilt:            # (a resource keyed by its type, as the gravity system's OrbitState: by name)
+            manifest["rebuilt_resources"].append(key if isinstance(key, str) else f"{key.__module__}.{key.__qualname__}")
+            continue
         if not isinstance(key, str):
             raise SaveError(f"cannot save resource key {key!r}: resource names are strings")
-        if key in rebuilt:
-            manifest["rebuilt_resources"].append(key)
-            continue
         try:
             manifest["resources"][key] = encode(value, f"resource {key!r}")
         except _Unsavable:

@@ -15,8 +15,7 @@ from driftframe.components.control import FlightControl, FlightInput
 from driftframe.components.gravity import GravityWell
 from driftframe.framework import frame as fr
 from driftframe.framework import validate
-from driftframe.systems.control import ControlSystem
-from driftframe.systems.input import InputSystem
+from driftframe.framework.orbit_state import OrbitState
 
 _CONJ = np.array([-1.0, -1.0, -1.0, 1.0])
 
@@ -59,8 +58,9 @@ def flip_profile(distance, accel: float, flip_time: float):
 
 
 class AutopilotSystem(esper.Processor):
-    """Reads Autopilot, FlightControl, Transform, Velocity, AngularVelocity, GravityWell; writes
-    FlightInput, Autopilot.  Points the nose and works the throttle for the aid engaged.
+    """Reads Autopilot, FlightPlan, FlightControl, Transform, Velocity, AngularVelocity, OrbitState (and the
+    GravityWell it answers from); writes FlightInput, Autopilot, FlightPlan.  Points the nose and works the
+    throttle for the aid engaged.
 
     **Turning.** The error is the rotation taking the nose onto the wanted
     direction ``d``: axis ``f x d``, angle ``atan2(|f x d|, f.d)``. The wanted
@@ -81,14 +81,19 @@ class AutopilotSystem(esper.Processor):
     delivers exactly what is left, so a timed burn delivers its ``dv`` to
     rounding (the gravity and movement systems add exactly ``a dt``).
 
+    **Orbits.** Prograde, normal and radial are relative to the well the ship
+    moves about now, as the gravity system's
+    :class:`~driftframe.framework.orbit_state.OrbitState` resource tells it
+    (``world.resources[OrbitState]``; without one, relative to the world frame).
+
     Few ships carry an autopilot: a per-entity loop. It runs in the control
-    stage before the control system, which turns its input into spin and thrust.
+    stage (after the input stage) before the other systems of that stage: the
+    control system turns its input into spin and thrust.
     """
 
     stage = "control"
-    after = (InputSystem,)
-    before = (ControlSystem,)
-    reads = (Autopilot, FlightPlan, FlightControl, Transform, Velocity, AngularVelocity, GravityWell)
+    before = ("control",)                # the control system, by name: its input is for it
+    reads = (Autopilot, FlightPlan, FlightControl, Transform, Velocity, AngularVelocity, OrbitState, GravityWell)
     writes = (FlightInput, Autopilot, FlightPlan)
     requires = (Autopilot,)              # (a FlightPlan engages an Autopilot: without one, nothing to do)
 
@@ -113,13 +118,14 @@ class AutopilotSystem(esper.Processor):
         vel = esper.try_component(ent, Velocity)
         return tf.position.copy(), (vel.linear.copy() if vel is not None else np.zeros(3))
 
-    def _well(self, ent: int):
-        from driftframe.systems.gravity import GravitySystem
-        g = self.world.get_system(GravitySystem)
-        ref = g.reference(ent) if g is not None else None
+    def _well(self, ent: int) -> tuple[np.ndarray, np.ndarray]:
+        """The centre (m) and velocity (m/s) of the well ``ent`` moves about now; the world's origin at rest
+        without one."""
+        orbits = self.world.resources.get(OrbitState)
+        ref = orbits.reference(ent) if orbits is not None else None
         if ref is None:
             return np.zeros(3), np.zeros(3)
-        return ref[3], ref[4]
+        return ref.position, ref.velocity
 
     def direction(self, ent: int, name: str, ap: Autopilot, x: np.ndarray, v: np.ndarray) -> np.ndarray | None:
         """Unit vector (world frame) of direction ``name`` for ship ``ent`` now, or None if undefined."""

@@ -2,7 +2,10 @@
 approach to the target, the warp, and the predicted orbit as world points.
 
 Pure functions of the world's current state (no GL): the HUD draws what they
-return in both cameras, tests check them against closed forms.
+return in both cameras, tests check them against closed forms. The well a body
+moves about comes from the gravity system's
+:class:`~driftframe.framework.orbit_state.OrbitState` resource
+(``world.resources[OrbitState]``); a world without one has no orbits.
 """
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ import numpy as np
 from driftframe.components.autopilot import Autopilot
 from driftframe.components.body import Transform, Velocity
 from driftframe.framework import kepler
+from driftframe.framework.orbit_state import OrbitState, Reference
 from driftframe.framework.world import World
 
 
@@ -34,15 +38,15 @@ class OrbitReadout:
     time_to_impact: float
 
 
-def _gravity(world):
-    from driftframe.systems.gravity import GravitySystem
-    return world.get_system(GravitySystem)
+def _reference(world: World, ent: int) -> Reference | None:
+    """The well ``ent`` moves about now (:meth:`OrbitState.reference`), or None without gravity."""
+    orbits = world.resources.get(OrbitState)
+    return orbits.reference(ent) if orbits is not None else None
 
 
 def orbit(world: World, ent: int) -> OrbitReadout | None:
     """The readout of ``ent``'s orbit, or None in a scene without wells (or for a root well)."""
-    g = _gravity(world)
-    ref = g.reference(ent) if g is not None else None
+    ref = _reference(world, ent)
     if ref is None:
         return None
     well, mu, radius, X, V = ref
@@ -65,8 +69,7 @@ def closest_approach(world: World, ent: int, target: int, horizon: float | None 
     x = world.columns(Transform, [ent, target]).position
     v = world.columns(Velocity, [ent, target]).linear if esper.has_component(target, Velocity) else \
         np.vstack([world.columns(Velocity, [ent]).linear, np.zeros((1, 3))])
-    g = _gravity(world)
-    ref = g.reference(ent) if g is not None else None
+    ref = _reference(world, ent)
     if ref is None:
         d, w = x[1] - x[0], v[1] - v[0]
         ww = float(w @ w)
@@ -84,8 +87,7 @@ def closest_approach(world: World, ent: int, target: int, horizon: float | None 
 def predicted_orbit(world: World, ent: int, n: int = 128) -> np.ndarray | None:
     """``n`` world points (n, 3) along ``ent``'s predicted conic about its well (at the well's current
     position), or None without a well."""
-    g = _gravity(world)
-    ref = g.reference(ent) if g is not None else None
+    ref = _reference(world, ent)
     if ref is None:
         return None
     _, mu, radius, X, V = ref

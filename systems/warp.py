@@ -1,5 +1,8 @@
 """The warp governor: time warp drops before a predicted contact (with a surface or between two bodies
-on rails) or a scheduled burn."""
+on rails) or a scheduled burn.
+
+The contacts come from the :class:`~driftframe.framework.orbit_state.OrbitState` resource the gravity
+system publishes (this system reads it; it never imports the gravity system)."""
 from __future__ import annotations
 
 import math
@@ -7,16 +10,20 @@ import math
 import esper
 
 from driftframe.components.autopilot import Autopilot, FlightPlan
+from driftframe.components.control import FlightControl
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import warp as time_warp
+from driftframe.framework.orbit_state import OrbitState
 
 
 class WarpGovernorSystem(esper.Processor):
-    """Reads Orbiting, Autopilot; writes the world's TimeWarp limit.  Warp drops before events.
+    """Reads OrbitState, Orbiting, Autopilot, FlightPlan, FlightControl; writes the world's TimeWarp limit.
+    Warp drops before events.
 
     Each step it looks for the next event the player should see at a
     watchable speed: the earliest surface contact and the earliest contact
-    between two colliders on rails predicted by the gravity system (exact,
+    between two colliders on rails predicted by the gravity system
+    (``world.resources[OrbitState]``: exact,
     on the bodies' conics; the second looked for as far as the warp asked
     for could reach in ``lead_frames`` frames) and the start of every scheduled
     autopilot burn, engaged or still to come in a
@@ -30,8 +37,8 @@ class WarpGovernorSystem(esper.Processor):
     name = "warp"
     after = ("commit",)                 # the bodies at the end of the step
     before = ("camera",)
-    reads = (Orbiting, Autopilot, FlightPlan)
-    writes = ()
+    reads = (OrbitState, Orbiting, Autopilot, FlightPlan, FlightControl)
+    writes = (time_warp.TimeWarp,)
 
     def __init__(self, lead_frames: int = 30):
         if isinstance(lead_frames, bool) or not isinstance(lead_frames, int) or lead_frames < 1:
@@ -42,20 +49,17 @@ class WarpGovernorSystem(esper.Processor):
         """``(seconds from now, what)`` of the next event to slow down for, or None. Contacts between
         bodies are looked for ``horizon`` s ahead (the surface contacts and burns are known at any
         distance)."""
-        from driftframe.systems.gravity import GravitySystem
-
         world = self.world
         now = (world.step_count + 1) * world.dt          # this step has run: the state is at its end
         best: tuple[float, str] | None = None
-        g = world.get_system(GravitySystem)
-        contact = g.next_contact() if g is not None else None
+        orbits = world.resources.get(OrbitState)           # (None: no gravity system, no contact to predict)
+        contact = orbits.next_contact() if orbits is not None else None
         if contact is not None:
-            t, ent, well = contact
-            best = (t - now, f"entity {ent} reaches the surface of {well}")
-        pair = g.next_sphere_contact(horizon) if g is not None and math.isfinite(horizon) else None
-        if pair is not None and (best is None or pair[0] - now < best[0]):
-            verb = "may touch" if g.lookahead_is_bound else "touch"     # (n-body: a lower bound)
-            best = (pair[0] - now, f"entities {pair[1]} and {pair[2]} {verb}")
+            best = (contact.time - now, f"entity {contact.entity} reaches the surface of {contact.well}")
+        pair = orbits.next_sphere_contact(horizon) if orbits is not None and math.isfinite(horizon) else None
+        if pair is not None and (best is None or pair.time - now < best[0]):
+            verb = "may touch" if pair.bound else "touch"     # (n-body: a lower bound)
+            best = (pair.time - now, f"entities {pair.a} and {pair.b} {verb}")
         burns = [(ent, ap) for ent, ap in esper.get_component(Autopilot) if ap.mode == "burn" and not ap.done]
         for ent, plan in esper.get_component(FlightPlan):          # and the burns a plan has still to come
             burns += [(ent, leg) for _, leg in plan.legs[plan.next:] if leg.mode == "burn"]
@@ -86,6 +90,5 @@ class WarpGovernorSystem(esper.Processor):
 
 
 def _thrust(ent) -> float:
-    from driftframe.components.control import FlightControl
     ctl = esper.try_component(ent, FlightControl)
     return ctl.thrust if ctl is not None else 0.0

@@ -2,6 +2,8 @@
 warp governor, the flight aids and the orbit readouts)."""
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from driftframe.components.body import Transform, Velocity
@@ -9,9 +11,18 @@ from driftframe.components.collision import SphereCollider
 from driftframe.components.gravity import GravityWell
 from driftframe.framework import broadphase as bp
 from driftframe.framework import kepler
+from driftframe.framework.orbit_state import ContactAhead, OrbitState, Reference, SurfaceAhead
 from driftframe.systems.gravity.context import OBSTACLE, RAILS, Movers
 from driftframe.systems.gravity.movers import _broad_method
 from driftframe.systems.gravity.wells import _dominant, _Wells
+
+
+class _Kept(NamedTuple):
+    """The last look at the pairs on rails: the epochs it was made from, its answer, how far it looked."""
+
+    version: int
+    found: ContactAhead | None
+    upto: float
 
 
 def _first_reach(g, c, A):
@@ -22,13 +33,30 @@ def _first_reach(g, c, A):
     return np.where(g > 0, t, 0.0)
 
 
+class GravityOrbits(OrbitState):
+    """The gravity system's :class:`~driftframe.framework.orbit_state.OrbitState`, which it publishes in
+    ``world.resources[OrbitState]``: each answer is the system's own (:class:`LookAhead`), from its epochs."""
+
+    def __init__(self, system: LookAhead) -> None:
+        self._system = system
+
+    def reference(self, entity: int) -> Reference | None:
+        return self._system.reference(entity)
+
+    def next_contact(self) -> SurfaceAhead | None:
+        return self._system.next_contact()
+
+    def next_sphere_contact(self, horizon: float) -> ContactAhead | None:
+        return self._system.next_sphere_contact(horizon)
+
+
 class LookAhead:
     """What gravity predicts (a part of :class:`~.system.GravitySystem`)."""
 
-    def reference(self, entity: int):
-        """The well ``entity`` moves about now, as ``(well entity, mu, radius, X, V)`` (its centre's
-        position and velocity, world frame), or None in a scene without wells or for a root well.
-        For orbit readouts and flight aids: prograde means along the velocity relative to this well."""
+    def reference(self, entity: int) -> Reference | None:
+        """The well ``entity`` moves about now (its entity, mu, radius, and its centre's position and
+        velocity now, world frame), or None in a scene without wells or for a root well. For orbit readouts
+        and flight aids: prograde means along the velocity relative to this well."""
         world = self.world
         wq = world.query(GravityWell, Transform)
         wq.refresh()
@@ -47,11 +75,11 @@ class LookAhead:
             wi = int(wells.parent[i])
         else:
             wi = int(_dominant(wells, x, X, np.full(1, -1, np.intp))[0])
-        return wells.ents[wi], float(wells.mu[wi]), float(wells.radius[wi]), X[wi].copy(), V[wi].copy()
+        return Reference(wells.ents[wi], float(wells.mu[wi]), float(wells.radius[wi]), X[wi].copy(), V[wi].copy())
 
-    def next_contact(self):
-        """``(time, entity, well)`` of the earliest predicted surface contact of a body on rails
-        (absolute seconds, exact on its conic), or None. For the warp governor."""
+    def next_contact(self) -> SurfaceAhead | None:
+        """The earliest predicted surface contact of a body on rails (absolute seconds, exact on its
+        conic), or None. For the warp governor."""
         if not self._n:
             return None
         valid = self.ep_well >= 0
@@ -61,14 +89,15 @@ class LookAhead:
         k = int(np.argmin(t))
         if not np.isfinite(t[k]):
             return None
-        return float(t[k]), int(self.ents[k]), self._wells.ents[int(self.ep_well[k])]
+        return SurfaceAhead(float(t[k]), int(self.ents[k]), self._wells.ents[int(self.ep_well[k])])
 
-    def next_sphere_contact(self, horizon: float):
-        """``(time, entity, entity)`` of the earliest predicted contact between two colliders on rails
+    def next_sphere_contact(self, horizon: float) -> ContactAhead | None:
+        """The earliest predicted contact between two colliders on rails
         about the same well, or a collider on rails about a root well and an obstacle (a collider
         gravity does not move), within ``horizon`` s of the end of this step (absolute seconds, exact on
         their conics: :func:`framework.kepler.time_to_touch` from the epochs), or None; lower entity
-        first. For the warp governor. Each look at the pairs on rails covers twice the horizon and is
+        first; ``bound`` where it is only a lower bound (an n-body collider, whose path is not known
+        beyond its step, could touch by then). For the warp governor. Each look at the pairs on rails covers twice the horizon and is
         kept while no epoch changes (a thrust, a contact, an edit), so a steady warp looks again only
         every ``horizon`` s; the obstacles (whose velocity anyone may change) are looked at on every
         call, from their state now. A pair is followed up to the first surface contact of the body on
@@ -78,7 +107,7 @@ class LookAhead:
         bound = self._next_nbody_contact(horizon)
         best = min(exact) if exact else None
         #: Whether the last answer is only a lower bound (an n-body pair that *could* touch by then).
-        self.lookahead_is_bound = bound is not None and (best is None or bound[0] < best[0])
+        self.lookahead_is_bound = bound is not None and (best is None or bound.time < best.time)
         return bound if self.lookahead_is_bound else best
 
     def _next_nbody_contact(self, horizon: float):
@@ -152,7 +181,7 @@ class LookAhead:
             return None
         ents = np.concatenate([self.ents[nbk], self.ents[rk], self.ob_ents])
         a, b = sorted((int(ents[pa[k]]), int(ents[pb[k]])))
-        return float(now + tau[k]), a, b
+        return ContactAhead(float(now + tau[k]), a, b, bound=True)
 
     def _next_cross_contact(self, horizon: float):
         """next_sphere_contact's look at the pairs in different frames on rails: colliders on rails about
@@ -213,7 +242,7 @@ class LookAhead:
             return None
         name = lambda m: int(self.ob_ents[mv.body[m]]) if kind[m] == OBSTACLE else int(self.ents[mv.body[m]])  # noqa: E731
         a, b = sorted((name(pa[k]), name(pb[k])))
-        return float(t[k]), a, b
+        return ContactAhead(float(t[k]), a, b)
 
     def _next_obstacle_contact(self, horizon: float):
         """next_sphere_contact's look at the obstacles: from their Transform and Velocity now (the
@@ -259,9 +288,9 @@ class LookAhead:
                                         rad[pa] + orad[o], np.full(len(pa), now), upto, A[pa], line_b=True)
             t = np.where(now <= upto, t, np.inf)
             k = int(np.argmin(t))
-            if np.isfinite(t[k]) and (best is None or t[k] < best[0]):
+            if np.isfinite(t[k]) and (best is None or t[k] < best.time):
                 a, b = sorted((int(self.ents[ka[k]]), int(self.ob_ents[o[k]])))
-                best = (float(t[k]), a, b)
+                best = ContactAhead(float(t[k]), a, b)
         return best
 
     def _next_rails_contact(self, horizon: float):
@@ -271,10 +300,10 @@ class LookAhead:
         world = self.world
         now = (world.step_count + 1) * world.dt           # the state is at the end of this step
         kept = self._lookahead
-        if kept is not None and kept[0] == self._epoch_version:
-            found, upto = kept[1], kept[2]
-            if found is not None and found[0] >= now:
-                return found if found[0] <= now + horizon else None
+        if kept is not None and kept.version == self._epoch_version:
+            found, upto = kept.found, kept.upto
+            if found is not None and found.time >= now:
+                return found if found.time <= now + horizon else None
             if found is None and upto >= now + horizon:
                 return None
         end = now + 2.0 * horizon
@@ -300,8 +329,8 @@ class LookAhead:
                                         A[pa] + A[pb], np.minimum(rho[pa], rho[pb]))
             t = np.where(now <= upto, t, np.inf)
             k = int(np.argmin(t))
-            if np.isfinite(t[k]) and (best is None or t[k] < best[0]):
+            if np.isfinite(t[k]) and (best is None or t[k] < best.time):
                 a, b = sorted((int(self.ents[ka[k]]), int(self.ents[kb[k]])))
-                best = (float(t[k]), a, b)
-        self._lookahead = (self._epoch_version, best, end)
-        return best if best is not None and best[0] <= now + horizon else None
+                best = ContactAhead(float(t[k]), a, b)
+        self._lookahead = _Kept(self._epoch_version, best, end)
+        return best if best is not None and best.time <= now + horizon else None

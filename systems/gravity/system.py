@@ -2,6 +2,8 @@
 contacts) and writes its bodies' end of the step into the step context. See :mod:`driftframe.systems.gravity`."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import warnings
 
 import esper
@@ -11,35 +13,46 @@ from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.gravity import G, GravityWell, NBody, Orbiting, SurfaceContact
 from driftframe.framework import kepler
+from driftframe.framework.orbit_state import OrbitState
 from driftframe.framework.step import StepContext
 from driftframe.framework.store import as_index, to_indices
 from driftframe.systems.gravity.contacts import _NO_BODIES, SphereContacts
 from driftframe.systems.gravity.context import GravityStep, PassResult, RailsEnd
 from driftframe.systems.gravity.crossings import Crossings
-from driftframe.systems.gravity.lookahead import LookAhead
+from driftframe.systems.gravity.lookahead import GravityOrbits, LookAhead, _Kept
 from driftframe.systems.gravity.movers import ContactMovers
 from driftframe.systems.gravity.nbody import NBodyFlight
 from driftframe.systems.gravity.rails import Rails
 from driftframe.systems.gravity.wells import WellPaths, _dominant, _Wells
 
+if TYPE_CHECKING:
+    from driftframe.framework.world import World
+
 
 class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, NBodyFlight, WellPaths,
                     esper.Processor):
     """Reads GravityWell, Transform, Velocity, Acceleration, Mass, NBody, SphereCollider; writes the step
-    context (its bodies' end of the step), Orbiting; appends SurfaceContact and CollisionEvent to world.events.  Gravity: on rails
-    (exact Kepler from an epoch, with the sphere contacts of the bodies on rails) or kick-drift-kick
-    (n-body)."""
+    context (its bodies' end of the step), Orbiting, the OrbitState resource; appends SurfaceContact and
+    CollisionEvent to world.events.  Gravity: on rails (exact Kepler from an epoch, with the sphere contacts
+    of the bodies on rails) or kick-drift-kick (n-body).
+
+    Added to a world, it publishes what it knows of the orbits there, ``world.resources[OrbitState]``
+    (:mod:`driftframe.framework.orbit_state`: the well a body moves about, the next contacts), for the
+    systems that need it (flight aids, the warp governor, the orbit readouts), which read the resource
+    and never this system."""
 
     stage = "movement"
     name = "gravity"
     reads = (GravityWell, Transform, Velocity, Acceleration, Mass, NBody, Orbiting, SphereCollider)
-    writes = (StepContext, Orbiting, SurfaceContact, CollisionEvent)
+    writes = (StepContext, Orbiting, SurfaceContact, CollisionEvent, OrbitState)
+    #: A save does not hold the OrbitState: the rebuilt world's gravity system publishes its own.
+    rebuilt_resources = (OrbitState,)
     #: after the movement system's prediction, in whatever order the two were added: this system's end
     #: of the step replaces the prediction of its bodies
     after = ("movement",)
 
     @property
-    def requires(self) -> tuple:
+    def requires(self) -> tuple[type, ...]:
         """Nothing to do without a well or an NBody body; while it holds bodies it runs, to hand them back
         to movement when the last well goes (see :meth:`World.add_system`). (Read once per structure
         epoch: the NBody look-up is esper's cached query.)"""
@@ -47,11 +60,13 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
             return ()
         return (GravityWell, Transform)
 
-    def __init__(self):
+    def __init__(self) -> None:
+        self._world: World | None = None
+        self._orbits = GravityOrbits(self)
         self._wells = None
         self._n = 0
         self._epoch_version = 0
-        self._lookahead = None                            # (epoch version, contact or None, looked up to)
+        self._lookahead: _Kept | None = None              # (the last look at the pairs on rails)
         self._epochs: dict = {}
         self._n_col = 0
         self._n_nb_col = 0
@@ -61,7 +76,25 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         self._last_step: GravityStep | None = None       # (the look-ahead evaluates from the last step)
         self.lookahead_is_bound = False
 
+    @property
+    def world(self) -> World:
+        """The world this system is in (set by :meth:`World.add_system`)."""
+        if self._world is None:
+            raise AttributeError("GravitySystem: not in a world yet (World.add_system puts it in one)")
+        return self._world
 
+    @world.setter
+    def world(self, world: World) -> None:
+        # joining a world publishes the orbits there: the flight aids read them before this system's first step
+        self._world = world
+        world.resources[OrbitState] = self._orbits
+
+    def release(self) -> None:
+        """Taken out of its world (:meth:`World.remove_system`, :meth:`World.close`): its OrbitState goes too."""
+        if self._world is not None and self._world.resources.get(OrbitState) is self._orbits:
+            del self._world.resources[OrbitState]
+
+    # -- the scene ------------------------------------------------------------------------------
     def _build_bodies(self, q) -> None:
         world = self.world
         ents = q.entities
@@ -174,7 +207,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         for k, arr in arrays.items():
             getattr(self, k)[new_i] = arr[old_i]
 
-    def state(self):
+    def state(self) -> dict[str, Any] | None:
         """What a save keeps of this system (see framework/save.py): each body's epoch on rails (the
         state its conic is evaluated from) and what it last wrote, by entity; None before the first step."""
         saved = getattr(self, "_saved", None)
@@ -184,7 +217,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         return {"wells": [int(e) for e in wells], "bodies": [int(e) for e in ents],
                 "epochs": {k: v.copy() for k, v in arrays.items()}}
 
-    def restore(self, state) -> None:
+    def restore(self, state: dict[str, Any] | None) -> None:
         """Take back :meth:`state` (a load): the bodies are gathered again at the next step and take
         their saved epochs (bodies about other wells than saved start new ones)."""
         self._wells = None
