@@ -363,8 +363,8 @@ class CollisionSystem(esper.Processor):
         nl.build(x.T, r, np.sqrt((u * u).sum(axis=1)) * dt)
         self._list_layout = lay
         self._list_dirty = False
-        self._pi = nl.i.astype(np.int64)
-        self._pj = nl.j.astype(np.int64)
+        self._pi = np.asarray(nl.i, np.int64)             # (no copy: the grid build gives int64)
+        self._pj = np.asarray(nl.j, np.int64)
         self._blo = np.empty((n, 3))
         self._bhi = np.empty((n, 3))
         self._tosweep = np.empty(n, np.int64)               # the kernel's scratch for bodies swept mid-step
