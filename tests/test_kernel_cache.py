@@ -164,7 +164,7 @@ def test_an_entry_saved_under_another_key_is_not_loaded(tmp_path):
     assert first.returncode == 0 and first.stdout.split()[1] == "1", first.stderr
     second = _py(code_f32, env=env)                                    # a second signature: entry 2
     assert second.returncode == 0 and second.stdout.split()[1] == "1", second.stderr
-    one, two = _cache_files(tmp_path / "nc", "kepler._stumpff1-*.nbc")
+    one, two = _cache_files(tmp_path / "nc", "kepler_kernels._stumpff1-*.nbc")
     one.write_bytes(two.read_bytes())                                 # entry 1 now holds entry 2's code
     again = _py(code, env=env)
     assert again.returncode == 0 and again.stdout.split() == [first.stdout.split()[0], "1"], again.stderr

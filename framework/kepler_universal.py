@@ -1,0 +1,393 @@
+"""The universal-variable solution of the two-body problem in numpy: Stumpff's functions, the solver of
+Kepler's equation, :class:`Epoch` (what a state's propagation needs, derived once) and :func:`propagate`.
+The formulas are in :mod:`driftframe.framework.kepler`'s text; the compiled twin is
+:mod:`driftframe.framework.kepler_kernels`."""
+from __future__ import annotations
+
+import numpy as np
+
+from driftframe.framework.kepler_kernels import _C2_SERIES, _C3_SERIES, _K, _at_compiled, _next_chi_compiled
+
+TWO_PI = 2.0 * np.pi
+_EPS = np.finfo(np.float64).eps
+_C3_SERIES_ABS = np.abs(_C3_SERIES)
+# k terms leave a remainder below 1e-18 where p^k 6 |c3_k| < 1e-18: log10 p < L_k (L_k grows with k)
+_TERM_LIMIT = np.array([(-18.0 - np.log10(6.0 * _C3_SERIES_ABS[k])) / k for k in range(1, len(_K))])
+
+
+def _series_terms(p: float) -> int:
+    """Terms of the Stumpff series that leave a remainder below 1e-18 at |psi| <= p (<= 1)."""
+    if p <= 0.0:
+        return 1
+    return int(np.searchsorted(_TERM_LIMIT, np.log10(p), side="right")) + 1
+
+
+def stumpff(psi):
+    """Stumpff's functions ``c2(psi), c3(psi)`` for any real ``psi`` (arrays broadcast).
+
+    ``c2 = (1 - cos sqrt psi) / psi``, ``c3 = (sqrt psi - sin sqrt psi) / psi^(3/2)``
+    for ``psi > 0``, the cosh/sinh forms for ``psi < 0``; ``c2(0) = 1/2``,
+    ``c3(0) = 1/6``. ``|psi| <= 1`` uses the series (Horner, only as many
+    terms as the largest ``|psi|`` needs), where the closed forms lose digits;
+    ``1 - cos x`` is written ``2 sin^2(x/2)`` so it never cancels.
+    """
+    psi = np.asarray(psi, dtype=np.float64)
+    if psi.ndim == 0:
+        c2, c3 = stumpff(psi[None])
+        return c2[0], c3[0]
+    apsi = np.abs(psi)
+    small = apsi <= 1.0
+    n_small = int(np.count_nonzero(small))
+    c2 = np.empty_like(psi)
+    c3 = np.empty_like(psi)
+    if n_small:
+        # each branch on its own bodies only: a step on rails mostly has psi > 1, a short one psi < 1
+        p = psi if n_small == psi.size else psi[small]
+        terms = _series_terms(float(np.abs(p).max()))
+        s2 = np.full_like(p, _C2_SERIES[terms - 1])
+        s3 = np.full_like(p, _C3_SERIES[terms - 1])
+        for k in range(terms - 2, -1, -1):
+            s2 *= p
+            s2 += _C2_SERIES[k]
+            s3 *= p
+            s3 += _C3_SERIES[k]
+        if n_small == psi.size:
+            return s2, s3
+        c2[small] = s2
+        c3[small] = s3
+    big = ~small
+    p = psi if not n_small else psi[big]
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        x = np.sqrt(np.abs(p))
+        if (p > 0).all():
+            s = np.sin(0.5 * x)
+            b2 = 2.0 * s * s / p
+            b3 = (x - np.sin(x)) / (p * x)
+        else:
+            pos = p > 0
+            s = np.sin(0.5 * x)
+            b2 = np.where(pos, 2.0 * s * s / p, (np.cosh(x) - 1.0) / (-p))
+            b3 = np.where(pos, (x - np.sin(x)) / (p * x), (np.sinh(x) - x) / (-p * x))
+    if not n_small:
+        return b2, b3
+    c2[big] = b2
+    c3[big] = b3
+    return c2, c3
+
+
+def next_chi(chi, r, v, mu, step, *, origin=None):
+    """A first guess for ``chi`` one ``step`` (s) further on, from the last solution ``chi`` and its
+    state ``r, v``: the Taylor series ``chi + chi' step + chi'' step^2 / 2`` with
+    ``chi' = sqrt(mu)/|r|`` and ``chi'' = -sqrt(mu) (r.v)/|r|^3`` (``d|r|/dt = r.v/|r|``). Good to
+    ``step^3``: one Laguerre step then lands on the root, for a body propagated step after step
+    from one epoch. Where the step sweeps a large anomaly (``|alpha| dchi^2 > 0.2``: a coarse step
+    past periapsis) it gives NaN instead, and the solver starts from Kepler's equation (Danby's
+    guess), which is better there. ``origin = (X, V)``: ``r`` and ``v`` are absolute and the well
+    is at ``X`` moving at ``V`` (3-vectors); the relative state is then formed inside. From
+    :data:`COMPILED_MIN` bodies the same formulas run in one compiled pass."""
+    r = np.atleast_2d(r)
+    v = np.atleast_2d(v)
+    if origin is not None:
+        X, V = (np.asarray(o, dtype=np.float64).reshape(3) for o in origin)
+    else:
+        X = V = _ZERO3
+    chi = np.asarray(chi, dtype=np.float64)
+    if r.shape[0] >= COMPILED_MIN and chi.shape == (r.shape[0],) and r.dtype == v.dtype == np.float64:
+        out = np.empty(r.shape[0])
+        _next_chi_compiled(chi, r, v, X, V, float(mu), float(step), out)
+        return out
+    if origin is not None:
+        r = r - X
+        v = v - V
+    rn2 = _dot(r, r)
+    rn = np.sqrt(rn2)
+    rv = _dot(r, v)
+    d1 = np.sqrt(mu / rn2)
+    dchi = step * d1 * (1.0 - 0.5 * step * rv / rn2)
+    alpha = 2.0 / rn - _dot(v, v) / mu
+    return np.where(np.abs(alpha) * dchi * dchi <= 0.2, chi + dchi, np.nan)
+
+
+_ZERO3 = np.zeros(3)
+
+
+def _as_states(r0, v0, mu, dt):
+    r0 = np.atleast_2d(np.asarray(r0, dtype=np.float64))
+    v0 = np.atleast_2d(np.asarray(v0, dtype=np.float64))
+    n = r0.shape[0]
+    mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), (n,))
+    dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+    return r0, v0, mu, dt
+
+
+def _norm(a):
+    return np.sqrt(np.einsum("ij,ij->i", a, a))
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def period(alpha, mu):
+    """Orbital period ``2 pi sqrt(a^3/mu)`` (s) for ``alpha = 1/a > 0``; ``inf`` otherwise."""
+    alpha = np.asarray(alpha, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(alpha > 0, TWO_PI / np.sqrt(np.asarray(mu) * np.abs(alpha) ** 3), np.inf)
+
+
+def solve_universal(r0n, sigma0, alpha, mu, dt, chi=None, *, iterations: int = 60, span_rate=None):
+    """Solve (*) for ``chi``, vectorised; bodies drop out of the arrays as they converge.
+
+    ``r0n`` = |r0| (m), ``sigma0`` = r0.v0/sqrt(mu), ``alpha`` = 1/a (1/m),
+    ``dt`` (s). ``chi`` may carry a first guess. Returns ``chi, psi, c2, c3, r``
+    at the solution (``r = |r(dt)|``).
+
+    Safeguarded: the right side of (*) grows monotonically in ``chi`` (its
+    derivative is ``|r| > 0``), so every evaluation narrows a bracket
+    ``[lo, hi]`` around the root, and a step that would leave it bisects
+    instead. The bracket starts at ``[0, inf)`` (``dt > 0``; mirrored for
+    ``dt < 0``), for ellipses ``[0, (|dM| + 2) sqrt(a)]``, since
+    ``chi = sqrt(a) dE`` and ``dE - dM = e (sin E1 - sin E0)`` is at most 2.
+    So a poor guess (a warm start across periapsis) costs iterations, never the answer.
+    ``span_rate``: ``(sqrt(mu alpha^3), sqrt(|a|))`` where already known (:class:`Epoch`).
+    """
+    target = np.sqrt(mu) * dt
+    chi = _first_guess(r0n, sigma0, alpha, mu, dt) if chi is None else np.array(chi, dtype=np.float64)
+    n = chi.shape[0]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        if span_rate is None:
+            span_rate = (np.where(alpha > 0, np.sqrt(mu * alpha ** 3), np.inf), np.sqrt(1.0 / np.abs(alpha)))
+        span = (span_rate[0] * np.abs(dt) + 2.0) * span_rate[1]       # inf for open orbits
+    neg = dt < 0
+    lo = np.where(neg, -span, 0.0)
+    hi = np.where(neg, 0.0, span)
+    outside = ~((chi >= lo) & (chi <= hi))            # (NaN is outside too)
+    if outside.any():
+        chi[outside] = _first_guess(r0n[outside], sigma0[outside], alpha[outside], mu[outside], dt[outside])
+        chi = np.clip(chi, lo, hi)
+    out = None                                       # chi, psi, c2, c3, |r| at the solution
+    idx = None                                       # None: all bodies; else the ones still iterating
+    tol = 4.0 * _EPS
+    for it in range(iterations):
+        a_, s_, r_, t_ = (alpha, sigma0, r0n, target) if idx is None else \
+            (alpha[idx], sigma0[idx], r0n[idx], target[idx])
+        chi2 = chi * chi
+        psi = a_ * chi2
+        c2, c3 = stumpff(psi)
+        one_c3 = 1.0 - psi * c3
+        one_c2 = 1.0 - psi * c2
+        s_chi = s_ * chi
+        ta = chi2 * chi * c3
+        tb = s_chi * chi * c2
+        tc = r_ * chi * one_c3
+        f = ta + tb + tc - t_
+        fp = chi2 * c2 + s_chi * one_c3 + r_ * one_c2                   # = |r(chi)| > 0
+        # converged when f is within the rounding of its own terms (a few ulp of the largest: near
+        # periapsis of an eccentric orbit they cancel): this evaluation's c2, c3 and |r| are then the
+        # solution's, and no extra pass is needed
+        done = np.abs(f) <= tol * (np.abs(ta) + np.abs(tb) + np.abs(tc) + np.abs(t_))
+        if it == iterations - 1:
+            done[:] = True                           # out of iterations: take the last iterate
+        else:
+            done |= ~np.isfinite(f)
+        all_done = bool(done.all())
+        if all_done and idx is None:
+            return chi, psi, c2, c3, fp              # the usual case: every body at once, no copies
+        # while most bodies still iterate, iterate them all (a converged one only moves by ulp, and
+        # gathering costs more than the arithmetic); take them out once they are the minority
+        whole = idx is None and not all_done and np.count_nonzero(done) * 2 < n
+        if whole:
+            done[:] = False
+        if out is None and not whole:
+            out = [np.empty(n) for _ in range(5)]
+        if not whole:
+            where = (np.flatnonzero(done) if idx is None else idx[done]) if not all_done else idx
+            for o, val in zip(out, (chi, psi, c2, c3, fp)):
+                o[where] = val if all_done else val[done]
+            if all_done:
+                break
+        # narrow the bracket: (*) is increasing in chi
+        above = f > 0
+        np.copyto(hi, chi, where=above & (chi < hi))
+        np.copyto(lo, chi, where=~above & (chi > lo))
+        if it < 8:   # Laguerre, order 5 (Conway 1986): converges from a rough guess for any conic
+            fpp = s_ * one_c2 + (1.0 - a_ * r_) * chi * one_c3             # = dr/dchi
+            disc = np.abs(16.0 * fp * fp - 20.0 * f * fpp)               # (n-1)^2 fp^2 - n(n-1) f fpp, n = 5
+            new = chi - 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
+        else:        # Newton near the root: quadratic, never stalls on a flat denominator
+            new = chi - f / fp
+        leave = ~((new >= lo) & (new <= hi))         # (a converged body, f = 0, sits on its bound)
+        if leave.any():                               # bisect (or double towards an open end)
+            mid = np.where(np.isfinite(hi), 0.5 * (lo + hi), np.maximum(2.0 * np.abs(lo), 1.0))
+            mid = np.where(np.isfinite(lo), mid, np.minimum(-2.0 * np.abs(hi), -1.0))
+            new = np.where(leave, mid, new)
+        if whole:
+            chi = new
+            continue
+        # keep iterating only the bodies that have not converged (most converge in one or two)
+        keep = ~done
+        chi, lo, hi = new[keep], lo[keep], hi[keep]
+        idx = np.flatnonzero(keep) if idx is None else idx[keep]
+    return tuple(out)
+
+
+def _first_guess(r0n, sigma0, alpha, mu, dt):
+    """A starting chi for every conic; Laguerre's method needs no better.
+
+    Short steps (``alpha chi^2 <= 0.1``, the usual case in a fixed-step game):
+    the reversion of (*) to third order, ``sqrt(mu) dt = r0 chi + sigma0 chi^2/2
+    + (1 - alpha r0) chi^3/6 + ...``. Long steps: Vallado's guesses (alg. 8),
+    ``chi = sqrt(mu) dt alpha`` for ellipses and the logarithmic one for hyperbolas.
+    """
+    sqmu = np.sqrt(mu)
+    u = sqmu * dt / r0n
+    w = u / r0n
+    chi = u * (1.0 - 0.5 * sigma0 * w + (0.5 * sigma0 * sigma0 - r0n * (1.0 - alpha * r0n) / 6.0) * w * w)
+    long_step = (np.abs(alpha) * chi * chi > 0.1) | ~np.isfinite(chi)
+    if not long_step.any():
+        return chi
+    k = np.flatnonzero(long_step)
+    chi[k] = _long_guess(r0n[k], sigma0[k], alpha[k], mu[k], dt[k])
+    return chi
+
+
+def _long_guess(r0n, sigma0, alpha, mu, dt):
+    """chi for long steps from the anomalies: ``chi = sqrt(a) dE`` (ellipse), ``sqrt(-a) dH``
+    (hyperbola), with the new anomaly from Kepler's equation (Danby's start, three Newton steps)."""
+    sqmu = np.sqrt(mu)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        sa = np.sqrt(1.0 / np.abs(alpha))                    # sqrt(|a|)
+        ec = 1.0 - r0n * alpha                                # e cos E0 | e cosh H0
+        es = sigma0 * np.sqrt(np.abs(alpha))                  # e sin E0 | e sinh H0  (r.v / sqrt(mu |a|))
+        nmean = sqmu * np.abs(alpha) ** 1.5
+        ell = alpha > 0
+        # ellipse
+        e_e = np.hypot(ec, es)
+        E0 = np.arctan2(es, ec)
+        M1 = E0 - es + nmean * dt
+        E = M1 + 0.85 * e_e * np.sign(np.sin(M1))
+        for _ in range(3):
+            E = E - (E - e_e * np.sin(E) - M1) / (1.0 - e_e * np.cos(E))
+        chi_e = sa * (E - E0)
+        # hyperbola
+        e_h = np.sqrt(np.maximum(ec * ec - es * es, 0.0))
+        H0 = np.arcsinh(es / np.where(e_h > 0, e_h, 1.0))
+        Mh = es - H0 + nmean * dt
+        H = np.arcsinh(Mh / np.where(e_h > 0, e_h, 1.0))
+        for _ in range(3):
+            H = H - (e_h * np.sinh(H) - H - Mh) / (e_h * np.cosh(H) - 1.0)
+        chi_h = sa * (H - H0)
+    chi = np.where(ell, chi_e, chi_h)
+    # near-parabolic or degenerate: the straight-line guess has the right sign and Laguerre does the rest
+    bad = ~np.isfinite(chi) | (chi * dt < 0)
+    return np.where(bad, sqmu * dt / r0n, chi)
+
+
+#: Bodies from which Epoch.at with a guess uses the compiled loop (below: numpy, whose per-call
+#: overhead is smaller than numba's dispatch for a handful of bodies... and equal results either way).
+COMPILED_MIN = 64
+
+
+class Epoch:
+    """States ``(r0, v0)`` about ``mu`` with what :func:`propagate` derives from them computed once:
+    for bodies propagated from one epoch step after step (on rails), only ``dt`` changes."""
+
+    __slots__ = ("r0", "v0", "mu", "sqmu", "r0n", "alpha", "sigma0", "period", "chi_turn", "span_rate", "_compiled")
+
+    def __init__(self, r0, v0, mu):
+        r0 = np.atleast_2d(np.asarray(r0, dtype=np.float64))
+        v0 = np.atleast_2d(np.asarray(v0, dtype=np.float64))
+        self.r0, self.v0 = r0, v0
+        self._compiled = None
+        self.mu = np.broadcast_to(np.asarray(mu, dtype=np.float64), (r0.shape[0],))
+        self.sqmu = np.sqrt(self.mu)
+        self.r0n = _norm(r0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.alpha = 2.0 / self.r0n - _dot(v0, v0) / self.mu
+            self.sigma0 = _dot(r0, v0) / self.sqmu
+            self.period = period(self.alpha, self.mu)
+            # one whole orbit is chi = 2 pi sqrt(a); zero for open orbits
+            self.chi_turn = np.where(self.alpha > 0, TWO_PI / np.sqrt(np.abs(self.alpha)), 0.0)
+            # the solver's bracket for ellipses: |chi| <= (n |dt| + 2) sqrt(a)
+            self.span_rate = (np.where(self.alpha > 0, np.sqrt(self.mu * np.abs(self.alpha) ** 3), np.inf),
+                              np.sqrt(1.0 / np.abs(self.alpha)))
+
+    def at(self, dt, chi=None):
+        """``r, v, chi`` after ``dt`` s (scalar or ``(n,)``); ``chi``: a first guess (:func:`next_chi`).
+
+        Many bodies with a guess (on rails) go through the compiled loop (:data:`COMPILED_MIN`);
+        the numpy path below is the same solution, array by array."""
+        n = self.r0.shape[0]
+        if chi is not None and n >= COMPILED_MIN:
+            dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,)))
+            # (a guess that is not finite fails the loop's bracket test and is replaced there)
+            guess = np.ascontiguousarray(np.broadcast_to(np.asarray(chi, dtype=np.float64), (n,)))
+            out_r = np.empty((n, 3))
+            out_v = np.empty((n, 3))
+            out_chi = np.empty(n)
+            c = self._compiled
+            if c is None:                                  # contiguous copies, made once per epoch
+                c = self._compiled = tuple(np.ascontiguousarray(a) for a in (
+                    self.r0, self.v0, self.mu, self.sqmu, self.r0n, self.alpha, self.sigma0, self.period,
+                    self.chi_turn, self.span_rate[0], self.span_rate[1]))
+            _at_compiled(*c, dt, guess, out_r, out_v, out_chi)
+            return out_r, out_v, out_chi
+        dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
+        guess = None if chi is None else np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)
+        # ellipses: take whole periods off dt, so the rounding and the work do not grow with time
+        with np.errstate(invalid="ignore"):
+            longer = np.abs(dt) > self.period              # (period is inf for open orbits)
+        turns = None
+        dt_red = dt
+        if longer.all():                                   # on rails after the first orbit
+            turns = np.round(dt / self.period)
+            dt_red = dt - self.period * turns
+        elif longer.any():
+            per = np.where(longer, self.period, 1.0)        # (inf * 0 would be NaN)
+            turns = np.where(longer, np.round(dt / per), 0.0)
+            dt_red = np.where(longer, dt - per * turns, dt)
+        if turns is not None and guess is not None:
+            guess -= turns * self.chi_turn
+        r0, v0, r0n, sqmu = self.r0, self.v0, self.r0n, self.sqmu
+        chi, psi, c2, c3, rn = solve_universal(r0n, self.sigma0, self.alpha, self.mu, dt_red, guess,
+                                               span_rate=self.span_rate)
+        chi2 = chi * chi
+        f = 1.0 - chi2 * c2 / r0n
+        # g from chi alone (it equals dt - chi^3 c3 / sqrt(mu) at the root of (*)): then f, g, fd, gd all
+        # follow from one chi, so the new state lies on the same conic to rounding even where chi is a
+        # few ulp off the root -- a timing error of that size, never an energy error (which would build up)
+        g = (r0n * chi * (1.0 - psi * c3) + self.sigma0 * chi2 * c2) / sqmu
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fd = sqmu * chi * (psi * c3 - 1.0) / (rn * r0n)
+            gd = 1.0 - chi2 * c2 / rn
+        r = f[:, None] * r0 + g[:, None] * v0
+        v = fd[:, None] * r0 + gd[:, None] * v0
+        zero = dt_red == 0.0                                 # dt = 0 exactly: the same state, bit for bit
+        if zero.any():
+            r[zero] = r0[zero]
+            v[zero] = v0[zero]
+        if turns is not None:                                # chi of the whole dt, whole orbits included
+            chi = chi + turns * self.chi_turn
+        return r, v, chi
+
+
+def propagate(r0, v0, mu, dt, *, chi=None, return_chi: bool = False):
+    """State after ``dt`` seconds on the conic through ``(r0, v0)`` about a point mass ``mu``.
+
+    ``r0`` (m) and ``v0`` (m/s) are ``(n, 3)`` (or ``(3,)``) relative to the
+    mass, in any inertial frame; ``mu`` (m^3/s^2, > 0) and ``dt`` (s, either
+    sign) are scalars or ``(n,)``. Returns ``r, v`` with the shape of ``r0``
+    (and ``chi``, the universal anomaly of the solution, with ``return_chi``).
+    ``chi``: a first guess (:func:`next_chi` gives one for a body propagated
+    step after step). A body with ``r0 = 0`` has no defined orbit and gets NaN.
+    For many calls from the same states, :class:`Epoch` derives what depends
+    on them only once.
+    """
+    single = np.ndim(r0) == 1
+    r, v, chi = Epoch(r0, v0, mu).at(dt, chi)
+    if single:
+        r, v, chi = r[0], v[0], chi[0]
+    if return_chi:
+        return r, v, chi
+    return r, v
+
