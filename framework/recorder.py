@@ -83,7 +83,7 @@ import time
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
 
@@ -99,6 +99,9 @@ from driftframe.framework.record_sinks import (GIF_MAX_DELAY, X264_CRF, X264_DEF
                                                _PngSink, _Sink, open_sink)
 from driftframe.framework.audio import frame_samples
 from driftframe.framework.record_writer import _Writer
+
+if TYPE_CHECKING:
+    from driftframe.framework.world import World
 from driftframe.framework.stop_signals import STOP_SIGNALS, Interrupted, StopSignals, raise_interrupted  # noqa: F401
 from driftframe.framework.stop_signals import signal_name as _signal_name
 
@@ -153,10 +156,21 @@ class _Plan:
         return self.fmt == "mp4" and self.yuv != "ffmpeg"
 
 
-def record(world, path, *, frames: int, fps: float | None = None, steps_per_frame: int = 1,
-           progress: bool = True, before_step=None, gif_scale: float = 0.5, crf: int | None = None,
-           preset: str = X264_PRESET, overwrite: bool = False, format: str | None = None,
-           motion_blur: int = 1, interpolate=None, handle_signals: bool = True,
+class Interpolator(Protocol):
+    """What ``record(interpolate=...)`` calls to pose the scene between fixed steps (motion blur), as
+    :class:`driftframe.systems.motion_blur.SubframePoses` does."""
+
+    def start(self, world: World) -> None: ...
+    def after_step(self, world: World) -> None: ...
+    def pose(self, world: World, s: float) -> None: ...
+    def restore(self, world: World) -> None: ...
+
+
+def record(world: World, path: str | os.PathLike[str], *, frames: int, fps: float | None = None,
+           steps_per_frame: int = 1, progress: bool = True,
+           before_step: Callable[[World, int], object] | None = None, gif_scale: float = 0.5,
+           crf: int | None = None, preset: str = X264_PRESET, overwrite: bool = False, format: str | None = None,
+           motion_blur: int = 1, interpolate: Interpolator | None = None, handle_signals: bool = True,
            yuv: str = "cpu", audio: bool = True) -> RecordResult:
     """Step, render and write ``frames`` frames of ``world`` to ``path`` (.mp4, .gif or a directory).
 

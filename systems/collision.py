@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import TYPE_CHECKING, Any
 
 import esper
 import numpy as np
@@ -59,6 +60,9 @@ from driftframe.framework import contact
 from driftframe.framework.quiet_step import gather_quiet, quiet_all_pairs
 from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
+
+if TYPE_CHECKING:
+    from driftframe.framework.world import World
 
 METHODS = ("continuous", "articles")
 
@@ -281,11 +285,11 @@ class CollisionSystem(esper.Processor):
         self.stats = dict(_ZERO_STATS)
 
     @property
-    def world(self):
+    def world(self) -> World | None:
         return self._world
 
     @world.setter
-    def world(self, w):
+    def world(self, w: World | None) -> None:
         self._world = w
 
     # -- bookkeeping ----------------------------------------------------------
@@ -456,7 +460,7 @@ class CollisionSystem(esper.Processor):
                 self._t_last[new_i] = t_last[old_i]
         return self._t_last
 
-    def state(self):
+    def state(self) -> dict[str, Any]:
         """What a save keeps of this system (see framework/save.py): the TC model's last contact time of
         each collider (it damps the next contact's restitution) and whether a jam switched the solver."""
         lay, saved = self._t_last_layout, getattr(self, "_saved", None)
@@ -465,7 +469,7 @@ class CollisionSystem(esper.Processor):
             return {"entities": [int(e) for e in ents], "t_last": np.array(t_last, float), "stick": self._stick}
         return {"entities": [int(e) for e in lay.entities], "t_last": self._t_last.copy(), "stick": self._stick}
 
-    def restore(self, state) -> None:
+    def restore(self, state: dict[str, Any]) -> None:
         """Take back :meth:`state` (a load): the layout is rebuilt at the next step and takes the times."""
         self._saved = (state["entities"], state["t_last"])
         self._stick = bool(state["stick"])

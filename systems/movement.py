@@ -38,7 +38,7 @@ class MovementSystem(esper.Processor):
     writes = (StepContext,)
     requires = (Transform, Velocity)
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._plan_epoch = None
         self._plan = ()
         self._views_key = None
