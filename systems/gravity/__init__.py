@@ -9,6 +9,19 @@ components still hold: its result replaces the prediction, and the commit
 stage writes it. A scene without a :class:`~components.gravity.GravityWell`
 costs one empty esper query per step.
 
+**Layout** (one concept per module, as REBOUND keeps one integrator per file):
+``system`` (:class:`GravitySystem`: gathers the wells and bodies, runs each
+step's stages in order), ``context`` (:class:`~.context.GravityStep`, the step
+handed from stage to stage: ``t0``, ``t1`` and ``dt`` exactly as given, the
+start states, the outputs; and the named records the stages pass), ``wells``,
+``rails`` (epochs, thrust, surface bounces), ``crossings`` (spheres of
+influence), ``nbody``, ``movers`` and ``contacts`` (the sphere-contact pass) and
+``lookahead`` (what the system predicts). The system is composed of one part
+class per module; each part's methods take the step context, never a stash of
+the last one (the look-ahead alone evaluates from the last step). What other
+systems need of it they read from the
+:class:`~driftframe.framework.orbit_state.OrbitState` resource it publishes.
+
 **Which well (patched conics).** A body moves about the deepest well whose
 sphere of influence holds it (a root well's is infinite; a moon's is Laplace's
 ``a (m/M)^(2/5)`` unless given); ties at one depth go to the strongest pull
