@@ -24,12 +24,14 @@ MIN_SPEED = 1e-3
 _VS = """
 #version 330
 uniform vec2 size;                // viewport, pixels
+uniform bool textured;
 in vec2 in_pos;                   // pixels, origin top-left, y down
-in vec2 in_uv;
+in vec2 in_uv;                    // texture coordinates; untextured: (depth z/w in [-1, 1], 0)
 out vec2 uv;
 void main() {
     uv = in_uv;
-    gl_Position = vec4(in_pos.x / size.x * 2.0 - 1.0, 1.0 - in_pos.y / size.y * 2.0, 0.0, 1.0);
+    gl_Position = vec4(in_pos.x / size.x * 2.0 - 1.0, 1.0 - in_pos.y / size.y * 2.0,
+                       textured ? 0.0 : in_uv.x, 1.0);
 }
 """
 _FS = """
@@ -211,21 +213,24 @@ class HudSystem(esper.Processor):
         return out
 
     def _orbit_line(self, ent, size) -> np.ndarray:
-        """Pixel segments (x0, y0, x1, y1) of ``ent``'s predicted orbit, with the full view-projection
-        (so the line is right in the cockpit and the chase camera alike); empty without a well."""
+        """Pixel segments (x0, y0, x1, y1, z0, z1) of ``ent``'s predicted orbit, with the full view-projection
+        (so the line is right in the cockpit and the chase camera alike), and each end's depth ``z/w``;
+        empty without a well."""
         from driftframe.systems import readouts
         if ent is None or not (esper.has_component(ent, Transform) and esper.has_component(ent, Velocity)):
-            return np.empty((0, 4))
+            return np.empty((0, 6))
         pts = readouts.predicted_orbit(self.world, ent)
         if pts is None:
-            return np.empty((0, 4))
+            return np.empty((0, 6))
         clip = np.hstack([pts, np.ones((len(pts), 1))]) @ self.render.view_projection.T
         front = clip[:, 3] > 1e-9
         w, h = size
         px = np.stack([(clip[:, 0] / clip[:, 3] + 1) * 0.5 * w, (1 - clip[:, 1] / clip[:, 3]) * 0.5 * h], 1)
+        # beyond the far plane (a planet's orbit seen from far) the line still shows: z clamped into the depth range
+        z = np.clip(clip[:, 2] / np.where(front, clip[:, 3], 1.0), -1.0, 1.0)
         keep = front[:-1] & front[1:]                         # segments wholly in front of the eye
-        segs = np.hstack([px[:-1], px[1:]])[keep]
-        far = np.abs(segs).max(axis=1) < 8 * max(w, h) if len(segs) else np.zeros(0, bool)
+        segs = np.hstack([px[:-1], px[1:], z[:-1, None], z[1:, None]])[keep]
+        far = np.abs(segs[:, :4]).max(axis=1) < 8 * max(w, h) if len(segs) else np.zeros(0, bool)
         return segs[far]
 
     def _draw(self, data: np.ndarray, colour, textured: bool) -> None:
@@ -266,7 +271,19 @@ class HudSystem(esper.Processor):
                     self._draw(_segments_to_triangles(marker_segments(px, radius, kind), 2.0), colour, False)
         orbit = self._orbit_line(ent, (w, h))
         if len(orbit):
-            self._draw(_segments_to_triangles(orbit, 1.5), ORBIT_COLOUR, False)
+            # depth-tested against the scene (the planet hides the far side of the orbit), no depth writes
+            tri = _segments_to_triangles(orbit[:, :4], 1.5)
+            tri[:, 2] = orbit[:, [4, 5, 5, 4, 5, 4]].reshape(-1)    # corners a b c a c e: ends 0 1 1 0 1 0
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.depth_func = "<="
+            r.target.fbo.depth_mask = False
+            try:
+                self._draw(tri, ORBIT_COLOUR, False)
+            finally:
+                r.target.fbo.depth_mask = True
+                ctx.depth_func = "<"
+                ctx.disable(moderngl.DEPTH_TEST)
+            orbit = orbit[:, :4]
         text = self.lines(ent)
         pad = self.font.line_height // 2
         quads = [self.font.quads(line, pad, pad + i * self.font.line_height) for i, line in enumerate(text)]

@@ -106,3 +106,46 @@ def test_the_hud_font_has_latin_1_and_the_signs_a_flight_needs(ctx):
         assert len(font.quads("Δv 12 m/s → 45°", 0, 0)) == 6 * 15          # two triangles a character
     finally:
         font.release()
+
+
+@pytest.mark.gl
+def test_the_planet_hides_the_far_side_of_the_predicted_orbit(ctx, world):
+    from driftframe.app import attach_rendering
+    from driftframe.components.body import AngularVelocity, Transform, Velocity
+    from driftframe.components.camera import Camera
+    from driftframe.components.control import Player
+    from driftframe.components.gravity import GravityWell
+    from driftframe.components.render import ModelRef
+    from driftframe.framework import frame as fr
+    from driftframe.framework.model_cache import declare_variant
+    from driftframe.systems import readouts
+    from driftframe.systems.gravity import GravitySystem
+    from driftframe.systems.hud import ORBIT_COLOUR
+
+    mu, R = 3.75e6, 1000.0
+    world.add_system(GravitySystem())
+    world.create_entity(Transform(), GravityWell(mu=mu, radius=R),
+                        ModelRef(declare_variant(world, "planet", "sphere", scale=R, colour=(0.8, 0.3, 0.2))))
+    ship = world.create_entity(Player(), Transform((1100.0, 0.0, 0.0)), Velocity((0.0, 0.0, -np.sqrt(mu / 1100))),
+                               AngularVelocity(), ModelRef("ship"))
+    eye_at = np.array([0.0, 900.0, 3600.0])                # above the orbit's plane, looking at the planet
+    eye = world.create_entity(Transform(eye_at, fr.look_rotation(-eye_at, (0.0, 1.0, 0.0))))
+    world.create_entity(Camera(target=eye, mode="cockpit", fov=60.0, far=20_000.0))
+    W, H = 200, 150
+    render = attach_rendering(world, ctx, size=(W, H), own_context=False, sky=False, sound=False, effects=False)
+    world.step(1)
+    world.render()
+    img = render.read_rgba()[:, :, :3].astype(int)
+    pts = readouts.predicted_orbit(world, ship)
+    clip = np.hstack([pts, np.ones((len(pts), 1))]) @ render.view_projection.T
+    px = np.stack([(clip[:, 0] / clip[:, 3] + 1) * 0.5 * W, (1 - clip[:, 1] / clip[:, 3]) * 0.5 * H], 1)
+    # hidden: the segment from the eye to the point passes through the planet (a ray-sphere test)
+    d = pts - eye_at
+    t = np.clip(-(eye_at @ d.T) / np.einsum("ij,ij->i", d, d), 0.0, 1.0)
+    hidden = np.linalg.norm(eye_at + t[:, None] * d, axis=1) < R * 0.98
+    orbit = np.array(ORBIT_COLOUR[:3]) * 255
+    shown = np.array([np.abs(img[int(round(y)), int(round(x))] - orbit).max() < 60
+                      for x, y in px], bool)
+    assert hidden.sum() > 10 and (~hidden).sum() > 10
+    assert shown[~hidden].mean() > 0.5          # the near side is drawn
+    assert shown[hidden].mean() < 0.1           # the far side is behind the planet
