@@ -13,11 +13,15 @@ from driftframe.components.camera import Camera
 from driftframe.components.autopilot import Autopilot
 from driftframe.components.control import FlightInput, Player, RotationAssist
 from driftframe.components.gravity import GravityWell
+from driftframe.components.render import ModelRef
 
 TEXT_COLOUR = (0.80, 1.00, 0.80, 1.0)
 PROGRADE_COLOUR = (0.85, 1.00, 0.30, 1.0)
 RETROGRADE_COLOUR = (1.00, 0.55, 0.20, 1.0)
 ORBIT_COLOUR = (0.35, 0.75, 1.00, 0.9)
+SHIP_MARK_COLOUR = (0.55, 0.85, 1.00, 0.9)
+#: The player's ship drawn smaller than this (pixels across) gets corner brackets round it.
+SHIP_MARK_PX = 24.0
 #: Below this speed (m/s) there is no direction of travel to mark.
 MIN_SPEED = 1e-3
 
@@ -134,8 +138,14 @@ def _segments_to_triangles(segments: np.ndarray, width: float) -> np.ndarray:
 
 
 def marker_segments(centre, radius: float, kind: str) -> np.ndarray:
-    """Line segments of a marker at ``centre``: prograde = circle with three ticks, retrograde = circle with an X."""
+    """Line segments of a marker at ``centre``: prograde = circle with three ticks, retrograde = circle with an X,
+    ship = four corner brackets of a square (the player's ship, where it is too small to see)."""
     cx, cy = centre
+    if kind == "ship":
+        k, e = radius, radius * 0.45
+        return np.array([[x0, y0, x0 + sx * e, y0] for x0, sx in ((cx - k, 1), (cx + k, -1)) for y0 in (cy - k, cy + k)]
+                        + [[x0, y0, x0, y0 + sy * e] for x0 in (cx - k, cx + k) for y0, sy in ((cy - k, 1), (cy + k, -1))],
+                        float)
     t = np.linspace(0, 2 * np.pi, 25)
     circle = np.stack([cx + radius * np.cos(t), cy + radius * np.sin(t)], 1)
     segs = [np.hstack([circle[:-1], circle[1:]])]
@@ -164,7 +174,7 @@ class HudSystem(esper.Processor):
 
     stage = "render"
     reads = (Player, Camera, Transform, Velocity, AngularVelocity, RotationAssist, FlightInput, GravityWell,
-             Autopilot)
+             Autopilot, ModelRef)
     writes = ()
 
     def __init__(self, render, *, font_px: int | None = None):
@@ -211,6 +221,26 @@ class HudSystem(esper.Processor):
             from driftframe.systems import readouts
             out += readouts.lines(self.world, ent)         # orbit, target, autopilot, warp (none without)
         return out
+
+    def _small_ship(self, ent, size):
+        """Pixel centre of the subject's model where it is drawn under :data:`SHIP_MARK_PX` pixels across
+        (a chase camera far back, an orbit seen from afar), so it is never lost; else None. Not from the
+        cockpit it is seen from."""
+        r = self.render
+        ref = esper.try_component(ent, ModelRef) if ent is not None else None
+        tf = esper.try_component(ent, Transform) if ref is not None else None
+        cam = esper.try_component(r.camera_entity, Camera) if r.camera_entity else None
+        if tf is None or ref.name not in r.cache or (cam is not None and cam.mode == "cockpit" and cam.target == ent):
+            return None
+        clip = r.view_projection @ np.append(tf.position, 1.0)
+        if clip[3] <= 0:
+            return None
+        w, h = size
+        across = 2.0 * r.cache.get(ref.name).radius * 0.5 * h * r.projection[1, 1] / clip[3]   # pixels
+        px = np.array([(clip[0] / clip[3] + 1) * 0.5 * w, (1 - clip[1] / clip[3]) * 0.5 * h])
+        if across >= SHIP_MARK_PX or not (0 <= px[0] <= w and 0 <= px[1] <= h):
+            return None
+        return px
 
     def _orbit_line(self, ent, size) -> np.ndarray:
         """Pixel segments (x0, y0, x1, y1, z0, z1) of ``ent``'s predicted orbit, with the full view-projection
@@ -269,6 +299,10 @@ class HudSystem(esper.Processor):
                 if px is not None and -radius <= px[0] <= w + radius and -radius <= px[1] <= h + radius:
                     markers[kind] = px
                     self._draw(_segments_to_triangles(marker_segments(px, radius, kind), 2.0), colour, False)
+        ship_px = self._small_ship(ent, (w, h))
+        if ship_px is not None:
+            markers["ship"] = ship_px
+            self._draw(_segments_to_triangles(marker_segments(ship_px, radius, "ship"), 2.0), SHIP_MARK_COLOUR, False)
         orbit = self._orbit_line(ent, (w, h))
         if len(orbit):
             # depth-tested against the scene (the planet hides the far side of the orbit), no depth writes

@@ -149,3 +149,28 @@ def test_the_planet_hides_the_far_side_of_the_predicted_orbit(ctx, world):
     assert hidden.sum() > 10 and (~hidden).sum() > 10
     assert shown[~hidden].mean() > 0.5          # the near side is drawn
     assert shown[hidden].mean() < 0.1           # the far side is behind the planet
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("distance, marked", [(300.0, True), (6.0, False)])
+def test_a_ship_too_small_to_see_gets_brackets_and_a_near_one_none(ctx, world, distance, marked):
+    from driftframe.app import attach_rendering
+    from driftframe.components.body import AngularVelocity, Transform, Velocity
+    from driftframe.components.camera import Camera
+    from driftframe.components.control import Player
+    from driftframe.components.render import ModelRef
+    from driftframe.systems.hud import HudSystem, SHIP_MARK_COLOUR
+
+    ship = world.create_entity(Player(), Transform(), Velocity((0.0, 0.0, 1.0)), AngularVelocity(), ModelRef("ship"))
+    world.create_entity(Camera(target=ship, mode="chase", chase_distance=distance, chase_height=0.0, far=1e4))
+    render = attach_rendering(world, ctx, size=(160, 90), own_context=False, sky=False, sound=False, effects=False)
+    world.step(1)
+    world.render()
+    hud = world.get_system(HudSystem)
+    assert ("ship" in hud.last["markers"]) is marked
+    if marked:
+        x, y = hud.last["markers"]["ship"]
+        assert abs(x - 80) < 2 and abs(y - 45) < 2                  # on the ship, mid-frame
+        img = render.read_rgba()[:, :, :3].astype(int)
+        colour = np.array(SHIP_MARK_COLOUR[:3]) * 255
+        assert (np.abs(img - colour).max(axis=2) < 70).sum() > 20     # the brackets are drawn
