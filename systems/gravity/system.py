@@ -2,7 +2,7 @@
 contacts) and writes its bodies' end of the step into the step context. See :mod:`driftframe.systems.gravity`."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import warnings
 
@@ -27,6 +27,15 @@ from driftframe.systems.gravity.wells import WellPaths, _dominant, _Wells
 
 if TYPE_CHECKING:
     from driftframe.framework.world import World
+
+
+class _Carried(NamedTuple):
+    """The bodies' epochs kept across a rebuild of the scene or a load: the wells they were about (in
+    depth order), the bodies (entity ids) and the epoch arrays by name (:data:`GravitySystem._EPOCH`)."""
+
+    wells: list
+    bodies: np.ndarray
+    epochs: dict
 
 
 class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, NBodyFlight, WellPaths,
@@ -196,11 +205,12 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
 
     _EPOCH = ("ep_r", "ep_v", "ep_t", "ep_well", "ep_contact", "ep_chi", "last_x", "last_v")
 
-    def _carry(self):
-        return (list(self._wells.ents), self.ents.copy(), {k: getattr(self, k) for k in self._EPOCH})
+    def _carry(self) -> _Carried:
+        return _Carried(list(self._wells.ents), self.ents.copy(), {k: getattr(self, k) for k in self._EPOCH})
 
-    def _restore(self, old) -> None:
-        ents, arrays = old
+    def _restore(self, old: _Carried) -> None:
+        """The epochs of the bodies of ``old`` that are still here (the wells are the same)."""
+        ents, arrays = old.bodies, old.epochs
         if not len(ents) or not self._n:
             return
         common, new_i, old_i = np.intersect1d(self.ents, ents, assume_unique=True, return_indices=True)
@@ -221,8 +231,8 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         """Take back :meth:`state` (a load): the bodies are gathered again at the next step and take
         their saved epochs (bodies about other wells than saved start new ones)."""
         self._wells = None
-        self._saved = None if state is None else (state["wells"], np.asarray(state["bodies"], np.int64),
-                                                  dict(state["epochs"]))
+        self._saved = None if state is None else _Carried(state["wells"], np.asarray(state["bodies"], np.int64),
+                                                          dict(state["epochs"]))
 
     # -- the step -------------------------------------------------------------------------------
     def process(self, dt: float) -> None:
@@ -242,8 +252,8 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
             self._saved = None
             self._wells = _Wells(world, wq)
             self._build_bodies(bq)
-            if old is not None and old[0] == self._wells.ents:
-                self._restore(old[1:])
+            if old is not None and old.wells == self._wells.ents:
+                self._restore(old)
             self._epoch_version += 1
             wq.refresh()                                  # Orbiting may have been added: new lists
             bq.refresh()
