@@ -57,11 +57,9 @@ import dataclasses
 import enum
 import importlib
 import io
-import itertools
 import json
 import math
 import os
-import re
 import sys
 import zipfile
 
@@ -69,6 +67,7 @@ import esper
 import numpy as np
 
 from driftframe.framework import __version__
+from driftframe.framework import esper_adapter as ea
 from driftframe.framework import validate
 from driftframe.framework.inputfile import read_bytes_capped
 from driftframe.framework.output import PartFile
@@ -227,14 +226,6 @@ def decode(data, where: str = "value"):
 
 # -- writing -------------------------------------------------------------------------------------------
 
-def _next_entity() -> int:
-    """esper's next entity id in the current world (its counter, read without taking one)."""
-    m = re.fullmatch(r"count\((\d+)\)", repr(esper._entity_count))
-    if m is None:
-        raise RuntimeError(f"esper's entity counter is not an itertools.count: {esper._entity_count!r}")
-    return int(m.group(1))
-
-
 def _subscriptions(world) -> list:
     return sorted([_class_path(t), getattr(fn, "__qualname__", type(fn).__qualname__)]
                   for t, fns in world._subscribers.items() for fn in fns)
@@ -250,20 +241,19 @@ def snapshot(world) -> tuple[dict, dict]:
     """``(manifest, arrays)`` of ``world`` now: what :func:`save` writes."""
     world.activate()
     world.sync()
-    dead = set(esper._dead_entities)
-    ents = sorted(e for e in esper._entities if e not in dead)
+    ents = ea.live_entities()
     manifest = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "driftframe_version": __version__,
         "scene": world.resources.get("make_world"),
         "dt": encode(world.dt), "step_count": int(world.step_count), "time": encode(world.time),
-        "next_entity": _next_entity(), "entities": ents,
+        "next_entity": ea.next_entity(), "entities": ents,
         "columnar": {}, "plain": {}, "resources": {}, "rebuilt_resources": [],
         "systems": {}, "subscriptions": _subscriptions(world),
     }
     arrays = {"entities": np.asarray(ents, np.int64)}
     live = set(ents)
-    for cls in sorted(esper._components, key=_class_path):
-        holders = sorted(e for e in esper._components[cls] if e in live)
+    for cls in sorted(ea.component_types(), key=_class_path):
+        holders = sorted(e for e in ea.holders(cls) if e in live)
         if not holders:
             continue
         path = _class_path(cls)
@@ -514,14 +504,9 @@ def restore(world, save) -> None:
     world.sync()
     for table in world._tables.values():          # every row freed at once (one by one: 0.4 s of 3000 bodies)
         table.detach_all()
-    for e in list(esper._entities):
-        esper.delete_entity(e, immediate=True)
-    esper.clear_dead_entities()
+    ea.delete_all_entities()
     world._own_change()
-    for e in ents:
-        esper._entity_count = itertools.count(e)
-        esper.create_entity(*per_entity[e])
-    esper._entity_count = itertools.count(m["next_entity"])
+    ea.create_with_ids(((e, per_entity[e]) for e in ents), m["next_entity"])
     world.sync()
     world.step_count = m["step_count"]
     world.events, world.previous_events = [], []

@@ -5,14 +5,11 @@ Data flows one way each step. The built-in stages give the default order::
     input -> control -> movement -> spin -> collision -> commit -> camera   (every fixed step)
     render -> record                                                  (every presented frame)
 
-A system is an ``esper.Processor`` with ``process(dt)`` that declares, as
-class attributes, its ``stage`` (one of the names above, or none), its
-``name`` (default: the class name in snake case without "System") and what it
-``reads`` and ``writes`` (tuples of component classes). The schedule is open:
-``world.add_system(Damage(), after="collision")`` places a user's system;
-``after``/``before`` name systems or stages (or give a class), an impossible
-order is an error naming the systems of the cycle, and
-``print(world.describe())`` shows the order and each system's access.
+A system is an ``esper.Processor`` with ``process(dt)`` that declares its
+``stage``, ``name``, ``reads`` and ``writes`` (see :mod:`~driftframe.framework.schedule`,
+which orders them). The schedule is open: ``world.add_system(Damage(),
+after="collision")`` places a user's system, and ``print(world.describe())``
+shows the order and each system's access.
 
 ``World`` owns a private esper world context and makes it current whenever it
 steps, so esper's module functions (``esper.create_entity``,
@@ -34,10 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import heapq
-import io
 import itertools
-import re
 import time
 from collections import defaultdict
 from contextlib import ExitStack
@@ -46,30 +40,17 @@ from operator import attrgetter, itemgetter
 import esper
 import numpy as np
 
+from driftframe.framework import esper_adapter as ea
 from driftframe.framework import validate
+from driftframe.framework.schedule import (DEFAULT_AFTER, DEFAULT_BEFORE, FRAME_STAGES, STEP_STAGES,  # noqa: F401
+                                           Entry, Schedule, ScheduleAmbiguityWarning, ScheduleError, system_name)
+from driftframe.framework.schedule import requires as _requires
 from driftframe.framework.step import Commit, StepContext
 from driftframe.framework.store import Columnar, Columns, Query, Table
-
-#: Stages run once per fixed simulation step, in this order.
-STEP_STAGES = ("input", "control", "movement", "spin", "collision", "commit", "camera")
-#: Stages run once per presented frame (window or recorder), in this order.
-FRAME_STAGES = ("render", "record")
-#: Where a system with no stage and no ``after``/``before`` runs: after commit (every body at the end of
-#: the step), before camera.
-DEFAULT_AFTER, DEFAULT_BEFORE = "commit", "camera"
 
 _ids = itertools.count(1)
 _FIRST, _SECOND = itemgetter(0), itemgetter(1)
 _ROW, _TABLE = attrgetter("_row"), attrgetter("_table")
-
-
-class _Probe:
-    """Never a component of any entity: esper hands out a new (empty) list for it after every
-    structural change, so its identity tells in one call whether anything was added or removed."""
-
-
-class ScheduleError(ValueError):
-    """Systems that cannot be ordered as asked (a cycle, an unknown name, a frame/step mix-up)."""
 
 
 def _describe(comp) -> str:
@@ -78,54 +59,6 @@ def _describe(comp) -> str:
         return repr(dataclasses.astuple(comp))
     fields = getattr(comp, "__dict__", None)
     return repr(sorted(fields.items())) if fields else ""
-
-
-def system_name(system) -> str:
-    """A system's ``name`` attribute, or its class name in snake case without "System"."""
-    name = getattr(system, "name", None)
-    if isinstance(name, str) and name:
-        return name
-    base = type(system).__name__
-    base = base[:-6] if base.endswith("System") and len(base) > 6 else base
-    return re.sub(r"(?<!^)(?=[A-Z])", "_", base).lower()
-
-
-def _access(system, attr: str) -> tuple:
-    value = getattr(system, attr, ())
-    if isinstance(value, (type, str)):
-        value = (value,)
-    try:
-        value = tuple(value)
-    except TypeError:
-        raise TypeError(f"{type(system).__name__}.{attr} must be a tuple of component classes, "
-                        f"got {value!r}") from None
-    for v in value:
-        if not isinstance(v, (type, str)):
-            raise TypeError(f"{type(system).__name__}.{attr} must hold component classes (or names), "
-                            f"got {v!r}")
-    return value
-
-
-def _requires(system) -> tuple:
-    """A system's ``requires``: component classes, all of which some entity must have for it to run."""
-    value = _access(system, "requires")
-    for v in value:
-        if not isinstance(v, type):
-            raise TypeError(f"{type(system).__name__}.requires must hold component classes, got {v!r}")
-    return value
-
-
-class _Entry:
-    """One scheduled system: its name, phase, stage and constraints; and whether, at the structure
-    epoch ``idle_epoch``, it had nothing to do (see ``requires`` in :meth:`World.add_system`)."""
-
-    __slots__ = ("system", "name", "phase", "stage", "after", "before", "seq", "key", "idle_epoch", "idle")
-
-    def __init__(self, system, name, phase, stage, after, before, seq):
-        self.system, self.name, self.phase, self.stage = system, name, phase, stage
-        self.after, self.before, self.seq = after, before, seq
-        self.key = stage or name                     # its line in World.profile
-        self.idle_epoch, self.idle = -1, False
 
 
 class World:
@@ -138,15 +71,12 @@ class World:
     def __init__(self, dt: float = 1.0 / 60.0, *, name: str | None = None):
         self.dt = validate.scalar("dt", dt, positive=True)
         self.name = name or f"driftframe-{next(_ids)}"
-        if self.name in esper.list_worlds():
+        if ea.exists(self.name):
             raise ValueError(f"an esper world named {self.name!r} exists already")
         self.step_count = 0
-        self._entries: list[_Entry] = []
-        self._order: dict[str, list[_Entry]] = {"step": [], "frame": []}
-        # each phase's lines of the profile, all 0.0 (set at the start of each step / frame)
-        self._zero: dict[str, dict[str, float]] = {"step": dict.fromkeys(STEP_STAGES, 0.0),
-                                                    "frame": dict.fromkeys(FRAME_STAGES, 0.0)}
-        self._seq = itertools.count()
+        self._schedule = Schedule()
+        #: Each phase's systems in running order (the schedule's: ``_order["step"]``, ``_order["frame"]``).
+        self._order = self._schedule.order
         #: Seconds each stage (or unstaged system) took in the last step / frame (wall time, profiling only).
         self.profile: dict[str, float] = defaultdict(float, {s: 0.0 for s in STEP_STAGES + FRAME_STAGES})
         #: Seconds each stage (or unstaged system) took in total since creation.
@@ -168,7 +98,7 @@ class World:
         #: current while the epoch is the one it was made at.
         self.epoch = 0
         self.closed = False
-        esper.switch_world(self.name)
+        ea.switch(self.name)
         #: Every body's end-of-step state while a step runs (framework/step.py): predicted by the movement
         #: stage, corrected by the systems that own bodies, written into the components by the commit
         #: stage, which every world has.
@@ -180,8 +110,7 @@ class World:
         """Make this world the current esper context (for esper's module functions)."""
         if self.closed:
             raise RuntimeError(f"world {self.name!r} is closed")
-        if esper.current_world != self.name:
-            esper.switch_world(self.name)
+        ea.switch(self.name)
         return self
 
     def create_entity(self, *components) -> int:
@@ -237,7 +166,7 @@ class World:
 
     def _own_change(self) -> None:
         # the world's own add/remove keeps its tables right: only esper's own calls need a reconcile
-        self._probe = esper.get_component(_Probe)
+        self._probe = ea.probe()
         self.epoch += 1
 
     def add_component(self, entity: int, component) -> None:
@@ -310,24 +239,23 @@ class World:
         :meth:`columns`, so esper's own ``add_component`` / ``remove_component``
         / ``delete_entity`` calls are seen before any column is read.
         """
-        if esper.current_world != self.name:
-            self.activate()
         # (the fast path, every system of every step: esper's cache is clean and holds the same probe list)
-        if not getattr(esper, "_cache_dirty", True) and esper._get_component_cache.get(_Probe) is self._probe:
+        if ea.structure_unchanged(self._probe, self.name):
             return
-        probe = esper.get_component(_Probe)
+        self.activate()
+        probe = ea.probe()
         if probe is self._probe:
             return
         self.epoch += 1
-        present = [c for c in esper._components if isinstance(c, type) and issubclass(c, Columnar)]
+        present = [c for c in ea.component_types() if issubclass(c, Columnar)]
         for cls in present:
             lst = esper.get_component(cls)
             if lst is not self._synced.get(cls):
                 self._reconcile(cls, lst)
         for cls, table in list(self._tables.items()):
-            if cls not in esper._components and table.live:
+            if not ea.holders(cls) and table.live:
                 self._reconcile(cls, [])
-        self._probe = esper.get_component(_Probe)
+        self._probe = ea.probe()
 
     def _reconcile(self, cls, lst: list) -> None:
         table = self.table(cls)
@@ -428,169 +356,16 @@ class World:
         system may change its ``requires`` (the gravity system while it holds
         bodies); the world reads it again at the next change of entities.
         """
-        for e in self._entries:
-            if e.system is system:
-                raise ValueError(f"system {e.name!r} ({type(system).__name__}) is in this world already: a system "
-                                 "object is added once (make another to run it twice)")
-        stage = stage if stage is not None else getattr(system, "stage", None)
-        if stage is not None and stage not in STEP_STAGES + FRAME_STAGES:
-            raise ScheduleError(f"unknown stage {stage!r}; stages are {STEP_STAGES + FRAME_STAGES}")
-        if not callable(getattr(system, "process", None)):
-            raise TypeError(f"system {system!r} has no process(dt) method")
-        _access(system, "reads")
-        _access(system, "writes")
-        _requires(system)
-        after = self._refs(after if after else getattr(system, "after", ()))
-        before = self._refs(before if before else getattr(system, "before", ()))
-        if stage is None and not after and not before:
-            after, before = (DEFAULT_AFTER,), (DEFAULT_BEFORE,)
-        nm = name or system_name(system)
-        phase = "frame" if stage in FRAME_STAGES else "step"
-        if stage is None:
-            phases = {self._phase_of(r) for r in after + before} - {None}
-            if len(phases) > 1:
-                raise ScheduleError(f"system {nm!r}: after={after} / before={before} mix per-step and per-frame "
-                                    "systems")
-            phase = phases.pop() if phases else "step"
-        entry = _Entry(system, nm, phase, stage, after, before, next(self._seq))
-        self._entries.append(entry)
-        try:
-            self._schedule()
-        except ScheduleError:
-            self._entries.remove(entry)
-            self._schedule()
-            raise
+        self._schedule.add(system, stage, after=after, before=before, name=name)
         system.world = self
         return system
 
     def remove_system(self, system) -> None:
         """Take ``system`` out of the schedule (its ``release()`` is called when it has one)."""
-        self._entries = [e for e in self._entries if e.system is not system]
-        self._schedule()
+        self._schedule.remove(system)
         release = getattr(system, "release", None)
         if callable(release):
             release()
-
-    @staticmethod
-    def _refs(value) -> tuple:
-        if isinstance(value, (str, type)):
-            value = (value,)
-        out = []
-        for v in value:
-            if isinstance(v, str) or isinstance(v, type):
-                out.append(v)
-            else:
-                raise TypeError(f"after/before take system or stage names or system classes, got {v!r}")
-        return tuple(out)
-
-    def _phase_of(self, ref):
-        if isinstance(ref, str):
-            if ref in STEP_STAGES:
-                return "step"
-            if ref in FRAME_STAGES:
-                return "frame"
-        for e in self._entries:
-            if self._matches(e, ref):
-                return e.phase
-        return None
-
-    @staticmethod
-    def _matches(entry: _Entry, ref) -> bool:
-        if isinstance(ref, type):
-            return isinstance(entry.system, ref)
-        return entry.name == ref or entry.stage == ref
-
-    def _schedule(self) -> None:
-        """Topological order of each phase: stage order, then after/before, ties by (stage, adding order)."""
-        names = {e.name for e in self._entries}
-        for e in self._entries:
-            for ref in e.after + e.before:
-                if isinstance(ref, str) and ref not in names and ref not in STEP_STAGES + FRAME_STAGES:
-                    raise ScheduleError(f"system {e.name!r}: no system or stage named {ref!r}; systems: "
-                                        f"{', '.join(sorted(names))}; stages: {', '.join(STEP_STAGES + FRAME_STAGES)}")
-        for phase, stages in (("step", STEP_STAGES), ("frame", FRAME_STAGES)):
-            entries = [e for e in self._entries if e.phase == phase]
-            rank = {}
-            for e in entries:
-                if e.stage is not None:
-                    rank[e.seq] = float(stages.index(e.stage))
-            for e in entries:
-                if e.stage is None:
-                    ranks = [stages.index(r) + 0.5 for r in e.after if isinstance(r, str) and r in stages]
-                    ranks += [rank[o.seq] + 0.5 for o in entries for r in e.after
-                              if o is not e and o.seq in rank and self._matches(o, r)]
-                    if not ranks:
-                        ranks = [stages.index(r) - 0.5 for r in e.before if isinstance(r, str) and r in stages]
-                    rank[e.seq] = max(ranks) if ranks else len(stages) - 0.5
-            edges: dict[int, set[int]] = {e.seq: set() for e in entries}
-            by_seq = {e.seq: e for e in entries}
-            for a in entries:
-                for b in entries:
-                    if a is b:
-                        continue
-                    if a.stage is not None and b.stage is not None and stages.index(a.stage) < stages.index(b.stage):
-                        edges[a.seq].add(b.seq)
-                    if any(self._matches(a, r) for r in b.after) or any(self._matches(b, r) for r in a.before):
-                        edges[a.seq].add(b.seq)
-            indeg = {s: 0 for s in edges}
-            for s, outs in edges.items():
-                for o in outs:
-                    indeg[o] += 1
-            ready = [(rank[s], s) for s, d in indeg.items() if d == 0]
-            heapq.heapify(ready)
-            order = []
-            while ready:
-                _, s = heapq.heappop(ready)
-                order.append(by_seq[s])
-                for o in edges[s]:
-                    indeg[o] -= 1
-                    if indeg[o] == 0:
-                        heapq.heappush(ready, (rank[o], o))
-            if len(order) != len(entries):
-                left = {s for s, d in indeg.items() if d > 0}
-                raise ScheduleError("systems cannot be ordered, they form a cycle: "
-                                    + " -> ".join(self._cycle(left, edges, by_seq)))
-            self._order[phase] = order
-            self._zero[phase] = dict.fromkeys(stages + tuple(e.key for e in order), 0.0)
-        self._check_held(self._order["step"])
-
-    @staticmethod
-    def _check_held(order) -> None:
-        """No system between the movement stage and the commit writes what the step holds there (the
-        commit would overwrite it: framework/step.py)."""
-        moved = False
-        for e in order:
-            if isinstance(e.system, Commit):
-                return
-            if moved:
-                held = [w for w in _access(e.system, "writes") if getattr(w, "__name__", w) in Commit.holds]
-                if held:
-                    what = ", ".join(getattr(w, "__name__", w) for w in held)
-                    raise ScheduleError(
-                        f"system {e.name!r} writes {what} between the movement stage and the commit, where the "
-                        f"step holds every body's {what}: the commit would overwrite what it writes. Place it "
-                        "before='movement' (a force, a change of velocity) or after='commit' (the default)")
-            moved = moved or e.stage == "movement"
-
-    @staticmethod
-    def _cycle(left, edges, by_seq) -> list[str]:
-        # systems after a cycle are left unordered too: drop those with no way on inside what is left,
-        # until every one left leads to another (so the walk below ends on a cycle)
-        left = set(left)
-        while True:
-            dead = {s for s in left if not any(o in left for o in edges[s])}
-            if not dead:
-                break
-            left -= dead
-        start = min(left)
-        path, seen = [start], {start: 0}
-        while True:
-            nxt = min(o for o in edges[path[-1]] if o in left)
-            if nxt in seen:
-                cyc = path[seen[nxt]:] + [nxt]
-                return [by_seq[s].name for s in cyc]
-            seen[nxt] = len(path)
-            path.append(nxt)
 
     @property
     def systems(self) -> dict[str, list]:
@@ -611,23 +386,9 @@ class World:
 
     def describe(self) -> str:
         """The schedule as text: each system in running order with its stage, reads and writes."""
-        out = io.StringIO()
+        return self._schedule.describe(self.dt)
 
-        def names(ts):
-            return ", ".join(t if isinstance(t, str) else t.__name__ for t in ts) or "-"
-
-        for phase, title in (("step", f"every fixed step (dt = {self.dt:g} s)"), ("frame", "every presented frame")):
-            out.write(f"{title}:\n")
-            for k, e in enumerate(self._order[phase], 1):
-                s = e.system
-                out.write(f"  {k:2d}. {e.name:<14} {type(s).__name__:<22} stage: {e.stage or '-'}\n"
-                          f"      reads:  {names(_access(s, 'reads'))}\n"
-                          f"      writes: {names(_access(s, 'writes'))}\n")
-                if _requires(s):
-                    out.write(f"      runs when an entity has: {names(_requires(s))}\n")
-        return out.getvalue()
-
-    def _idle(self, e: _Entry) -> None:
+    def _idle(self, e: Entry) -> None:
         """Decide whether ``e``'s system has nothing to do now: it declares ``requires`` and no entity has
         all of them. Once per structure epoch (an esper query, which esper caches until it changes)."""
         req = _requires(e.system)
@@ -636,20 +397,19 @@ class World:
 
     def _run(self, phase: str, dt: float) -> None:
         name = self.name
-        if esper.current_world != name:
-            self.activate()
+        self.activate()
         esper.clear_dead_entities()
         clock = time.perf_counter
         profile, total = self.profile, self.profile_total
         order = self._order[phase]
-        profile.update(self._zero[phase])
+        profile.update(self._schedule.zero[phase])
+        unchanged = ea.structure_unchanged
         ran = True                                  # code outside the step (or a system) ran since the last sync
         for e in order:
             # self.sync()'s fast path, inline (it runs before every system that runs): esper's cache is
             # clean and holds the probe list of the last sync, so no entity gained or lost a component.
             # Only code can change that: a system skipped as idle leaves it as it was.
-            if ran and (esper._cache_dirty or esper._get_component_cache.get(_Probe) is not self._probe
-                        or esper.current_world != name):
+            if ran and not unchanged(self._probe, name):
                 self.sync()
             if e.idle_epoch != self.epoch:
                 self._idle(e)
@@ -739,15 +499,15 @@ class World:
         self.sync()
         h = hashlib.blake2b(digest_size=16)
         h.update(str(self.step_count).encode())
-        kinds = sorted(esper._components, key=lambda c: (c.__module__, c.__qualname__))
+        kinds = sorted(ea.component_types(), key=lambda c: (c.__module__, c.__qualname__))
         skip: set[int] = set()
         for cls in kinds:
             if getattr(cls, "presentation", False):
-                skip.update(esper._components[cls])
+                skip.update(ea.holders(cls))
         for cls in kinds:
             if getattr(cls, "presentation", False):
                 continue
-            ents = np.array(sorted(e for e in esper._components[cls] if e not in skip), np.int64)
+            ents = np.array(sorted(e for e in ea.holders(cls) if e not in skip), np.int64)
             h.update(cls.__qualname__.encode())
             h.update(ents.tobytes())
             if issubclass(cls, Columnar):
@@ -820,10 +580,7 @@ class World:
         self._tables.clear()
         self._queries.clear()
         self._subscribers.clear()
-        if esper.current_world == self.name:
-            esper.switch_world("default")
-        if self.name in esper.list_worlds():
-            esper.delete_world(self.name)
+        ea.delete(self.name)
         self.closed = True
 
     def __enter__(self):

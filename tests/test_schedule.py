@@ -87,7 +87,7 @@ def test_reads_and_writes_must_be_component_classes(world):
 
         def process(self, dt):
             pass
-    with pytest.raises(TypeError, match=r"Bad.reads must hold component classes.*got 3"):
+    with pytest.raises(TypeError, match=r"Bad.reads must hold component, resource or event classes.*got 3"):
         world.add_system(Bad())
 
 
