@@ -73,6 +73,8 @@ class Mesh:
     ``mode``: ``"triangles"`` (CCW from outside) or ``"lines"``. ``lod_error``
     is the largest gap between this mesh and the smooth shape it stands for,
     relative to ``radius`` (0 for exact shapes such as the pyramid).
+    ``uvs``: (N, 2) float32 texture coordinates (glTF's convention: ``(0, 0)``
+    the top-left of the image), or None for an untextured mesh.
     """
 
     name: str
@@ -81,6 +83,7 @@ class Mesh:
     indices: np.ndarray
     mode: str = "triangles"
     lod_error: float = 0.0
+    uvs: np.ndarray | None = None
     #: Bounding radius about the local origin, m (the largest |vertex|).
     radius: float = field(init=False)
 
@@ -106,6 +109,12 @@ class Mesh:
             raise ValueError(f"Mesh {self.name!r}: indices must be in [0, {len(v) - 1}], "
                              f"got [{int(i.min())}, {int(i.max())}]")
         i = i.astype(np.uint32)
+        if self.uvs is not None:
+            uv = np.array(self.uvs, dtype=np.float32)
+            if uv.shape != (len(v), 2) or not np.isfinite(uv).all():
+                raise ValueError(f"Mesh {self.name!r}: uvs must be finite with shape ({len(v)}, 2), got {uv.shape}")
+            uv.flags.writeable = False
+            object.__setattr__(self, "uvs", uv)
         for arr in (v, n, i):
             arr.flags.writeable = False
         object.__setattr__(self, "vertices", v)
@@ -119,8 +128,9 @@ class Mesh:
         return len(self.indices) // (3 if self.mode == "triangles" else 2)
 
     def interleaved(self) -> np.ndarray:
-        """(N, 6) float32 rows ``x y z nx ny nz``: the vertex buffer's layout."""
-        return np.ascontiguousarray(np.hstack([self.vertices, self.normals]), dtype=np.float32)
+        """(N, 6) float32 rows ``x y z nx ny nz``, or (N, 8) ``... u v`` with uvs: the vertex buffer's layout."""
+        cols = [self.vertices, self.normals] + ([] if self.uvs is None else [self.uvs])
+        return np.ascontiguousarray(np.hstack(cols), dtype=np.float32)
 
     def face_normals(self) -> np.ndarray:
         """Unnormalised ``(b - a) x (c - a)`` of each triangle (points out for CCW winding)."""
@@ -236,12 +246,12 @@ def volume_centroid(vertices, faces) -> tuple[float, np.ndarray]:
     return total, (vol[:, None] * t.sum(axis=1)).sum(axis=0) / (4.0 * total)
 
 
-def flat_shaded(name: str, vertices, faces, *, recentre: bool = False) -> Mesh:
+def flat_shaded(name: str, vertices, faces, *, recentre: bool = False, uvs=None) -> Mesh:
     """A flat-shaded :class:`Mesh` from shared vertices and (F, 3) CCW-from-outside faces.
 
-    Every face gets its own three vertices, each with the face's unit normal.
-    ``recentre``: shift the vertices so the solid's centre of mass (see
-    :func:`volume_centroid`) is the origin.
+    Every face gets its own three vertices, each with the face's unit normal
+    (and its vertices' ``uvs``, when given). ``recentre``: shift the vertices so
+    the solid's centre of mass (see :func:`volume_centroid`) is the origin.
     """
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
@@ -253,7 +263,8 @@ def flat_shaded(name: str, vertices, faces, *, recentre: bool = False) -> Mesh:
     if not (length > 0).all():
         raise ValueError(f"Mesh {name!r}: {int((length == 0).sum())} faces have no area")
     n = np.repeat(n / length, 3, axis=0)
-    return Mesh(name, t.reshape(-1, 3), n, np.arange(3 * len(f)), "triangles")
+    uv = None if uvs is None else np.asarray(uvs, dtype=np.float64)[f].reshape(-1, 2)
+    return Mesh(name, t.reshape(-1, 3), n, np.arange(3 * len(f)), "triangles", uvs=uv)
 
 
 @functools.lru_cache(maxsize=16)           # bounded: a cache, never a leak
@@ -417,7 +428,16 @@ MODEL_FILES = (".obj", ".gltf", ".glb")
 
 
 def load_mesh(path, name: str | None = None, *, shading: str = "smooth") -> Mesh:
-    """A triangle :class:`Mesh` from an OBJ / glTF / GLB file, recentred on its centre of mass.
+    """A triangle :class:`Mesh` from an OBJ / glTF / GLB file, recentred on its centre of mass
+    (:func:`load_model` without the texture)."""
+    return load_model(path, name, shading=shading)[0]
+
+
+def load_model(path, name: str | None = None, *, shading: str = "smooth") -> tuple[Mesh, np.ndarray | None]:
+    """``(mesh, texture)`` from an OBJ / glTF / GLB file: the triangle :class:`Mesh`, recentred on its
+    centre of mass, with its texture coordinates, and its base-colour texture as an (H, W, 4) uint8
+    array (top row first), or None when the file has none (normal maps and other material maps are
+    not read).
 
     All the file's geometry is joined into one mesh (node transforms
     applied). ``shading``: ``"smooth"`` (trimesh's area-weighted vertex
@@ -431,16 +451,36 @@ def load_mesh(path, name: str | None = None, *, shading: str = "smooth") -> Mesh
     one without triangles is a clear error that names the file; a missing
     trimesh says which extra to install.
     """
+    if shading not in ("smooth", "flat"):
+        raise ValueError(f"load_mesh shading must be 'smooth' or 'flat', got {shading!r}")
     mesh = _read_trimesh(path)
+    uv, texture = _base_colour(mesh, path)
     centre = mesh_centre(mesh)
     v = np.asarray(mesh.vertices, dtype=np.float64) - centre
     f = np.asarray(mesh.faces, dtype=np.int64)
     label = name or _stem(path)
     if shading == "flat":
-        return flat_shaded(label, v, f)
-    if shading != "smooth":
-        raise ValueError(f"load_mesh shading must be 'smooth' or 'flat', got {shading!r}")
-    return Mesh(label, v, np.asarray(mesh.vertex_normals, dtype=np.float64), f.ravel(), "triangles")
+        return flat_shaded(label, v, f, uvs=uv), texture
+    return Mesh(label, v, np.asarray(mesh.vertex_normals, dtype=np.float64), f.ravel(), "triangles", uvs=uv), texture
+
+
+def _base_colour(mesh, path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The trimesh mesh's per-vertex UVs and base-colour image (glTF's baseColorTexture, OBJ's map_Kd), or
+    ``(None, None)``; the image as (H, W, 4) uint8 (greyscale and RGB made RGBA)."""
+    visual = getattr(mesh, "visual", None)
+    uv = getattr(visual, "uv", None)
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
+    if uv is None or image is None or len(uv) != len(mesh.vertices):
+        return None, None
+    try:
+        rgba = np.asarray(image.convert("RGBA"), dtype=np.uint8)
+    except Exception as e:                         # a texture Pillow cannot decode: name the file
+        raise ValueError(f"model file {str(path)!r}: its texture could not be read: {e}") from None
+    # glTF's v runs down the image; trimesh gives OpenGL's (v up), so flip it back to glTF's
+    uv = np.asarray(uv, dtype=np.float64).copy()
+    uv[:, 1] = 1.0 - uv[:, 1]
+    return uv, rgba
 
 
 def mesh_centre(mesh) -> np.ndarray:

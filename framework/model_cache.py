@@ -72,10 +72,26 @@ def check_scale(name: str, scale) -> np.ndarray:
     return s
 
 
-class MeshSet:
-    """One shape at one or more levels of detail, coarsest first, and its GPU buffers once built."""
+def check_texture(name: str, texture) -> np.ndarray:
+    """An image (H, W, 3 or 4) uint8, top row first, made RGBA; a clear error otherwise."""
+    t = np.asarray(texture)
+    if t.dtype != np.uint8 or t.ndim != 3 or t.shape[2] not in (3, 4) or min(t.shape[:2]) < 1 \
+            or max(t.shape[:2]) > 8192:
+        raise ValueError(f"{name} must be an (H, W, 3 or 4) uint8 image of at most 8192 x 8192, "
+                         f"got {t.dtype} {t.shape}")
+    if t.shape[2] == 3:
+        t = np.concatenate([t, np.full(t.shape[:2] + (1,), 255, np.uint8)], axis=2)
+    return np.ascontiguousarray(t)
 
-    def __init__(self, name: str, lods):
+
+class MeshSet:
+    """One shape at one or more levels of detail, coarsest first, its texture, and its GPU objects once built.
+
+    ``texture``: a base-colour image (H, W, 3 or 4) uint8, top row first, which every level's
+    ``uvs`` index; None for an untextured shape.
+    """
+
+    def __init__(self, name: str, lods, texture=None):
         if isinstance(lods, meshes.Mesh):
             lods = (lods,)
         lods = tuple(lods)
@@ -97,6 +113,11 @@ class MeshSet:
         self.radius = max(m.radius for m in lods)
         #: One (vertex buffer, index buffer) per level, once built.
         self.gpu: tuple | None = None
+        #: The base-colour image (H, W, 4) uint8, or None; its GL texture once built.
+        self.texture = None if texture is None else check_texture(f"model {name!r} texture", texture)
+        self.gpu_texture = None
+        if self.texture is not None and any(m.uvs is None for m in lods):
+            raise ValueError(f"model {name!r}: a texture needs uvs on every level of its mesh")
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,27 +178,36 @@ class ModelCache:
             raise TypeError(f"a model name must be a non-empty str, got {name!r}")
         return name
 
-    def define(self, name: str, lods, *, colour=GREY) -> Model:
-        """Add a base model from one :class:`~framework.meshes.Mesh` or several levels (coarsest first)."""
+    def define(self, name: str, lods, *, colour=GREY, texture=None) -> Model:
+        """Add a base model from one :class:`~framework.meshes.Mesh` or several levels (coarsest first).
+
+        ``texture``: a base-colour image (H, W, 3 or 4) uint8, top row first, which the meshes' ``uvs``
+        index (``(0, 0)`` its top-left corner); the drawn colour is ``colour * texel * light``.
+        """
         name = self._check_name(name)
         if name in self._models:
             raise ValueError(f"model {name!r} is defined already")
-        mesh_set = MeshSet(name, lods)
+        mesh_set = MeshSet(name, lods, texture)
         model = Model(name, mesh_set, np.ones(3), check_colour(f"model {name!r} colour", colour), name)
         self._sets.append(mesh_set)
         self._models[name] = model
         return model
 
-    def load(self, name: str, path, *, colour=GREY, shading: str = "smooth") -> Model:
+    def load(self, name: str, path, *, colour=None, shading: str = "smooth") -> Model:
         """Define base model ``name`` from a model file (OBJ, glTF, GLB), centred on its centre of mass.
 
-        See :func:`framework.meshes.load_mesh`; errors name the file. Scaled
-        variants of it (:meth:`variant`) share its vertex and index buffers.
+        See :func:`framework.meshes.load_model`; errors name the file. The file's texture
+        coordinates and base-colour texture are kept (``colour`` then tints it; default white), else
+        the model is ``colour`` (default grey). Scaled variants of it (:meth:`variant`) share its
+        vertex and index buffers and its texture.
         """
         name = self._check_name(name)
         if name in self._models:
             raise ValueError(f"model {name!r} is defined already")
-        return self.define(name, meshes.load_mesh(path, name, shading=shading), colour=colour)
+        mesh, texture = meshes.load_model(path, name, shading=shading)
+        if colour is None:
+            colour = GREY if texture is None else (1.0, 1.0, 1.0)
+        return self.define(name, mesh, colour=colour, texture=texture)
 
     def variant(self, name: str, base: str, *, scale=1.0, colour=None) -> Model:
         """An entry sharing ``base``'s vertex and index buffers, scaled by ``scale`` (one or three numbers).
@@ -236,6 +266,22 @@ class ModelCache:
             ms.gpu = tuple(built)
         return ms.gpu
 
+    def texture(self, model):
+        """The GL texture of a :class:`Model`'s (or a :class:`MeshSet`'s) base-colour image, built on
+        first use (mipmapped, repeating), or None for an untextured model."""
+        ms = model if isinstance(model, MeshSet) else model.meshes
+        if ms.texture is None:
+            return None
+        if ms.gpu_texture is None:
+            import moderngl
+
+            h, w = ms.texture.shape[:2]
+            tex = self.ctx.texture((w, h), 4, ms.texture.tobytes())
+            tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+            ms.gpu_texture = tex
+        return ms.gpu_texture
+
     @property
     def buffers_alive(self) -> int:
         """GL buffers held now."""
@@ -249,6 +295,9 @@ class ModelCache:
                     vbo.release()
                     ibo.release()
                 ms.gpu = None
+            if ms.gpu_texture is not None:
+                ms.gpu_texture.release()
+                ms.gpu_texture = None
 
 
 def declare_variant(world: World, name: str, base: str = "sphere", *, scale: ArrayLike = 1.0,

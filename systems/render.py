@@ -84,8 +84,15 @@ in vec3 in_position;
 in vec3 in_normal;
 out vec3 v_normal;
 out vec3 v_colour;
+#ifdef TEXTURED
+in vec2 in_uv;                     // texture coordinates, (0, 0) the image's top-left
+out vec2 v_uv;
+#endif
 void main() {
     gl_Position = u_view_proj * (MODEL * vec4(in_position, 1.0));
+#ifdef TEXTURED
+    v_uv = in_uv;
+#endif
     // normals transform by (R S)^-T = R S^-1 = (R S) S^-2; |column i| of R S is s_i
     mat3 m = mat3(MODEL);
     vec3 s2 = vec3(dot(m[0], m[0]), dot(m[1], m[1]), dot(m[2], m[2]));
@@ -103,6 +110,10 @@ uniform int u_lit;                 // 0 for lines: flat colour
 in vec3 v_normal;
 in vec3 v_colour;
 out vec4 f_colour;
+#ifdef TEXTURED
+uniform sampler2D u_texture;       // base colour, uploaded top row first: v = 0 is the top
+in vec2 v_uv;
+#endif
 void main() {
     float shade = 1.0;
     if (u_lit != 0) {
@@ -111,7 +122,11 @@ void main() {
         // hemisphere ambient (u_ambient towards the light, u_ambient + u_fill away from it) + diffuse
         shade = u_ambient + u_fill * (0.5 - 0.5 * nl) + (1.0 - u_ambient) * max(nl, 0.0);
     }
+#ifdef TEXTURED
+    f_colour = vec4(v_colour * texture(u_texture, v_uv).rgb * shade, 1.0);
+#else
     f_colour = vec4(v_colour * shade, 1.0);
+#endif
 }
 """
 
@@ -119,11 +134,10 @@ void main() {
 INSTANCE_FLOATS = 19
 
 
-def _with_define(src: str, define: str | None) -> str:
-    if not define:
-        return src
+def _with_define(src: str, *defines: str) -> str:
+    """``src`` with ``#define NAME`` lines after its ``#version`` line."""
     head, rest = src.split("\n", 2)[1], src.split("\n", 2)[2]
-    return f"{head}\n#define {define}\n{rest}"
+    return head + "\n" + "".join(f"#define {d}\n" for d in defines) + rest
 
 
 class _Group:
@@ -185,9 +199,12 @@ class RenderSystem(esper.Processor):
         #: Optional hook ``blend(entities, positions, orientations) -> (positions, orientations)``
         #: giving the poses to draw (a window's interpolation, :mod:`systems.interpolation`); None: as they are.
         self.poses = None
-        self._prog = ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=FRAGMENT_SHADER)
-        self._prog_draw = ctx.program(vertex_shader=_with_define(VERTEX_SHADER, "PER_DRAW"),
-                                      fragment_shader=FRAGMENT_SHADER)
+        # (per draw, textured) -> program; the instanced untextured one is the common case
+        self._progs = {(per_draw, tex): ctx.program(
+            vertex_shader=_with_define(VERTEX_SHADER, *(["PER_DRAW"] * per_draw + ["TEXTURED"] * tex)),
+            fragment_shader=_with_define(FRAGMENT_SHADER, *(["TEXTURED"] * tex)))
+            for per_draw in (False, True) for tex in (False, True)}
+        self._prog = self._progs[False, False]
         self._rows = None                # the world's Query of (Transform, ModelRef), once added
         self._groups: list[_Group] = []
         self._stale = False
@@ -261,6 +278,14 @@ class RenderSystem(esper.Processor):
         self._groups = groups
 
     # -- GL objects ----------------------------------------------------------------------
+    @staticmethod
+    def _vertex_layout(mesh_set) -> tuple:
+        """The vertex buffer's format and attribute names (with ``in_uv`` for a textured mesh)."""
+        if mesh_set.texture is not None:
+            return ("3f 3f 2f", "in_position", "in_normal", "in_uv")
+        return ("3f 3f", "in_position", "in_normal") if mesh_set.lods[0].uvs is None \
+            else ("3f 3f 8x", "in_position", "in_normal")
+
     def _vao(self, group: _Group, level: int, n: int):
         key = (id(group.mesh_set), level)
         slot = self._inst.get(key)
@@ -272,8 +297,8 @@ class RenderSystem(esper.Processor):
             buf = self.ctx.buffer(reserve=cap * INSTANCE_FLOATS * 4, dynamic=True)
             vbo, ibo = self.cache.buffers(group.mesh_set)[level]
             vao = self.ctx.vertex_array(
-                self._prog,
-                [(vbo, "3f 3f", "in_position", "in_normal"), (buf, "16f 3f/i", "in_model", "in_colour")],
+                self._progs[False, group.mesh_set.texture is not None],
+                [(vbo, *self._vertex_layout(group.mesh_set)), (buf, "16f 3f/i", "in_model", "in_colour")],
                 index_buffer=ibo, index_element_size=4)
             slot = [buf, cap, vao]
             self._inst[key] = slot
@@ -284,7 +309,8 @@ class RenderSystem(esper.Processor):
         vao = self._draw_vaos.get(key)
         if vao is None:
             vbo, ibo = self.cache.buffers(group.mesh_set)[level]
-            vao = self.ctx.vertex_array(self._prog_draw, [(vbo, "3f 3f", "in_position", "in_normal")],
+            vao = self.ctx.vertex_array(self._progs[True, group.mesh_set.texture is not None],
+                                        [(vbo, *self._vertex_layout(group.mesh_set))],
                                         index_buffer=ibo, index_element_size=4)
             self._draw_vaos[key] = vao
         return vao
@@ -298,10 +324,10 @@ class RenderSystem(esper.Processor):
             vao.release()
         self._inst.clear()
         self._draw_vaos.clear()
-        for prog in (self._prog, self._prog_draw):
-            if prog is not None:
-                prog.release()
-        self._prog = self._prog_draw = None
+        for prog in self._progs.values():
+            prog.release()
+        self._progs.clear()
+        self._prog = None
 
     # -- the frame -------------------------------------------------------------------------
     def _camera(self) -> tuple[int, Camera, np.ndarray, np.ndarray]:
@@ -346,7 +372,7 @@ class RenderSystem(esper.Processor):
         ctx.cull_face = "back"
 
         vp_rot = (proj @ rot).astype(np.float32)
-        for prog in (self._prog, self._prog_draw):
+        for prog in self._progs.values():
             prog["u_view_proj"].write(vp_rot.T.tobytes())          # GL wants column-major
             prog["u_to_light"].value = tuple(self.light_direction)
             prog["u_ambient"].value = self.ambient
@@ -396,8 +422,12 @@ class RenderSystem(esper.Processor):
             start = 0
             mode = moderngl.LINES if g.mesh_set.mode == "lines" else moderngl.TRIANGLES
             lit = 0 if g.mesh_set.mode == "lines" else 1
-            self._prog["u_lit"].value = lit
-            self._prog_draw["u_lit"].value = lit
+            textured = g.mesh_set.texture is not None
+            prog_draw = self._progs[True, textured]
+            self._progs[False, textured]["u_lit"].value = lit
+            prog_draw["u_lit"].value = lit
+            if textured:
+                self.cache.texture(g.mesh_set).use(0)
             for lv in range(n_levels):
                 n = int(counts[lv])
                 if not n:
@@ -411,7 +441,7 @@ class RenderSystem(esper.Processor):
                     stats["draw_calls"] += 1
                 else:
                     vao = self._draw_vao(g, lv)
-                    u_model, u_colour = self._prog_draw["u_model"], self._prog_draw["u_colour"]
+                    u_model, u_colour = prog_draw["u_model"], prog_draw["u_colour"]
                     for row in block:
                         u_model.write(row[:16].tobytes())
                         u_colour.write(row[16:19].tobytes())

@@ -174,3 +174,72 @@ def test_a_ship_too_small_to_see_gets_brackets_and_a_near_one_none(ctx, world, d
         img = render.read_rgba()[:, :, :3].astype(int)
         colour = np.array(SHIP_MARK_COLOUR[:3]) * 255
         assert (np.abs(img - colour).max(axis=2) < 70).sum() > 20     # the brackets are drawn
+
+
+# 16 x 16 texels: quarters red (top-left), green, blue, white; whole quarters, so filtering keeps their middles
+CHECKER = np.kron(np.array([[[255, 0, 0], [0, 255, 0]],
+                            [[0, 0, 255], [255, 255, 255]]]), np.ones((8, 8, 1))).astype(np.uint8)
+
+
+def _square(uv_top_left=(0.0, 0.0)):
+    """A 2 m square in the z = 0 plane facing -z (towards an eye on -z), uvs (0, 0) at its top-left."""
+    v = np.array([[-1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, -1.0, 0.0]])  # the eye's right is +x
+    uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) + np.asarray(uv_top_left)
+    f = np.array([[0, 1, 2], [0, 2, 3]])                     # (b - a) x (c - a) along -z: facing the eye
+    return v, f, uv
+
+
+def _shot(ctx, world, model, colour=(1.0, 1.0, 1.0)):
+    from driftframe.app import attach_rendering
+    from driftframe.components.body import Transform
+    from driftframe.components.camera import Camera
+    from driftframe.components.render import ModelRef
+    from driftframe.framework import frame as fr
+
+    eye = world.create_entity(Transform((0.0, 0.0, -3.0), fr.look_rotation((0.0, 0.0, 1.0))))
+    world.create_entity(Camera(target=eye, mode="cockpit", fov=60.0))
+    render = attach_rendering(world, ctx, size=(64, 64), own_context=False, sky=False, hud=False, sound=False,
+                              effects=False, ambient=1.0, fill=0.0, lod=False)      # unlit: colour = texel
+    model(world.resources["model_cache"])
+    world.create_entity(Transform(), ModelRef("square", colour=colour))
+    world.step(1)
+    world.render()
+    return render.read_rgba()[:, :, :3].astype(int)
+
+
+@pytest.mark.gl
+def test_a_textured_procedural_mesh_shows_its_texels_the_right_way_up(ctx, world):
+    v, f, uv = _square()
+    img = _shot(ctx, world, lambda cache: cache.define("square", meshes.flat_shaded("square", v, f, uvs=uv),
+                                                        colour=(1.0, 1.0, 1.0), texture=CHECKER))
+    # the square spans about 37 px mid-frame; each quarter shows its texel (linear filtering blends the middles)
+    q = {"top-left": img[20, 20], "top-right": img[20, 43], "bottom-left": img[43, 20], "bottom-right": img[43, 43]}
+    np.testing.assert_allclose(q["top-left"], [255, 0, 0], atol=12)
+    np.testing.assert_allclose(q["top-right"], [0, 255, 0], atol=12)
+    np.testing.assert_allclose(q["bottom-left"], [0, 0, 255], atol=12)
+    np.testing.assert_allclose(q["bottom-right"], [255, 255, 255], atol=12)
+    cache = world.resources["model_cache"]
+    with pytest.raises(ValueError, match="model 'bare': a texture needs uvs on every level"):
+        cache.define("bare", meshes.box(), texture=CHECKER)
+    with pytest.raises(ValueError, match=r"model 'flat' texture must be an \(H, W, 3 or 4\) uint8 image"):
+        cache.define("flat", meshes.flat_shaded("flat", v, f, uvs=uv), texture=np.zeros((4, 4), np.uint8))
+
+
+@pytest.mark.gl
+def test_a_glb_model_keeps_its_uvs_and_base_colour_texture(ctx, world, tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    from PIL import Image
+
+    v, f, uv = _square()
+    # a closed model is what load_model centres on its mass; a flat square is centred on its area: the same here
+    tm = trimesh.Trimesh(v, f, process=False,
+                         visual=trimesh.visual.TextureVisuals(uv=np.column_stack([uv[:, 0], 1.0 - uv[:, 1]]),
+                                                              image=Image.fromarray(CHECKER)))
+    path = tmp_path / "square.glb"
+    tm.export(path)
+    mesh, texture = meshes.load_model(path)
+    assert mesh.uvs is not None and texture.shape == (16, 16, 4)
+    np.testing.assert_array_equal(texture[:, :, :3], CHECKER)
+    img = _shot(ctx, world, lambda cache: cache.load("square", path))
+    np.testing.assert_allclose(img[20, 20], [255, 0, 0], atol=12)           # red top-left, as in the image
+    np.testing.assert_allclose(img[43, 20], [0, 0, 255], atol=12)
