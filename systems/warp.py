@@ -10,6 +10,8 @@ import math
 import esper
 
 from driftframe.components.autopilot import Autopilot, FlightPlan
+from driftframe.components.body import Transform, Velocity
+from driftframe.components.collision import SphereCollider
 from driftframe.components.control import FlightControl
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import warp as time_warp
@@ -37,7 +39,8 @@ class WarpGovernorSystem(esper.Processor):
     name = "warp"
     after = ("commit",)                 # the bodies at the end of the step
     before = ("camera",)
-    reads = (OrbitState, Orbiting, Autopilot, FlightPlan, FlightControl)
+    #: (OrbitState's answers read the bodies' Transform, Velocity and SphereCollider while this system runs)
+    reads = (OrbitState, Orbiting, Autopilot, FlightPlan, FlightControl, Transform, Velocity, SphereCollider)
     writes = (time_warp.TimeWarp,)
 
     def __init__(self, lead_frames: int = 30):
