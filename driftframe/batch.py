@@ -92,6 +92,11 @@ class Outcome:
         return self.signal is not None
 
     @property
+    def place(self) -> str:
+        """Where the runs went, in words: "in this process (serially)", "on 2 processes", "on cluster tcp://..."."""
+        return "in this process (serially)" if self.where == "serial" else f"on {self.where}"
+
+    @property
     def failures(self) -> list[Failure]:
         return [r for r in self.results if isinstance(r, Failure)]
 

@@ -103,7 +103,7 @@ def _fmt(v) -> str:
 def markdown(outcome: Outcome, *, title: str, chart: str | None) -> str:
     done, failed = outcome.done, outcome.failures
     lines = [f"# {title}", "",
-             f"{len(outcome.results)} runs on {outcome.where}: {len(done)} ok, {len(failed)} failed; "
+             f"{len(outcome.results)} runs {outcome.place}: {len(done)} ok, {len(failed)} failed; "
              f"{outcome.wall_seconds:.1f} s wall time.", ""]
     if outcome.signal is not None:
         from driftframe.batch import signal_name

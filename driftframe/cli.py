@@ -690,8 +690,7 @@ def cmd_batch(args) -> int:
               f"finished (their outputs are whole; --resume runs the rest); wrote "
               f"{', '.join(str(p) for p in written)}", file=sys.stderr)
     else:
-        on = "in this process (serially)" if outcome.where == "serial" else f"on {outcome.where}"
-        print(f"{len(outcome.done)} of {len(specs)} runs ok, {len(outcome.failures)} failed, {on} "
+        print(f"{len(outcome.done)} of {len(specs)} runs ok, {len(outcome.failures)} failed, {outcome.place} "
               f"in {outcome.wall_seconds:.1f} s; wrote {', '.join(str(p) for p in written)}")
     return outcome.exit_status
 

@@ -467,6 +467,7 @@ def test_the_summary_has_a_row_per_run_a_report_and_a_chart(tmp_path):
     assert [ln.split(",")[COL_HASH] for ln in lines[1:4]] == [r.state_hash for r in out.results[:3]]
     md = (tmp_path / "summary.md").read_text()
     assert "| batch_scenes:box | 3 |" in md and "| batch_scenes:box fail=True | 1 | 1 |" in md
+    assert "4 runs in this process (serially): 3 ok, 1 failed" in md       # the command line's words
     assert (tmp_path / "summary.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
