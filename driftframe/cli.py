@@ -801,7 +801,7 @@ class _SignalsInterrupt:
     def __enter__(self):
         import threading
 
-        from driftframe.framework.recorder import STOP_SIGNALS, raise_interrupted
+        from driftframe.framework.stop_signals import STOP_SIGNALS, raise_interrupted    # light: no numpy
         self._old = {}
         if threading.current_thread() is threading.main_thread():
             for s in STOP_SIGNALS:
@@ -823,6 +823,12 @@ def _shell_words(e) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # SIGTERM and SIGHUP end in one line from the start: the imports in _main take a tenth of a second
+    with _SignalsInterrupt():
+        return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -830,19 +836,18 @@ def main(argv: list[str] | None = None) -> int:
             parser.print_help()
             return 0
         from driftframe.framework.gl import GLUnavailableError
+        from driftframe.framework.kernels import KernelCompileError
         from driftframe.framework.recorder import RecordingError
-    except KeyboardInterrupt:              # Ctrl-C while the modules load: nothing touched yet, no traceback
-        print("driftframe: interrupted (SIGINT)", file=sys.stderr)
-        return 128 + signal.SIGINT
+    except KeyboardInterrupt as e:         # a signal while the modules load: nothing touched yet, no traceback
+        signum = getattr(e, "signum", signal.SIGINT)
+        print(f"driftframe: interrupted ({signal.Signals(signum).name})", file=sys.stderr)
+        return 128 + signum
 
     handlers = {"list": cmd_list, "record": cmd_record, "play": cmd_play, "keys": cmd_keys,
                 "diverge": cmd_diverge, "batch": cmd_batch, "warm": cmd_warm,
                 "new": cmd_new}
-    from driftframe.framework.kernels import KernelCompileError
-
     try:
-        with _SignalsInterrupt():
-            return handlers[args.command](args)
+        return handlers[args.command](args)
     except UsageError as e:
         print(f"driftframe: error: {_shell_words(e)}", file=sys.stderr)
         return 2

@@ -307,6 +307,33 @@ def test_a_real_sigterm_to_play_keeps_a_flight_that_record_replays_step_for_step
     assert first_divergence(tmp_path / "h.txt", tmp_path / "r.txt") is None
 
 
+# -- SIGNALS: while the command's modules load ----------------------------------------------------
+# main() imports the GL, kernel and recorder modules (numpy, numba: a tenth of a second) before any
+# command runs; a signal then must still be one line and 128 + n. The helper signals itself when the
+# first of them is imported, from a fresh interpreter where none is loaded yet.
+IMPORTING = textwrap.dedent(r'''
+    import os, signal, sys
+    import driftframe.cli as cli
+
+    class Finder:
+        def find_spec(self, name, path=None, target=None):
+            if name == "driftframe.framework.gl":
+                sys.meta_path.remove(self)
+                os.kill(os.getpid(), getattr(signal, sys.argv[1]))
+            return None
+    sys.meta_path.insert(0, Finder())
+    sys.exit(cli.main(["list"]))
+''')
+
+
+@pytest.mark.parametrize("sig", SIGNALS)
+def test_a_signal_while_the_modules_load_is_one_line_and_128_plus_n(sig):
+    proc = subprocess.run([sys.executable, "-c", IMPORTING, sig], capture_output=True, text=True, timeout=60,
+                          preexec_fn=_default_signals)
+    assert proc.returncode == 128 + getattr(signal, sig), proc.stderr      # not -n: killed without a word
+    assert proc.stderr == f"driftframe: interrupted ({sig})\n" and proc.stdout == ""
+
+
 # -- LOST DISPLAY ----------------------------------------------------------------------------------
 @pytest.mark.window
 def test_play_keeps_the_flight_when_the_x_server_dies(tmp_path):
