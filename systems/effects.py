@@ -10,11 +10,13 @@ same frames.
 
 * **sparks**: ``n = 6 + 30 s`` points (``s`` = loudness in [0, 1], the
   closing speed the impulse took out over 6 m/s, as the sound's), flying
-  from the contact point at ``(1 + 5 s) m/s`` times a random factor, in
+  from the contact point at ``k (1 + 5 s) m/s`` times a random factor, in
   random directions biased along the contact normal both ways (the two
-  surfaces), yellow-white fading to red over 0.3-0.8 s;
+  surfaces), yellow-white fading to red over 0.3-0.8 s; ``k`` is the smaller
+  body's radius in metres (0.1 to 2): a billiard ball's sparks are a pebble's,
+  a boulder's bigger; a spark is ``k (0.15 + 0.25 s)`` m across;
 * **flash**: one large white point at the contact for 0.12 s, its size
-  ``0.6 + 2.4 s`` m, fading quadratically;
+  ``k (0.5 + 1.5 s)`` m, fading quadratically;
 * **plume**: while the player's ``|throttle| > 0``, 14 points along 3 m behind
   the ship's tail (blue-white at the nozzle, orange at the end), jittered.
 
@@ -30,7 +32,7 @@ import moderngl
 import numpy as np
 
 from driftframe.components.body import Mass, Transform
-from driftframe.components.collision import CollisionEvent
+from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.control import FlightInput, Player
 from driftframe.framework import frame as fr
 
@@ -74,7 +76,7 @@ class EffectsSystem(esper.Processor):
     the render target (see the module docstring). ``render``: the render system it draws after."""
 
     stage = "render"
-    reads = (Mass, Transform, FlightInput, Player)
+    reads = (Mass, SphereCollider, Transform, FlightInput, Player)
     writes = ()
 
     def __init__(self, render):
@@ -107,18 +109,19 @@ class EffectsSystem(esper.Processor):
     def _burst(self, ev: CollisionEvent) -> None:
         inv = sum(_inverse_mass(e) for e in (ev.a, ev.b))
         s = min(1.0, (max(ev.impulse * inv, 0.0) / 6.0) ** 0.6)
+        k = min(2.0, max(0.1, min(_radius(ev.a), _radius(ev.b))))   # the smaller body's radius sets the scale, m
         rng = np.random.default_rng([max(ev.step, 0), ev.a, ev.b])
         n = int(6 + 30 * s)
         normal = np.asarray(ev.normal, float)
         d = rng.normal(size=(n, 3)) + np.outer(np.where(rng.random(n) < 0.5, 1.5, -1.5), normal)
         d /= np.linalg.norm(d, axis=1, keepdims=True)
-        speed = (1.0 + 5.0 * s) * rng.uniform(0.3, 1.0, n)
+        speed = k * (1.0 + 5.0 * s) * rng.uniform(0.3, 1.0, n)
         point = np.asarray(ev.point, float)
         hot = rng.uniform(0.0, 1.0, (n, 1))
         rgb = np.array([1.0, 0.85, 0.45]) * (1 - hot) + np.array([1.0, 1.0, 0.9]) * hot
         self._add(np.tile(point, (n, 1)), d * speed[:, None], np.full(n, ev.time), rng.uniform(0.3, 0.8, n),
-                  rgb, np.full(n, 0.2 + 0.3 * s))
-        self._add(point[None], np.zeros((1, 3)), [ev.time], [0.12], [[1.0, 0.95, 0.85]], [0.6 + 2.4 * s])
+                  rgb, np.full(n, k * (0.15 + 0.25 * s)))
+        self._add(point[None], np.zeros((1, 3)), [ev.time], [0.12], [[1.0, 0.95, 0.85]], [k * (0.5 + 1.5 * s)])
 
     def _plume(self, now: float, step: int) -> list[np.ndarray]:
         out = []
@@ -187,6 +190,11 @@ class EffectsSystem(esper.Processor):
             self._buf.release()
             self._prog.release()
         self._prog = self._vao = self._buf = None
+
+
+def _radius(ent: int) -> float:
+    c = esper.try_component(ent, SphereCollider) if esper.entity_exists(ent) else None
+    return 1.0 if c is None else float(c.radius)
 
 
 def _inverse_mass(ent: int) -> float:

@@ -243,3 +243,38 @@ def test_a_glb_model_keeps_its_uvs_and_base_colour_texture(ctx, world, tmp_path)
     img = _shot(ctx, world, lambda cache: cache.load("square", path))
     np.testing.assert_allclose(img[20, 20], [255, 0, 0], atol=12)           # red top-left, as in the image
     np.testing.assert_allclose(img[43, 20], [0, 0, 255], atol=12)
+
+
+def test_billiards_keeps_every_ball_on_the_table_for_30_s_and_the_break_varies_with_the_seed():
+    import esper
+
+    from driftframe.app import make_world
+    from driftframe.components.body import Transform, Velocity
+    from driftframe.demos import billiards as table
+
+    def run(seed, steps):
+        world, _ = make_world("billiards", seed=seed)
+        try:
+            balls = sorted(e for e, _ in esper.get_component(Velocity))
+            v0 = np.array([esper.component_for_entity(e, Velocity).linear for e in balls])
+            lo = np.array([table.CENTRE[0] - table.TABLE[0] / 2, table.CENTRE[1] - table.TABLE[1] / 2]) + table.R
+            hi = np.array([table.CENTRE[0] + table.TABLE[0] / 2, table.CENTRE[1] + table.TABLE[1] / 2]) - table.R
+            worst = 0.0
+            for _ in range(steps // 60):
+                world.step(60)
+                p = np.array([esper.component_for_entity(e, Transform).position for e in balls])
+                worst = max(worst, float(np.max(p[:, [0, 2]] - hi)), float(np.max(lo - p[:, [0, 2]])))
+                assert np.all(p[:, 1] == 0.0)
+            v = np.array([esper.component_for_entity(e, Velocity).linear for e in balls])
+            return v0, v, worst
+        finally:
+            world.close()
+
+    v0, v, worst = run(0, 30 * 60)
+    assert len(v0) == 16
+    assert worst <= 0.006                       # on the felt (the rail is flat to 5 mm between its spheres)
+    e0, e1 = 0.5 * (v0 ** 2).sum(), 0.5 * (v ** 2).sum()
+    assert abs(e1 - e0) <= 1e-12 * e0           # e = 1 on the cushions and between balls: energy kept
+    assert np.count_nonzero(np.linalg.norm(v, axis=1) > 0.1) >= 8    # still rolling about, not parked
+    other = run(1, 60)[0]
+    assert not np.array_equal(other[-1], v0[-1])                   # the cue ball's heading follows the seed
