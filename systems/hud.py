@@ -14,6 +14,7 @@ from driftframe.components.autopilot import Autopilot
 from driftframe.components.control import FlightInput, Player, RotationAssist
 from driftframe.components.gravity import GravityWell
 from driftframe.components.render import ModelRef
+from driftframe.framework.orbit_state import OrbitState
 
 TEXT_COLOUR = (0.80, 1.00, 0.80, 1.0)
 PROGRADE_COLOUR = (0.85, 1.00, 0.30, 1.0)
@@ -174,7 +175,7 @@ class HudSystem(esper.Processor):
 
     stage = "render"
     reads = (Player, Camera, Transform, Velocity, AngularVelocity, RotationAssist, FlightInput, GravityWell,
-             Autopilot, ModelRef)
+             Autopilot, ModelRef, OrbitState)     # (the orbit readouts: gravity's OrbitState resource)
     writes = ()
 
     def __init__(self, render, *, font_px: int | None = None):
