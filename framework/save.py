@@ -9,8 +9,11 @@ read with ``allow_pickle=False``) holding
   version that wrote it, the scene (``make_world``'s demo or ``module:function``,
   seed, collision method, scripted), ``dt``, ``step_count``, the time, the
   entity ids and esper's next id, each columnar component's field layout, the
-  plain (dataclass) components, the resources, the state of each system that
-  has one and the event subscriptions (as names, see below);
+  plain (dataclass) components, the resources (``resources``: those keyed by
+  name; ``typed_resources``: those keyed by their type, by ``module:Class``;
+  ``rebuilt_resources``: the names of those a load makes again, see below),
+  the state of each system that has one and the event subscriptions (as
+  names, see below);
 * ``columns/<Class>/<field>.npy`` and ``columns/<Class>/entities.npy``: every
   columnar field of every entity, exact bytes (a float is the same 64 bits).
 
@@ -239,6 +242,7 @@ def _systems(world):
 
 def snapshot(world) -> tuple[dict, dict]:
     """``(manifest, arrays)`` of ``world`` now: what :func:`save` writes."""
+    world._check_whole("save")
     world.activate()
     world.sync()
     ents = ea.live_entities()
@@ -247,7 +251,7 @@ def snapshot(world) -> tuple[dict, dict]:
         "scene": world.resources.get("make_world"),
         "dt": encode(world.dt), "step_count": int(world.step_count), "time": encode(world.time),
         "next_entity": ea.next_entity(), "entities": ents,
-        "columnar": {}, "plain": {}, "resources": {}, "rebuilt_resources": [],
+        "columnar": {}, "plain": {}, "resources": {}, "typed_resources": {}, "rebuilt_resources": [],
         "systems": {}, "subscriptions": _subscriptions(world),
     }
     arrays = {"entities": np.asarray(ents, np.int64)}
@@ -259,7 +263,7 @@ def snapshot(world) -> tuple[dict, dict]:
         path = _class_path(cls)
         if issubclass(cls, Columnar):
             key = f"columns/{path}"
-            table = world.table(cls)
+            table = world._table(cls)
             rows = table.rows_of(np.asarray(holders, np.int64))
             arrays[f"{key}/entities"] = np.asarray(holders, np.int64)
             layout = {}
@@ -278,11 +282,23 @@ def snapshot(world) -> tuple[dict, dict]:
     for _, system in _systems(world):
         rebuilt.update(getattr(system, "rebuilt_resources", ()))
     for key, value in world.resources.items():
-        if key in rebuilt:            # (a resource keyed by its type, as the gravity system's OrbitState: by name)
-            manifest["rebuilt_resources"].append(key if isinstance(key, str) else f"{key.__module__}.{key.__qualname__}")
+        if isinstance(key, type):
+            # a resource keyed by its type: under "typed_resources", by class path; one whose class says
+            # saved = False (a handle, what the scene's build makes again) or a system rebuilds: by name only
+            path = _class_path(key)
+            if key in rebuilt or getattr(key, "saved", True) is False:
+                manifest["rebuilt_resources"].append(path)
+                continue
+            try:
+                manifest["typed_resources"][path] = encode(value, f"resource {key.__name__}")
+            except _Unsavable:
+                manifest["rebuilt_resources"].append(path)   # code or a handle, as a named one below: rebuilt
+            continue
+        if key in rebuilt:
+            manifest["rebuilt_resources"].append(key)
             continue
         if not isinstance(key, str):
-            raise SaveError(f"cannot save resource key {key!r}: resource names are strings")
+            raise SaveError(f"cannot save resource key {key!r}: resources are keyed by their type or a name")
         try:
             manifest["resources"][key] = encode(value, f"resource {key!r}")
         except _Unsavable:
@@ -497,6 +513,15 @@ def restore(world, save) -> None:
                 raise SaveError(f"{where}: field 'plain/{path}' of entity {row[0]} holds a {_class_path(type(comp))}")
             _owner(row[0], f"plain/{path}").append(comp)
     resources = {k: decode(v, f"{where}: field 'resources/{k}'") for k, v in m["resources"].items()}
+    typed = m.get("typed_resources", {})            # (absent in the saves written before type keys: none)
+    if not isinstance(typed, dict):
+        raise SaveError(f"{where}: field 'typed_resources' is a {type(typed).__name__}, not what a save holds")
+    for path, v in typed.items():
+        key = _find_class(path, f"{where}: field 'typed_resources/{path}'")
+        value = decode(v, f"{where}: field 'typed_resources/{path}'")
+        if not isinstance(value, key):
+            raise SaveError(f"{where}: field 'typed_resources/{path}' holds a {_class_path(type(value))}")
+        resources[key] = value
     states = {k: decode(v, f"{where}: field 'systems/{k}'") for k, v in m["systems"].items()}
 
     # all read and checked: now the world changes (the rebuilt entities go, the saved ones come with their ids)
@@ -514,3 +539,4 @@ def restore(world, save) -> None:
     for name, state in states.items():
         systems[name].restore(state)
     world.epoch += 1
+    world.broken = world._broken_by = None           # whole again: the saved state replaced the half-stepped one

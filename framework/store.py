@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 import esper
 import numpy as np
 
-from driftframe.framework import validate
+from driftframe.framework import access_check, validate
 
 if TYPE_CHECKING:
     from typing import Self
@@ -462,6 +462,9 @@ class Query:
 
     def refresh(self) -> bool:
         world = self.world
+        if access_check.running is not None:            # the checking mode: the running system declares these
+            for T in self.types + self.optional:
+                access_check.touched(T, "a query's refresh", world=world.name)
         world.sync()
         if world.epoch == self._epoch:      # no entity gained or lost a component since: same rows
             return False

@@ -17,16 +17,25 @@ reason for the HUD.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from driftframe.framework import validate
+
+if TYPE_CHECKING:
+    from driftframe.framework.world import World
 
 #: The warp levels, as in most space games: x1 to x100,000 in factors of ten.
 LEVELS = (1, 10, 100, 1_000, 10_000, 100_000)
 
 
 class TimeWarp:
-    """Requested warp, the limit systems put on it, and why. One per world: :func:`of`."""
+    """Requested warp, the limit systems put on it, and why. One per world, ``world.resources[TimeWarp]``:
+    :func:`of`."""
 
-    def __init__(self, factor: int = 1):
+    #: Who makes it (named when a world has none: :meth:`World.resource`).
+    published_by = "made at 1x by driftframe.framework.warp.of(world) (the play loop and record() call it)"
+
+    def __init__(self, factor: int = 1) -> None:
         self.requested = 1
         self.request(factor)
         #: Largest warp allowed now (set each step by the warp governor); None = no limit.
@@ -62,19 +71,19 @@ class TimeWarp:
         """True while the limit holds the warp below the request."""
         return self.factor < self.requested
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"TimeWarp(requested={self.requested}, factor={self.factor}, reason={self.reason!r})"
 
 
-def of(world) -> TimeWarp:
-    """The world's time warp (made at 1x on first use, kept in ``world.resources["warp"]``)."""
-    warp = world.resources.get("warp")
+def of(world: World) -> TimeWarp:
+    """The world's time warp (made at 1x on first use, kept in ``world.resources[TimeWarp]``)."""
+    warp = world.resources.get(TimeWarp)
     if warp is None:
-        warp = world.resources["warp"] = TimeWarp()
+        warp = world.resources[TimeWarp] = TimeWarp()
     return warp
 
 
-def factor(world) -> int:
+def factor(world: World) -> int:
     """The warp factor in force for ``world`` (1 when nothing asked for warp)."""
-    warp = world.resources.get("warp")
+    warp = world.resources.get(TimeWarp)
     return 1 if warp is None else warp.factor

@@ -32,16 +32,20 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import itertools
+import os
 import time
 from collections import defaultdict
 from contextlib import ExitStack
 from operator import attrgetter, itemgetter
+from typing import Any, Callable, Iterable, NoReturn, Sequence, TypeVar
 
 import esper
 import numpy as np
 
+from driftframe.framework import access_check
 from driftframe.framework import esper_adapter as ea
 from driftframe.framework import validate
+from driftframe.framework.resources import CheckedResources, Resources
 from driftframe.framework.schedule import (DEFAULT_AFTER, DEFAULT_BEFORE, FRAME_STAGES, STEP_STAGES,  # noqa: F401
                                            Entry, Schedule, ScheduleAmbiguityWarning, ScheduleError, system_name)
 from driftframe.framework.schedule import requires as _requires
@@ -49,6 +53,19 @@ from driftframe.framework.step import Commit, StepContext
 from driftframe.framework.store import Columnar, Columns, Query, Table
 
 _ids = itertools.count(1)
+_S = TypeVar("_S")
+_C = TypeVar("_C")
+_E = TypeVar("_E")
+_R = TypeVar("_R")
+#: What ``after=`` / ``before=`` take: a system or stage name, a system class, or several of them.
+SystemRefs = str | type | Iterable[str | type]
+#: A save's path.
+PathLike = str | os.PathLike[str]
+
+
+class WorldBrokenError(RuntimeError):
+    """A step of this world raised after one of its systems had run: the world is half-stepped (some
+    systems moved it, the rest did not), so it refuses to step or save until a save is loaded into it."""
 _FIRST, _SECOND = itemgetter(0), itemgetter(1)
 _ROW, _TABLE = attrgetter("_row"), attrgetter("_table")
 
@@ -68,7 +85,7 @@ class World:
     reads the wall clock; ``time`` is ``step_count * dt``.
     """
 
-    def __init__(self, dt: float = 1.0 / 60.0, *, name: str | None = None):
+    def __init__(self, dt: float = 1.0 / 60.0, *, name: str | None = None) -> None:
         self.dt = validate.scalar("dt", dt, positive=True)
         self.name = name or f"driftframe-{next(_ids)}"
         if ea.exists(self.name):
@@ -87,8 +104,12 @@ class World:
         self.previous_events: list = []
         self._rendered = False
         self._subscribers: dict[type, list] = defaultdict(list)
-        #: Shared per-world services (a GL context, the model cache, ...) keyed by name.
-        self.resources: dict = {}
+        #: Shared per-world services and state keyed by type (``resources[TimeWarp]``; see
+        #: :mod:`~driftframe.framework.resources` and :meth:`resource`), or, the old way, by name.
+        self.resources: Resources = (CheckedResources if access_check.enabled else Resources)(self.name, self._writers)
+        #: Why the world is half-stepped (:class:`WorldBrokenError`), or None.
+        self.broken: str | None = None
+        self._broken_by: BaseException | None = None
         self._tables: dict[type, Table] = {}
         self._synced: dict[type, list] = {}
         self._probe = None
@@ -113,7 +134,7 @@ class World:
         ea.switch(self.name)
         return self
 
-    def create_entity(self, *components) -> int:
+    def create_entity(self, *components: object) -> int:
         """``esper.create_entity`` in this world; columnar components move into its tables at once."""
         self.sync()
         for comp in components:
@@ -124,7 +145,7 @@ class World:
         self._own_change()
         return ent
 
-    def create_entities(self, *columns) -> list[int]:
+    def create_entities(self, *columns: Sequence[object] | None) -> list[int]:
         """Create ``n`` entities from equally long lists of components (e.g. ``Transform.bulk(n, ...)``).
 
         ``None`` in place of a list skips it. Returns the entity ids in order.
@@ -145,7 +166,7 @@ class World:
         ents = [create(*comps) for comps in zip(*cols)]
         ids = np.asarray(ents, np.int64)
         for c in columnar:
-            self.table(type(c[0])).attach(ids, list(c))
+            self._table(type(c[0])).attach(ids, list(c))
         self._own_change()
         return ents
 
@@ -169,7 +190,7 @@ class World:
         self._probe = ea.probe()
         self.epoch += 1
 
-    def add_component(self, entity: int, component) -> None:
+    def add_component(self, entity: int, component: object) -> None:
         """``esper.add_component`` in this world (a component of that type already there is replaced)."""
         self.sync()
         old = esper.try_component(entity, type(component))
@@ -181,7 +202,7 @@ class World:
         self._attach_now(entity, (component,))
         self._own_change()
 
-    def remove_component(self, entity: int, component_type):
+    def remove_component(self, entity: int, component_type: type[_C]) -> _C:
         """``esper.remove_component`` in this world; the component keeps its values, its row is freed."""
         self.sync()
         comp = esper.remove_component(entity, component_type)
@@ -203,7 +224,7 @@ class World:
     def _attach_now(self, ent: int, components) -> None:
         for comp in components:
             if isinstance(comp, Columnar):
-                table = self.table(type(comp))
+                table = self._table(type(comp))
                 if comp._table is table:
                     if table.entity[comp._row] != ent:
                         self._shared_error(type(comp), int(table.entity[comp._row]), ent)
@@ -212,8 +233,13 @@ class World:
                 table.attach(np.array([ent]), [comp])
 
     # -- storage ----------------------------------------------------------------
-    def table(self, cls) -> Table:
+    def table(self, cls: type[Columnar]) -> Table:
         """This world's table of columnar component class ``cls`` (made on first use, small)."""
+        if access_check.running is not None:
+            access_check.touched(cls, "world.table", world=self.name)
+        return self._table(cls)
+
+    def _table(self, cls: type[Columnar]) -> Table:
         t = self._tables.get(cls)
         if t is None:
             if not (isinstance(cls, type) and issubclass(cls, Columnar)):
@@ -258,7 +284,7 @@ class World:
         self._probe = ea.probe()
 
     def _reconcile(self, cls, lst: list) -> None:
-        table = self.table(cls)
+        table = self._table(cls)
         n = len(lst)
         ents = np.fromiter(map(_FIRST, lst), np.int64, n)
         comps = list(map(_SECOND, lst))
@@ -300,13 +326,16 @@ class World:
             table.attach(ents[k_new], new)
         self._synced[cls] = lst
 
-    def query(self, *types, optional: tuple = ()) -> Query:
+    def query(self, *types: type, optional: tuple[type, ...] = ()) -> Query:
         """The cached :class:`~driftframe.framework.store.Query` of entities with all of ``types``.
 
         For systems: ``q.refresh()`` at the top of ``process``, then
         ``q.entities`` (ascending ids) and ``q.rows(T)`` into ``self.table(T).data``.
         """
         key = (types, tuple(optional))
+        if access_check.running is not None:
+            for T in key[0] + key[1]:
+                access_check.touched(T, "world.query", world=self.name)
         q = self._queries.get(key)
         if q is None:
             for T in types + tuple(optional):
@@ -315,7 +344,7 @@ class World:
             q = self._queries[key] = Query(self, types, tuple(optional))
         return q
 
-    def columns(self, cls, entities=None) -> Columns:
+    def columns(self, cls: type[Columnar], entities: Sequence[int] | np.ndarray | None = None) -> Columns:
         """Read and write field ``f`` of component ``cls`` for many entities at once.
 
         ``entities``: entity ids in the order you want (a list or array), or
@@ -324,8 +353,10 @@ class World:
         ``(n, *field shape)``; ``cols.f = array`` validates and scatters it.
         An entity without ``cls`` is a KeyError naming it.
         """
+        if access_check.running is not None:
+            access_check.touched(cls, "world.columns", world=self.name)
         self.sync()
-        table = self.table(cls)
+        table = self._table(cls)
         if entities is None:
             q = self.query(cls)
             q.refresh()
@@ -338,7 +369,8 @@ class World:
         return Columns(table, ents, table.rows_of(ents, " (columns: entity order as given)"))
 
     # -- systems ----------------------------------------------------------------
-    def add_system(self, system, stage: str | None = None, *, after=(), before=(), name: str | None = None):
+    def add_system(self, system: _S, stage: str | None = None, *, after: SystemRefs = (), before: SystemRefs = (),
+                   name: str | None = None) -> _S:
         """Schedule an ``esper.Processor``; returns it.
 
         ``stage``: one of :data:`STEP_STAGES` or :data:`FRAME_STAGES` (default:
@@ -360,7 +392,7 @@ class World:
         system.world = self
         return system
 
-    def remove_system(self, system) -> None:
+    def remove_system(self, system: object) -> None:
         """Take ``system`` out of the schedule (its ``release()`` is called when it has one)."""
         self._schedule.remove(system)
         release = getattr(system, "release", None)
@@ -376,13 +408,32 @@ class World:
                 out.setdefault(e.stage or e.name, []).append(e.system)
         return out
 
-    def get_system(self, cls):
+    def get_system(self, cls: type[_S]) -> _S | None:
         """The first scheduled system that is an instance of ``cls``, or None."""
         for phase in ("step", "frame"):
             for e in self._order[phase]:
                 if isinstance(e.system, cls):
                     return e.system
         return None
+
+    def resource(self, key: type[_R]) -> _R:
+        """The resource of type ``key`` (``world.resources[key]``, typed as a ``key``).
+
+        None there is a KeyError naming the type and who publishes it (a system that declares it in its
+        ``writes``, or the type's ``published_by``); a value not of that type is a TypeError."""
+        if not isinstance(key, type):
+            raise TypeError(f"resource(key): key must be a class (e.g. TimeWarp), got {key!r}")
+        value = self.resources[key]
+        if not isinstance(value, key):
+            raise TypeError(f"world {self.name!r}: resources[{key.__name__}] holds a {type(value).__name__}, "
+                            f"not a {key.__name__}")
+        return value
+
+    def _writers(self, key: object) -> list[str]:
+        """The systems that declare resource ``key`` in their writes (for a missing resource's error)."""
+        name = key.__name__ if isinstance(key, type) else key
+        return [f"system {e.name!r} ({type(e.system).__name__})" for e in self._schedule.entries
+                if name in e.written]
 
     def describe(self) -> str:
         """The schedule as text: each system in running order with its stage, reads and writes."""
@@ -404,35 +455,73 @@ class World:
         order = self._order[phase]
         profile.update(self._schedule.zero[phase])
         unchanged = ea.structure_unchanged
+        checked = access_check.enabled
         ran = True                                  # code outside the step (or a system) ran since the last sync
-        for e in order:
-            # self.sync()'s fast path, inline (it runs before every system that runs): esper's cache is
-            # clean and holds the probe list of the last sync, so no entity gained or lost a component.
-            # Only code can change that: a system skipped as idle leaves it as it was.
-            if ran and not unchanged(self._probe, name):
-                self.sync()
-            if e.idle_epoch != self.epoch:
-                self._idle(e)
-            if e.idle:
-                ran = False
-                continue
-            t0 = clock()
-            e.system.process(dt)
-            took = clock() - t0
-            ran = True
-            key = e.key
-            profile[key] += took
-            total[key] += took
-        self.sync()
+        last = None                                 # the system running, or the last one that ran
+        try:
+            for e in order:
+                # self.sync()'s fast path, inline (it runs before every system that runs): esper's cache is
+                # clean and holds the probe list of the last sync, so no entity gained or lost a component.
+                # Only code can change that: a system skipped as idle leaves it as it was.
+                if ran and not unchanged(self._probe, name):
+                    self.sync()
+                if e.idle_epoch != self.epoch:
+                    self._idle(e)
+                if e.idle:
+                    ran = False
+                    continue
+                last = e
+                t0 = clock()
+                if checked:
+                    access_check.running = (name, e)
+                e.system.process(dt)
+                if checked:
+                    access_check.running = None
+                took = clock() - t0
+                ran = True
+                key = e.key
+                profile[key] += took
+                total[key] += took
+            self.sync()
+        except BaseException as exc:
+            if checked:
+                access_check.running = None
+            if phase == "step" and last is not None:
+                self._break(last, exc)
+            raise
+
+    def _break(self, e: Entry, exc: BaseException) -> None:
+        """Mark this world half-stepped: ``e``'s system raised ``exc`` (or the world's bookkeeping raised
+        after it ran), after it and the systems before it had changed the world."""
+        self.broken = (f"world {self.name!r} is broken: in step {self.step_count + 1}, system {e.name!r} "
+                       f"({type(e.system).__name__}) raised {type(exc).__name__}: {exc}. It and the systems "
+                       "before it had already changed the world, so stepping on would step them twice: load a "
+                       "save into it (world.restore(path)) or make it again (World.load(path))")
+        self._broken_by = exc
+
+    def _check_whole(self, doing: str) -> None:
+        if self.broken is not None:
+            raise WorldBrokenError(f"cannot {doing}: {self.broken}") from self._broken_by
 
     # -- events -----------------------------------------------------------------
-    def emit(self, event) -> None:
+    def emit(self, event: object) -> None:
         """Record ``event`` in :attr:`events` and call every subscriber of its type at once."""
+        if access_check.running is not None:
+            access_check.touched(type(event), "world.emit", write=True, world=self.name)
         self.events.append(event)
-        for fn in self._subscribers.get(type(event), ()):
+        subs = self._subscribers.get(type(event), ())
+        if subs and access_check.running is not None:
+            running, access_check.running = access_check.running, None     # a subscriber is not the system
+            try:
+                for fn in subs:
+                    fn(event)
+            finally:
+                access_check.running = running
+            return
+        for fn in subs:
             fn(event)
 
-    def subscribe(self, event_type: type, callback):
+    def subscribe(self, event_type: type[_E], callback: Callable[[_E], object]) -> Callable[[], None]:
         """Call ``callback(event)`` for every emitted event of ``event_type``; returns an unsubscribe function."""
         if not isinstance(event_type, type):
             raise TypeError(f"subscribe: event_type must be a class (e.g. CollisionEvent), got {event_type!r}")
@@ -441,14 +530,20 @@ class World:
         subs = self._subscribers[event_type]
         subs.append(callback)
 
-        def unsubscribe():
+        def unsubscribe() -> None:
             if callback in subs:
                 subs.remove(callback)
         return unsubscribe
 
     # -- stepping ---------------------------------------------------------------
     def step(self, n: int = 1) -> None:
-        """Advance the simulation by ``n`` fixed steps of ``dt``."""
+        """Advance the simulation by ``n`` fixed steps of ``dt``.
+
+        A step in which a system raises leaves the world broken (:attr:`broken`): the systems before it
+        moved it, the rest did not. The exception goes on to the caller; every later ``step()`` (and
+        ``save()``) raises :class:`WorldBrokenError` naming the system and the exception, until a save is
+        loaded into the world (:meth:`restore`)."""
+        self._check_whole("step")
         if self._rendered or not self._order["frame"]:
             self.previous_events, self.events = self.events, []
             self._rendered = False
@@ -511,7 +606,7 @@ class World:
             h.update(cls.__qualname__.encode())
             h.update(ents.tobytes())
             if issubclass(cls, Columnar):
-                table = self.table(cls)
+                table = self._table(cls)
                 rows = table.rows_of(ents)
                 for name in cls._fields:
                     h.update(np.ascontiguousarray(table.data[name][rows]).tobytes())
@@ -521,21 +616,37 @@ class World:
         return h.hexdigest()
 
     # -- saves ----------------------------------------------------------------------
-    def save(self, path, *, overwrite: bool = False) -> str:
+    def save(self, path: PathLike, *, overwrite: bool = False) -> str:
         """Write this world to ``path`` (a ``.npz``: columns, plus a JSON manifest), atomically; an
         existing file is refused unless ``overwrite``. See :mod:`driftframe.framework.save`."""
         from driftframe.framework import save
         return save.save(self, path, overwrite=overwrite)
 
+    def __copy__(self) -> NoReturn:
+        raise TypeError(self._no_copy("copied (copy.copy)"))
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> NoReturn:
+        raise TypeError(self._no_copy("copied (copy.deepcopy)"))
+
+    def __reduce_ex__(self, protocol: Any) -> NoReturn:
+        raise TypeError(self._no_copy("pickled"))
+
+    def _no_copy(self, how: str) -> str:
+        # a copy would share the esper context (closing it would delete this world's entities), the systems'
+        # GL handles and the subscribers' closures: a save is the one complete, independent copy of a world
+        return (f"a World cannot be {how}: it owns an esper context, GL handles and callbacks. For an "
+                f"independent world with the same state_hash, save it and load the save: "
+                f"world.save(path) then World.load(path) (or World.load(path, build=...))")
+
     @classmethod
-    def load(cls, path, build=None) -> "World":
+    def load(cls, path: PathLike, build: Callable[[], World] | None = None) -> World:
         """The world saved in ``path``: rebuilt (``make_world`` of the scene the save names, or
         ``build()``, which returns a world with its systems), then its entities, step count, resources
         and systems' state replaced by the saved ones; it steps on bit-identically."""
         from driftframe.framework import save
         return save.load(path, build=build)
 
-    def restore(self, path) -> None:
+    def restore(self, path: PathLike) -> None:
         """Replace this world's state with the save in ``path`` (quick-load: this world keeps its systems)."""
         from driftframe.framework import save
         save.restore(self, path)
@@ -583,8 +694,8 @@ class World:
         ea.delete(self.name)
         self.closed = True
 
-    def __enter__(self):
+    def __enter__(self) -> World:
         return self.activate()
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()

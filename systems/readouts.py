@@ -18,6 +18,7 @@ from driftframe.components.autopilot import Autopilot
 from driftframe.components.body import Transform, Velocity
 from driftframe.framework import kepler
 from driftframe.framework.orbit_state import OrbitState, Reference
+from driftframe.framework.warp import TimeWarp
 from driftframe.framework.world import World
 
 
@@ -133,7 +134,7 @@ def lines(world, ent: int) -> list[str]:
             out.append(f"CLOSEST {d:.0f} m in {_t(t)}")
         if ap.mode != "off":
             out.append(f"AUTO    {ap.status or ap.mode}")
-    warp = world.resources.get("warp")
+    warp = world.resources.get(TimeWarp)
     if warp is not None and (warp.requested > 1 or warp.reason):
         line = f"WARP    x{warp.factor:,}"
         if warp.dropped:

@@ -75,7 +75,7 @@ class WarpGovernorSystem(esper.Processor):
         return best
 
     def process(self, dt: float) -> None:
-        warp = self.world.resources.get("warp")
+        warp = self.world.resources.get(time_warp.TimeWarp)
         if warp is None or warp.requested == 1:
             if warp is not None:
                 warp.limit, warp.reason = None, ""

@@ -15,6 +15,7 @@ from driftframe import demos
 from driftframe.app import make_world, simulation_systems
 from driftframe.components.body import Transform, Velocity
 from driftframe.framework import __version__, save, warp
+from driftframe.framework.warp import TimeWarp
 from driftframe.framework.inputfile import InputFileError
 from driftframe.framework.output import OutputExistsError
 from driftframe.framework.world import World
@@ -56,7 +57,7 @@ def test_orbit_continues_through_a_burn_and_under_warp(tmp_path):
     a = _run("orbit", 722)
     a.save(tmp_path / "burn.npz")
     a.step(1000 - 722)
-    assert warp.of(a).requested == 10 and a.resources["warp"].factor == 10
+    assert warp.of(a).requested == 10 and a.resources[TimeWarp].factor == 10
     a.save(tmp_path / "warp.npz")
     a.step(150)
     expected = a.state_hash()
