@@ -58,6 +58,11 @@ class OrbitState:
     Every answer is about the world's state now: between two steps the end of the last one. Absolute
     times are seconds since the world's start (``step_count * dt``)."""
 
+    #: Who makes it (for the error of ``world.resource(OrbitState)`` in a world without one).
+    published_by = "the gravity system (driftframe.GravitySystem) publishes it when it is added to the world"
+    #: A save does not hold it: the loaded world's gravity system publishes its own.
+    saved = False
+
     def reference(self, entity: int) -> Reference | None:
         """The well ``entity`` moves about now (the deepest sphere of influence holding it, then the
         strongest pull), or None in a scene without wells or for a root well."""

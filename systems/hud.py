@@ -15,6 +15,7 @@ from driftframe.components.control import FlightInput, Player, RotationAssist
 from driftframe.components.gravity import GravityWell
 from driftframe.components.render import ModelRef
 from driftframe.framework.orbit_state import OrbitState
+from driftframe.framework.warp import TimeWarp
 
 TEXT_COLOUR = (0.80, 1.00, 0.80, 1.0)
 PROGRADE_COLOUR = (0.85, 1.00, 0.30, 1.0)
@@ -175,7 +176,7 @@ class HudSystem(esper.Processor):
 
     stage = "render"
     reads = (Player, Camera, Transform, Velocity, AngularVelocity, RotationAssist, FlightInput, GravityWell,
-             Autopilot, ModelRef, OrbitState)     # (the orbit readouts: gravity's OrbitState resource)
+             Autopilot, ModelRef, OrbitState, TimeWarp)     # (the orbit readouts: OrbitState, the warp)
     writes = ()
 
     def __init__(self, render, *, font_px: int | None = None):
@@ -183,7 +184,9 @@ class HudSystem(esper.Processor):
         ctx = render.ctx
         self.ctx = ctx
         h = render.size[1]
-        self.font = FontAtlas(ctx, font_px or max(12, round(h / 36)))
+        # a 36th of the frame's height (20 px at 720p, 10 at 360p), never under 8 px: at 640x360 the orbit
+        # readouts (ten lines) cover about a sixth of the frame
+        self.font = FontAtlas(ctx, font_px or max(8, round(h / 36)))
         self.prog = ctx.program(vertex_shader=_VS, fragment_shader=_FS)
         self.vbo = ctx.buffer(reserve=4 * 4 * 6 * 512, dynamic=True)
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, "2f 2f", "in_pos", "in_uv")])
