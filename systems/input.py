@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import esper
 
-from driftframe.components.body import Transform
+from driftframe.components.body import Transform, Velocity
 from driftframe.components.camera import Camera
 from driftframe.components.control import FlightInput, Player
 from driftframe.framework import validate
@@ -43,9 +43,9 @@ class InputSystem(esper.Processor):
     """
 
     stage = "input"
-    reads = (Player,)
+    reads = (Player, Velocity)
     # FlightInput of the Player; the handlers of pressed actions may write more (switch_camera:
-    # the camera's mode and its eye's Transform)
+    # the camera's mode and its eye's Transform, placed from the target's Velocity)
     writes = (FlightInput, Camera, Transform)
 
     def __init__(self, track: Track | None = None):

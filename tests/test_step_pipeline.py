@@ -19,7 +19,7 @@ DT = 1.0 / 60.0
 class Drag(esper.Processor):
     """The GUIDE's example: reads Velocity; writes Velocity.  v *= exp(-k dt)."""
     writes = (Velocity,)
-    reads = (Velocity,)
+    reads = (Velocity, Transform)                   # (its query takes the bodies: those with a Transform)
 
     def __init__(self, k):
         self.k = k
