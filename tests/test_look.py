@@ -278,3 +278,23 @@ def test_billiards_keeps_every_ball_on_the_table_for_30_s_and_the_break_varies_w
     assert np.count_nonzero(np.linalg.norm(v, axis=1) > 0.1) >= 8    # still rolling about, not parked
     other = run(1, 60)[0]
     assert not np.array_equal(other[-1], v0[-1])                   # the cue ball's heading follows the seed
+
+
+@pytest.mark.gl
+def test_the_orbit_hud_covers_at_most_a_sixth_of_a_640x360_frame(ctx):
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.systems.hud import HudSystem
+
+    world, _ = make_world("orbit")
+    try:
+        attach_rendering(world, ctx, size=(640, 360), own_context=False, sound=False, effects=False)
+        world.step(15 * 60)                      # the readouts, the target and the autopilot's line
+        world.render()
+        hud = world.get_system(HudSystem)
+        text, font = hud.last["text"], hud.font
+        assert len(text) >= 9 and any(line.startswith("CLOSEST") for line in text)
+        width = max(sum(font.advance.get(c, font.advance["?"]) for c in line) for line in text) + font.line_height
+        height = (len(text) + 1) * font.line_height
+        assert width * height <= 640 * 360 / 6, (width, height)
+    finally:
+        world.close()
