@@ -34,7 +34,7 @@ from driftframe.framework import __version__
 
 #: The modules (in ``driftframe.framework``) that declare kernels, and the package modules they import
 #: names from at compile time. The cache key digests all of them: a test checks the list is complete.
-KERNEL_MODULES = ("broadphase", "contact", "kepler_kernels", "quiet_step", "yuv")
+KERNEL_MODULES = ("broadphase", "contact", "kepler_kernels", "quiet_step", "wisdom_holman", "yuv")
 
 _HERE = Path(__file__).resolve().parent
 _registry: list = []                 # every kernel's dispatcher, in declaration order

@@ -1,0 +1,500 @@
+"""Symplectic n-body integrators as numba kernels: Wisdom–Holman about a dominant mass, leapfrog without one.
+
+**Wisdom–Holman** (Wisdom & Holman 1991; Rein & Tamayo 2015, REBOUND's WHFast). Bodies about a dominant
+mass (body 0) move on nearly Keplerian orbits. Split ``H = H_kepler + H_interaction``: ``H_kepler`` is a
+sum of two-body problems, solved exactly (the drift), ``H_interaction`` depends on positions only (the
+kick). One step is ``drift(dt/2) kick(dt) drift(dt/2)``; the error is ``O(eps dt^2)`` with ``eps`` the
+planets-to-star mass ratio, not ``O(dt^2)``. Between the steps of one call the two half drifts are joined
+into one, so ``n_steps`` steps cost ``n_steps`` drifts and kicks (WHFast's ``safe_mode = 0``).
+
+* Jacobi coordinates (the default, as WHFast's): body ``i``'s position is taken from the centre of mass
+  of bodies ``0..i-1``, ``xj_i = x_i - C_{i-1}``, its velocity likewise; ``eta_i = G (m_0 + ... + m_i)``.
+  Drift: each ``xj_i`` on its Kepler orbit of ``mu = eta_i``, the centre of mass on its straight line.
+  Kick: ``H_int = sum_i G m_i eta_{i-1}/|xj_i| - sum_{i<j} G m_i m_j/|x_i - x_j|``; its acceleration on
+  ``xj_i`` is the Jacobi transform of the pairwise accelerations (the pair 0–1 left out: it is body 1's
+  Kepler term exactly) plus ``eta_i xj_i/|xj_i|^3`` for ``i >= 2`` (the Kepler pull put back).
+* Democratic heliocentric (Duncan, Levison & Lee 1998): positions from body 0, velocities from the centre
+  of mass. Drift: Kepler with ``mu = G m_0``; kick: the pairs without body 0; a *jump*
+  ``X_i += t P / m_0`` (``P = sum m_j V_j``) either side of the kick. ``fixed_centre`` makes body 0 an
+  immovable well (no jump; its constant velocity kept): the gravity system's wells, which no body pulls.
+* The symplectic corrector (Wisdom, Holman & Touma 1996; order 3, 5, 7, 11 or 17, REBOUND's coefficients)
+  is applied once when a call starts and undone once when it ends: the error of the kernel it wraps drops
+  from ``O(eps dt^2)`` to ``O(eps^2 dt^2)``. Jacobi only.
+
+**The Kepler drift** (:func:`_kepler_drift`): the universal-variable solution, one body at a time, in
+place. ``alpha = 2/r0 - v0^2/mu`` (1/a), ``sigma0 = r0.v0/sqrt(mu)``, ``psi = alpha chi^2``, Stumpff's
+``c2, c3`` (:func:`framework.kepler_kernels._stumpff1`); Kepler's equation in ``chi`` (m^1/2),
+``sqrt(mu) t = chi^3 c3 + sigma0 chi^2 c2 + r0 chi (1 - psi c3)``, solved by Laguerre's method (n = 5,
+Conway 1986: it converges from any start), from the second-order guess ``chi = sqrt(mu) t/r0 (1 - t
+r0.v0/(2 r0^2))``, a whole number of periods taken out of ``t`` first. Then ``f - 1 = -chi^2 c2/r0``,
+``g = t - chi^3 c3/sqrt(mu)``, ``fdot = sqrt(mu) chi (psi c3 - 1)/(r r0)``, ``gdot - 1 = -chi^2 c2/r``
+(``r`` = Kepler's equation's derivative), added as increments (``x += (f-1) x0 + g v0``) so a short drift
+loses no digits. The project's :func:`~framework.kepler_kernels._at_compiled` propagates whole columns from
+an epoch with a dozen derived per-body arrays; a drift per body inside a loop wants this compact form.
+
+**Leapfrog** (:func:`leapfrog`): drift-kick-drift on the plain ``1/r^2`` pulls, second order, for scenes
+without a dominant mass (the figure-eight), the half drifts joined between steps.
+
+Units: any consistent set; masses enter as ``gm = G m`` (m^3/s^2 in SI). Positions ``x`` and velocities
+``v`` are ``(n, 3)`` float64 arrays in an inertial frame, changed in place. Sums run in a fixed order:
+the same input gives the same bits.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from driftframe.framework.kepler_kernels import _stumpff1
+from driftframe.framework.kernels import kernel
+
+#: The corrector orders available (Wisdom, Holman & Touma 1996), 0 = none.
+CORRECTOR_ORDERS = (0, 3, 5, 7, 11, 17)
+#: The coordinate systems of :func:`wisdom_holman`.
+COORDINATES = ("jacobi", "democratic", "fixed")
+
+# Corrector coefficients (Wisdom, Holman & Touma 1996, table 1, as REBOUND's integrator_whfast.c lists them):
+# a_k = k sqrt(7/40) and the b's of each order; the corrector is the product of Z(a_k dt, b_k dt) below.
+_A = np.array([0.0, 0.41833001326703777398908601289259374469640768464934,
+               0.83666002653407554797817202578518748939281536929867,
+               1.2549900398011133219672580386777812340892230539480,
+               1.6733200530681510959563440515703749787856307385973,
+               2.0916500663351888699454300644629687234820384232467,
+               2.5099800796022266439345160773555624681784461078960,
+               2.9283100928692644179236020902481562128748537925454,
+               3.3466401061363021919126881031407499575712614771947])
+# for each order: (a index, b) pairs of the negative half; the positive half mirrors them (-a, -b)
+_B = {3: [(1, -0.024900596027799867499350357910273437184309981229127)],
+      5: [(2, -0.0083001986759332891664501193034244790614366604097090),
+          (1, 0.041500993379666445832250596517122395307183302048545)],
+      7: [(3, 0.0024926811426922105779030593952776964450539008582219),
+          (2, -0.018270923246702131478062356884535264841652263842597),
+          (1, 0.053964399093127498721765893493510877532452806339655)],
+      11: [(5, 0.00020361579647854651301632818774633716473696537436847),
+           (4, -0.0023487215292295354188307328851055489876255097419754),
+           (3, 0.012309078592019946317544564763237909911330686448336),
+           (2, -0.038121613681288650508647613260247372125243616270670),
+           (1, 0.072593394748842738674253180742744961827622366521517)],
+      17: [(8, -0.0000043347415473373580190650223498124944896789841432241),
+           (7, 0.000076436355227935738363241846979413475106795392377415),
+           (6, -0.00063599983075817658983166881625078545864140848560259),
+           (5, 0.0033132577069380655655490196833451994080066801611459),
+           (4, -0.012071760822342291062449751726959664253913904872527),
+           (3, 0.032422198864713580293681523029577130832258806467604),
+           (2, -0.065192863576377893658290760803725762027864651086787),
+           (1, 0.093056103771425958591541059067553547100903397724386)]}
+
+
+def _corrector_table(order: int) -> np.ndarray:
+    """``(k, 2)`` rows ``(a, b)`` (in units of dt) of the Z operators, in the order they are applied going
+    forward: the order-3 corrector is ``Z(a1, -b31) Z(-a1, b31)`` read right to left as REBOUND applies it,
+    i.e. first ``Z(a1, -b)`` then ``Z(-a1, b)``... written out below for each order."""
+    if order == 0:
+        return np.zeros((0, 2))
+    if order == 3:
+        (k, b), = _B[3]
+        return np.array([[_A[k], -b], [-_A[k], b]])
+    rows = [[-_A[k], -b] for k, b in _B[order]]                # the negative half, outermost a first
+    rows += [[_A[k], b] for k, b in reversed(_B[order])]        # the positive half mirrors it
+    return np.array(rows)
+
+
+_CORRECTORS = {order: _corrector_table(order) for order in CORRECTOR_ORDERS}
+
+
+# -- the Kepler drift -------------------------------------------------------------------------------------
+@kernel
+def _kepler_drift(x, v, i, mu, t):
+    """Row ``i`` of ``x, v`` (relative to the attracting centre) moved along its Kepler orbit of ``mu``
+    for time ``t``, in place (module docstring: the formulas)."""
+    x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
+    v0, v1, v2 = v[i, 0], v[i, 1], v[i, 2]
+    r0 = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    rv = x0 * v0 + x1 * v1 + x2 * v2
+    alpha = 2.0 / r0 - (v0 * v0 + v1 * v1 + v2 * v2) / mu
+    sqmu = np.sqrt(mu)
+    sigma0 = rv / sqmu
+    if alpha > 0.0:                                   # ellipse: whole periods changed nothing
+        period = 2.0 * np.pi / (sqmu * alpha * np.sqrt(alpha))
+        if abs(t) > period:
+            t = t - period * np.round(t / period)
+    target = sqmu * t
+    chi = target / r0 * (1.0 - 0.5 * t * rv / (r0 * r0))
+    c2, c3 = 0.5, 1.0 / 6.0
+    psi = 0.0
+    fp = r0
+    for _ in range(64):
+        chi2 = chi * chi
+        psi = alpha * chi2
+        c2, c3 = _stumpff1(psi)
+        one_c3 = 1.0 - psi * c3
+        f = chi2 * chi * c3 + sigma0 * chi2 * c2 + r0 * chi * one_c3 - target
+        fp = chi2 * c2 + sigma0 * chi * one_c3 + r0 * (1.0 - psi * c2)
+        fpp = sigma0 * (1.0 - psi * c2) + (1.0 - alpha * r0) * chi * one_c3
+        disc = np.sqrt(abs(16.0 * fp * fp - 20.0 * f * fpp))
+        step = 5.0 * f / (fp + disc if fp >= 0.0 else fp - disc)
+        new = chi - step
+        if new == chi or abs(step) <= 2e-16 * abs(chi):
+            chi = new
+            break
+        chi = new
+    chi2 = chi * chi
+    psi = alpha * chi2
+    c2, c3 = _stumpff1(psi)
+    r = chi2 * c2 + sigma0 * chi * (1.0 - psi * c3) + r0 * (1.0 - psi * c2)
+    fm1 = -chi2 * c2 / r0
+    g = t - chi2 * chi * c3 / sqmu
+    fd = sqmu * chi * (psi * c3 - 1.0) / (r * r0)
+    gdm1 = -chi2 * c2 / r
+    x[i, 0] = x0 + (fm1 * x0 + g * v0)
+    x[i, 1] = x1 + (fm1 * x1 + g * v1)
+    x[i, 2] = x2 + (fm1 * x2 + g * v2)
+    v[i, 0] = v0 + (fd * x0 + gdm1 * v0)
+    v[i, 1] = v1 + (fd * x1 + gdm1 * v1)
+    v[i, 2] = v2 + (fd * x2 + gdm1 * v2)
+
+
+# -- pairwise pulls -------------------------------------------------------------------------------------
+@kernel
+def _pair_accel(x, gm, first, skip01, a):
+    """``a_i = sum_j G m_j (x_j - x_i)/|x_j - x_i|^3`` over bodies ``first..n-1``, each pair once (both
+    ends updated); ``skip01``: leave the pair (0, 1) out. Rows before ``first`` are left at zero."""
+    n = x.shape[0]
+    for i in range(n):
+        a[i, 0] = 0.0
+        a[i, 1] = 0.0
+        a[i, 2] = 0.0
+    for i in range(first, n):
+        xi0, xi1, xi2 = x[i, 0], x[i, 1], x[i, 2]
+        gi = gm[i]
+        ai0 = 0.0
+        ai1 = 0.0
+        ai2 = 0.0
+        j0 = i + 1
+        if skip01 and i == 0:
+            j0 = 2
+        for j in range(j0, n):
+            d0 = x[j, 0] - xi0
+            d1 = x[j, 1] - xi1
+            d2 = x[j, 2] - xi2
+            r2 = d0 * d0 + d1 * d1 + d2 * d2
+            w = 1.0 / (r2 * np.sqrt(r2))             # 1/r^3
+            wj = gm[j] * w
+            wi = gi * w
+            ai0 += wj * d0
+            ai1 += wj * d1
+            ai2 += wj * d2
+            a[j, 0] -= wi * d0
+            a[j, 1] -= wi * d1
+            a[j, 2] -= wi * d2
+        a[i, 0] += ai0
+        a[i, 1] += ai1
+        a[i, 2] += ai2
+
+
+# -- Jacobi coordinates ---------------------------------------------------------------------------------
+@kernel
+def _prefix_masses(gm, eta):
+    """``eta_i = G (m_0 + ... + m_i)``."""
+    s = 0.0
+    for i in range(gm.shape[0]):
+        s += gm[i]
+        eta[i] = s
+
+
+@kernel
+def _to_jacobi(x, v, gm, eta, xj, vj):
+    """Inertial ``x, v`` to Jacobi ``xj, vj``: row i from the centre of mass C_{i-1} of rows 0..i-1, row 0
+    the whole system's centre of mass. ``C_i = C_{i-1} + m_i xj_i / eta_i``."""
+    c = np.empty(6)
+    for k in range(3):
+        c[k] = x[0, k]
+        c[3 + k] = v[0, k]
+    for i in range(1, x.shape[0]):
+        w = gm[i] / eta[i]
+        for k in range(3):
+            xj[i, k] = x[i, k] - c[k]
+            vj[i, k] = v[i, k] - c[3 + k]
+            c[k] += w * xj[i, k]
+            c[3 + k] += w * vj[i, k]
+    for k in range(3):
+        xj[0, k] = c[k]
+        vj[0, k] = c[3 + k]
+
+
+@kernel
+def _from_jacobi(xj, vj, gm, eta, x, v, with_v):
+    """Jacobi back to inertial (``with_v``: velocities too): ``C_{i-1} = C_i - m_i xj_i / eta_i``,
+    ``x_i = xj_i + C_{i-1}``, going down from the whole system's centre of mass."""
+    c = np.empty(6)
+    for k in range(3):
+        c[k] = xj[0, k]
+        c[3 + k] = vj[0, k]
+    for i in range(x.shape[0] - 1, 0, -1):
+        w = gm[i] / eta[i]
+        for k in range(3):
+            c[k] -= w * xj[i, k]
+            x[i, k] = xj[i, k] + c[k]
+            if with_v:
+                c[3 + k] -= w * vj[i, k]
+                v[i, k] = vj[i, k] + c[3 + k]
+    for k in range(3):
+        x[0, k] = c[k]
+        if with_v:
+            v[0, k] = c[3 + k]
+
+
+@kernel
+def _jacobi_drift(xj, vj, eta, t):
+    """Every Jacobi row 1.. on its Kepler orbit of ``mu = eta_i`` for ``t`` (the centre of mass moves in
+    the caller)."""
+    for i in range(1, xj.shape[0]):
+        _kepler_drift(xj, vj, i, eta[i], t)
+
+
+@kernel
+def _jacobi_kick(xj, vj, gm, eta, x, a, t):
+    """``vj += t * (Jacobi acceleration of H_int)`` (module docstring); ``x, a``: scratch."""
+    _from_jacobi(xj, vj, gm, eta, x, x, np.bool_(False))     # np.bool_/np.int64: see contact_params._NOT_LITERAL
+    _pair_accel(x, gm, np.int64(0), np.bool_(True), a)
+    n = x.shape[0]
+    c0, c1, c2 = a[0, 0], a[0, 1], a[0, 2]            # A_{i-1}: mass-weighted mean acceleration of 0..i-1
+    for i in range(1, n):
+        aj0, aj1, aj2 = a[i, 0] - c0, a[i, 1] - c1, a[i, 2] - c2
+        w = gm[i] / eta[i]
+        c0 += w * aj0
+        c1 += w * aj1
+        c2 += w * aj2
+        if i >= 2:                                    # body 1's Kepler term is the pair 0-1, left out
+            r2 = xj[i, 0] * xj[i, 0] + xj[i, 1] * xj[i, 1] + xj[i, 2] * xj[i, 2]
+            k = eta[i] / (r2 * np.sqrt(r2))
+            aj0 += k * xj[i, 0]
+            aj1 += k * xj[i, 1]
+            aj2 += k * xj[i, 2]
+        vj[i, 0] += t * aj0
+        vj[i, 1] += t * aj1
+        vj[i, 2] += t * aj2
+
+
+@kernel
+def _corrector_z(xj, vj, gm, eta, x, a, ta, tb):
+    """Wisdom, Holman & Touma's ``Z(a, b) = K(a) I(-b) K(-2a) I(b) K(a)`` (K: drift, I: kick)."""
+    _jacobi_drift(xj, vj, eta, ta)
+    _jacobi_kick(xj, vj, gm, eta, x, a, -tb)
+    _jacobi_drift(xj, vj, eta, -2.0 * ta)
+    _jacobi_kick(xj, vj, gm, eta, x, a, tb)
+    _jacobi_drift(xj, vj, eta, ta)
+
+
+@kernel
+def _apply_corrector(xj, vj, gm, eta, x, a, table, dt, inverse):
+    """The corrector (``table``: rows (a, b) in units of dt), or its inverse: the same operators with the
+    kick coefficients negated (``Z(a, b)^-1 = Z(-a, b)``, and the product taken in the same order reads
+    as the inverse because the table is symmetric: row k mirrors row -k with (-a, -b))."""
+    s = -1.0 if inverse else 1.0
+    for k in range(table.shape[0]):
+        _corrector_z(xj, vj, gm, eta, x, a, table[k, 0] * dt, s * table[k, 1] * dt)
+
+
+@kernel
+def _wh_jacobi(x, v, gm, dt, n_steps, table):
+    n = x.shape[0]
+    eta = np.empty(n)
+    _prefix_masses(gm, eta)
+    xj = np.empty_like(x)
+    vj = np.empty_like(v)
+    sx = np.empty_like(x)
+    a = np.empty_like(x)
+    _to_jacobi(x, v, gm, eta, xj, vj)
+    if table.shape[0]:
+        _apply_corrector(xj, vj, gm, eta, sx, a, table, dt, np.bool_(False))
+    _jacobi_drift(xj, vj, eta, 0.5 * dt)
+    for s in range(n_steps):
+        _jacobi_kick(xj, vj, gm, eta, sx, a, dt)
+        _jacobi_drift(xj, vj, eta, dt if s < n_steps - 1 else 0.5 * dt)
+    for k in range(3):                                # the centre of mass: a straight line
+        xj[0, k] += vj[0, k] * (n_steps * dt)
+    if table.shape[0]:
+        _apply_corrector(xj, vj, gm, eta, sx, a, table, dt, np.bool_(True))
+    _from_jacobi(xj, vj, gm, eta, x, v, np.bool_(True))
+
+
+# -- democratic heliocentric ------------------------------------------------------------------------------
+@kernel
+def _dh_kick_jump(X, V, gm, a, t_kick, t_jump, jump):
+    """The pairs without body 0 kick the barycentric velocities for ``t_kick``; around it the jump
+    ``X_i += t_jump P / (G m_0)``, ``P = sum G m_j V_j`` (when ``jump``)."""
+    n = X.shape[0]
+    for side in range(2):
+        if jump:
+            p0 = 0.0
+            p1 = 0.0
+            p2 = 0.0
+            for i in range(1, n):
+                p0 += gm[i] * V[i, 0]
+                p1 += gm[i] * V[i, 1]
+                p2 += gm[i] * V[i, 2]
+            s = t_jump / gm[0]
+            for i in range(1, n):
+                X[i, 0] += s * p0
+                X[i, 1] += s * p1
+                X[i, 2] += s * p2
+        if side == 0:
+            _pair_accel(X, gm, np.int64(1), np.bool_(False), a)
+            for i in range(1, n):
+                for k in range(3):
+                    V[i, k] += t_kick * a[i, k]
+
+
+@kernel
+def _wh_democratic(x, v, gm, dt, n_steps, fixed):
+    """Democratic heliocentric WH (``fixed``: body 0 an immovable well at its own constant velocity)."""
+    n = x.shape[0]
+    X = np.empty_like(x)
+    V = np.empty_like(v)
+    a = np.empty_like(x)
+    gtot = 0.0
+    for i in range(n):
+        gtot += gm[i]
+    cx = np.zeros(3)
+    cv = np.zeros(3)
+    for k in range(3):
+        if fixed:
+            cx[k] = x[0, k]
+            cv[k] = v[0, k]
+        else:
+            for i in range(n):
+                cx[k] += gm[i] * x[i, k]
+                cv[k] += gm[i] * v[i, k]
+            cx[k] /= gtot
+            cv[k] /= gtot
+        for i in range(1, n):
+            X[i, k] = x[i, k] - x[0, k]
+            V[i, k] = v[i, k] - cv[k]
+        X[0, k] = 0.0
+        V[0, k] = 0.0
+    mu = gm[0]
+    jump = not fixed
+    for i in range(1, n):
+        _kepler_drift(X, V, i, mu, 0.5 * dt)
+    for s in range(n_steps):
+        _dh_kick_jump(X, V, gm, a, dt, 0.5 * dt, jump)
+        h = dt if s < n_steps - 1 else 0.5 * dt
+        for i in range(1, n):
+            _kepler_drift(X, V, i, mu, h)
+    T = n_steps * dt
+    for k in range(3):
+        cx[k] += cv[k] * T
+        if fixed:
+            x[0, k] = cx[k]
+        else:                                         # x_0 = C - sum m_i X_i / M,  v_0 = V_C - sum m_i V_i / m_0
+            sx = 0.0
+            sv = 0.0
+            for i in range(1, n):
+                sx += gm[i] * X[i, k]
+                sv += gm[i] * V[i, k]
+            x[0, k] = cx[k] - sx / gtot
+            v[0, k] = cv[k] - sv / gm[0]
+        for i in range(1, n):
+            x[i, k] = X[i, k] + x[0, k]
+            v[i, k] = V[i, k] + cv[k]
+
+
+# -- leapfrog -------------------------------------------------------------------------------------------
+@kernel
+def _leapfrog(x, v, gm, dt, n_steps):
+    n = x.shape[0]
+    a = np.empty_like(x)
+    h = 0.5 * dt
+    for s in range(n_steps):
+        for i in range(n):
+            for k in range(3):
+                x[i, k] += h * v[i, k]
+        _pair_accel(x, gm, np.int64(0), np.bool_(False), a)
+        h = dt if s < n_steps - 1 else 0.5 * dt
+        for i in range(n):
+            for k in range(3):
+                v[i, k] += dt * a[i, k]
+    for i in range(n):
+        for k in range(3):
+            x[i, k] += h * v[i, k]
+
+
+# -- the public calls -----------------------------------------------------------------------------------
+def _checked(x, v, gm, dt, n_steps, what):
+    for name, arr in (("x", x), ("v", v)):
+        if not (isinstance(arr, np.ndarray) and arr.dtype == np.float64 and arr.ndim == 2 and arr.shape[1] == 3
+                and arr.flags.c_contiguous and arr.flags.writeable):
+            raise TypeError(f"{what}: {name} must be a writable C-contiguous float64 array of shape (n, 3), got "
+                            f"{type(arr).__name__} {getattr(arr, 'dtype', '')} {getattr(arr, 'shape', '')}")
+    gm = np.ascontiguousarray(gm, dtype=np.float64)
+    if x.shape != v.shape or gm.shape != (x.shape[0],):
+        raise ValueError(f"{what}: x {x.shape}, v {v.shape} and gm {gm.shape} must agree: (n, 3), (n, 3), (n,)")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+        raise ValueError(f"{what}: x and v must be finite")
+    if not np.all(np.isfinite(gm)) or np.any(gm < 0.0):
+        raise ValueError(f"{what}: gm must be finite and >= 0, got {gm[~(np.isfinite(gm) & (gm >= 0))][:3]}")
+    if not (np.isfinite(dt) and dt != 0.0):
+        raise ValueError(f"{what}: dt must be finite and non-zero, got {dt!r}")
+    if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 1:
+        raise ValueError(f"{what}: n_steps must be a whole number >= 1, got {n_steps!r}")
+    return gm
+
+
+def wisdom_holman(x, v, gm, dt: float, n_steps: int = 1, *, coordinates: str = "jacobi", corrector: int = 0):
+    """Advance ``n_steps`` Wisdom–Holman steps of ``dt`` in place; body 0 is the dominant mass.
+
+    ``x, v``: ``(n, 3)`` float64 (C-contiguous, inertial frame); ``gm``: ``G m`` per body (``gm[0] > 0``;
+    0 for a test particle, best placed last). ``coordinates``: ``"jacobi"`` (WHFast's default),
+    ``"democratic"`` (democratic heliocentric) or ``"fixed"`` (body 0 an immovable well moving at its own
+    constant velocity, pulled by nothing). ``corrector``: 0 or an order in :data:`CORRECTOR_ORDERS`
+    (Jacobi only). Returns ``(x, v)``, the arrays given.
+    """
+    gm = _checked(x, v, gm, dt, n_steps, "wisdom_holman")
+    if coordinates not in COORDINATES:
+        raise ValueError(f"wisdom_holman: coordinates must be one of {COORDINATES}, got {coordinates!r}")
+    if corrector not in CORRECTOR_ORDERS:
+        raise ValueError(f"wisdom_holman: corrector must be one of {CORRECTOR_ORDERS}, got {corrector!r}")
+    if corrector and coordinates != "jacobi":
+        raise ValueError(f"wisdom_holman: the corrector needs Jacobi coordinates, got {coordinates!r}")
+    if not gm[0] > 0.0:
+        raise ValueError(f"wisdom_holman: body 0 is the dominant mass; its gm must be > 0, got {gm[0]!r}")
+    if x.shape[0] < 2:
+        return x, v
+    if coordinates == "jacobi":
+        _wh_jacobi(x, v, gm, float(dt), int(n_steps), _CORRECTORS[corrector])
+    else:
+        _wh_democratic(x, v, gm, float(dt), int(n_steps), coordinates == "fixed")
+    return x, v
+
+
+def leapfrog(x, v, gm, dt: float, n_steps: int = 1):
+    """Advance ``n_steps`` drift-kick-drift leapfrog steps of ``dt`` in place on the mutual pulls
+    (no dominant mass needed). Arguments as :func:`wisdom_holman`'s. Returns ``(x, v)``."""
+    gm = _checked(x, v, gm, dt, n_steps, "leapfrog")
+    _leapfrog(x, v, gm, float(dt), int(n_steps))
+    return x, v
+
+
+def kepler_drift(x, v, mu: float, t: float):
+    """Each row of ``x, v`` (relative to a centre of ``mu``) moved along its Kepler orbit for ``t``, in place
+    (the drift of :func:`wisdom_holman`, one body at a time). Returns ``(x, v)``."""
+    gm = _checked(x, v, np.zeros(len(x)), t, 1, "kepler_drift")
+    del gm
+    if not (np.isfinite(mu) and mu > 0.0):
+        raise ValueError(f"kepler_drift: mu must be finite and > 0, got {mu!r}")
+    for i in range(x.shape[0]):
+        _kepler_drift(x, v, i, float(mu), float(t))
+    return x, v
+
+
+def energy(x, v, gm) -> float:
+    """``G`` times the total energy, ``sum G m_i v_i^2/2 - sum_{i<j} G m_i G m_j / r_ij`` (numpy; for
+    checks: divide by G for the energy itself)."""
+    x = np.asarray(x, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    gm = np.asarray(gm, dtype=np.float64)
+    kin = 0.5 * float(np.sum(gm * np.einsum("ij,ij->i", v, v)))
+    pot = 0.0
+    for i in range(len(x) - 1):
+        r = np.linalg.norm(x[i + 1:] - x[i], axis=1)
+        pot -= float(np.sum(gm[i] * gm[i + 1:] / r))
+    return kin + pot
