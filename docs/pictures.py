@@ -1,11 +1,12 @@
-"""Remake the README's demo previews (docs/img/demo-<name>.gif) and stills (docs/img/still-<name>.png).
+"""Remake the README's demo previews (docs/img/demo-<name>.gif), stills (docs/img/still-<name>.png) and the
+before/after picture of the look (docs/img/look-before-after.png).
 
-    .venv/bin/python docs/pictures.py            # all demos
+    .venv/bin/python docs/pictures.py            # all demos, and the before/after picture
     .venv/bin/python docs/pictures.py cradle     # one
 
 Previews go through the recorder (as ``driftframe record`` would write them);
 stills are single frames at the moments listed in :data:`STILLS`, chosen to
-show what each demo is for.
+show what each demo is for, each with the demo's own sky (None) unless it says.
 """
 from __future__ import annotations
 
@@ -27,15 +28,18 @@ MAX_SECONDS = 8.0
 STILL_SIZE = (640, 360)
 #: demo -> ((seconds into the demo, sky, file suffix), ...): what each still shows
 STILLS = {
-    "rotation": ((8.5, "lines", ""),),                     # a roll while drifting among the beacons
-    "spin": ((3.9, "lines", ""),),                         # a roll with some yaw: the tilted spin axis
-    "asteroids": ((4.8, "lines", ""),                      # drifting side-on into the cluster: the chase view
-                  (19.0, "starfield", "-starfield")),      #   looks where the ship goes; the starfield sky
-    "billiards": ((1.4, "lines", ""),),                    # just after the break, on the table, overhead
-    "cradle": ((3.0, "lines", ""),),                       # only the last ball has left
-    "swarm": ((5.0, "lines", ""),),                        # against the light: the hemisphere fill
-    "orbit": ((120.0, "lines", ""),),                      # closing on the station, the planet beside
+    "rotation": ((8.5, None, ""),),                        # a roll while drifting among the beacons (lines)
+    "spin": ((3.9, None, ""),),                            # a roll with some yaw: the tilted spin axis
+    "asteroids": ((4.8, None, ""),                         # drifting side-on into the cluster: the chase view
+                  (9.1, None, "-impact")),                 #   looks where the ship goes; the pebble hit
+    "billiards": ((1.4, None, ""),),                       # just after the break, between the cushions
+    "cradle": ((1.1, None, ""),),                          # just after the striker's hit: sparks where it landed
+    "swarm": ((5.0, None, ""),),                           # against the light: the hemisphere fill
+    "orbit": ((120.0, None, ""),),                         # closing on the station, the planet beside
 }
+#: The before/after picture: asteroids at this moment, the articles' look (spheres, the green line cube, no
+#: effects) on the left, today's (rocks, the starfield, sparks) on the right.
+BEFORE_AFTER = ("asteroids", 9.1)
 
 
 def picture(name: str) -> Path:
@@ -69,7 +73,37 @@ def stills(name: str) -> list[Path]:
     return made
 
 
+def before_after() -> Path:
+    """One picture: the same frame in the articles' look and in today's, side by side."""
+    name, seconds = BEFORE_AFTER
+    frames = []
+    for old in (True, False):
+        world, demo = make_world(name, seed=0)
+        try:
+            if old:                    # every rock variant back on the sphere, as the articles drew them
+                variants = world.resources["model_variants"]
+                for key, (base, scale, colour) in list(variants.items()):
+                    if base.startswith("rock"):
+                        variants[key] = ("sphere", scale, colour)
+            render = attach_rendering(world, size=STILL_SIZE, sky="lines" if old else None, effects=not old)
+            world.step(round(seconds / world.dt))
+            world.render()
+            frames.append(Image.fromarray(render.read_rgba()[..., :3]))
+        finally:
+            world.close()
+    w, h = STILL_SIZE
+    out_img = Image.new("RGB", (2 * w + 8, h), (255, 255, 255))
+    out_img.paste(frames[0], (0, 0))
+    out_img.paste(frames[1], (w + 8, 0))
+    out = IMG / "look-before-after.png"
+    out_img.save(out, optimize=True)
+    print(f"{out.relative_to(ROOT)}: {name} at {seconds:g} s, before | after")
+    return out
+
+
 if __name__ == "__main__":
     for n in sys.argv[1:] or demos.NAMES:
         picture(n)
         stills(n)
+    if not sys.argv[1:]:
+        before_after()
