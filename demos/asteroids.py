@@ -31,7 +31,9 @@ SCRIPT = Track((
 
 def build(world, rng):
     me = ship(world, mode="momentum")
-    chase_camera(world, me, mode="chase")
+    # a 45-degree lens (70 across at 16:9): rocks near the edges keep their shape in the cockpit view; from
+    # overhead (--camera overhead) 200 m up, the field 40-100 m ahead is in the picture with the ship
+    chase_camera(world, me, mode="chase", fov=45.0, overhead_height=200.0)
     # 1.8 t against the ship's 10 t: the ship slows from 4.2 to 2.9 m/s, the pebble leaves at 7.1 m/s
     balls(world, [PEBBLE], [(0.0, 0.0, 0.0)], 0.6, mass=DENSITY * 4 / 3 * np.pi * 0.6 ** 3, colour=(0.7, 0.62, 0.5))
     # the pebble looks like a rock too; its ModelRef keeps its name, so the state hash is unchanged

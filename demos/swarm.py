@@ -3,7 +3,7 @@ from driftframe.demos.parts import asteroid_field, chase_camera, ship
 from driftframe.framework.input import Hold, Press, Track
 
 TITLE = "Swarm"
-DESCRIPTION = "3,000 colliding asteroids (one sphere mesh, level of detail and culling) around the ship"
+DESCRIPTION = "3,000 colliding asteroids (four rock meshes, level of detail and culling) around the ship"
 SECONDS = 12.0
 COUNT = 3000
 
@@ -17,5 +17,5 @@ SCRIPT = Track((
 
 def build(world, rng):
     me = ship(world, mode="momentum")
-    chase_camera(world, me, mode="chase")
+    chase_camera(world, me, mode="chase", fov=50.0, overhead_height=150.0)   # see asteroids.py
     asteroid_field(world, rng, COUNT, inner=10.0, outer=160.0, radii=(0.4, 2.5), speed=2.0)
