@@ -69,6 +69,7 @@ from driftframe.batch_exec import (CONNECT_TIMEOUT, RECORDING_CORES, Aborted, St
 from driftframe.batch_run import Failure, Result, attempt, run
 from driftframe.batch_spec import (DEFAULT_SIZE, SKIES, STATS, Interrupted, Spec, SpecError, check_all,
                                    check_output_names)
+from driftframe.framework.output import no_space
 
 __all__ = ["Spec", "SpecError", "Result", "Failure", "Outcome", "Interrupted", "Aborted", "run", "attempt",
            "run_all", "check_all", "check_output_names", "plan_jobs", "cores", "connect", "check_versions",
@@ -86,6 +87,9 @@ class Outcome:
     wall_seconds: float
     jobs: int
     where: str
+    #: Why the batch stopped by itself, naming the file (a full disk: a run's output or the caller's
+    #: journal could not be written), or None. The run that met it is None in :attr:`results`.
+    halted: str | None = None
 
     @property
     def interrupted(self) -> bool:
@@ -107,10 +111,10 @@ class Outcome:
     @property
     def exit_status(self) -> int:
         """As a shell reports it: 128 + the signal's number if one stopped the batch, else 1 if any run
-        failed, else 0."""
+        failed or the batch halted (a full disk), else 0."""
         if self.signal is not None:
             return 128 + self.signal
-        return 1 if self.failures else 0
+        return 1 if self.failures or self.halted else 0
 
 
 def _note(line: str) -> None:
@@ -131,8 +135,11 @@ def run_all(specs, *, jobs: int | None = None, scheduler=None, progress: bool = 
     included). ``retries``: how often a run whose worker died is given again
     (then it is a Failure). ``note(line)``: told of each worker that died.
     Signals: see the module docstring; the Outcome then names the signal and
-    unfinished runs are None. :attr:`Outcome.exit_status` is non-zero when a
-    run failed.
+    unfinished runs are None. A full disk stops the batch the same way (every
+    later run would fail on it too): a run that fails for it, or an
+    ``on_done`` that raises an OSError for it (its journal), halts the batch,
+    the run is None and :attr:`Outcome.halted` says which file.
+    :attr:`Outcome.exit_status` is non-zero when a run failed or it halted.
     """
     if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
         raise SpecError(f"retries must be an integer >= 0, got {retries!r}")
@@ -163,26 +170,41 @@ def run_all(specs, *, jobs: int | None = None, scheduler=None, progress: bool = 
 
     bar = tqdm(total=len(specs), unit="run", desc="batch", disable=not progress, dynamic_ncols=True)
     failed = 0
+    flag = StopFlag()
+    halted: list[str] = []
+
+    def halt(why: str) -> None:
+        if not halted:
+            halted.append(why)
+            flag.halt()
 
     def done(i, res):
         nonlocal failed
+        if isinstance(res, Failure) and res.no_space:
+            halt(res.no_space)          # not the run's fault: it did not finish, --resume runs it again
+            return
         results[i] = res
         if isinstance(res, Failure):
             failed += 1
             bar.set_postfix(failed=failed)
         bar.update(1)
         if on_done is not None:
-            on_done(i, res)
+            try:
+                on_done(i, res)
+            except OSError as e:
+                if not no_space(e):
+                    raise
+                halt(str(e))
 
     try:
         if client is not None:
             where = f"cluster {client.scheduler.address}"
-            signum = run_cluster(client, specs, done, retries=retries)
+            signum = run_cluster(client, specs, done, retries=retries, flag=flag)
         else:
             where = "serial" if jobs_used == 1 else f"{jobs_used} processes"
-            signum = run_local(specs, jobs_used, lp, done, retries=retries, note=note)
+            signum = run_local(specs, jobs_used, lp, done, retries=retries, note=note, flag=flag)
     finally:
         bar.close()
         if own_client:
             client.close()
-    return Outcome(results, signum, time.perf_counter() - t0, jobs_used, where)
+    return Outcome(results, signum, time.perf_counter() - t0, jobs_used, where, halted[0] if halted else None)

@@ -63,18 +63,35 @@ def cmd_batch(args) -> int:
         # once, before the workers start: each then loads the kernels instead of all compiling them at
         # the same time into one cache (numba's cache is not safe against concurrent writers)
         _compile(warmup.warm, args.quiet)
-    journal = batch_report.Journal(out_dir, append=args.resume)
+    journal = None
+    try:
+        journal = batch_report.Journal(out_dir, append=args.resume)
+        for i in sorted(skip):
+            journal.add(i, skip[i], again=False)
+    except OSError as e:                # a full disk before any run: nothing ran, nothing was lost
+        if journal is not None:
+            journal.close()
+        if client is not None:
+            client.close()
+        print(f"driftframe: error: {e}; no run started", file=sys.stderr)
+        return 1
     if skip:
         tqdm.write(f"driftframe: resuming: {len(skip)} of {len(specs)} runs are done already (journal.jsonl)",
                    file=sys.stderr)
-        for i in sorted(skip):
-            journal.add(i, skip[i], again=False)
+    unjournalled: list = []             # finished while the journal could not be written (a full disk)
 
     def report(k, res):
-        journal.add(todo[k], res)
         if isinstance(res, batch.Failure):
             tqdm.write(f"driftframe: run failed: {res.spec.where or res.spec.label}\n{res.traceback.rstrip()}",
                        file=sys.stderr)
+        if unjournalled:
+            unjournalled.append((todo[k], res))
+            return
+        try:
+            journal.add(todo[k], res)
+        except OSError:
+            unjournalled.append((todo[k], res))
+            raise                       # run_all halts the batch on a full disk
 
     try:
         part = batch.run_all([specs[i] for i in todo], jobs=args.jobs, scheduler=client, progress=not args.quiet,
@@ -84,18 +101,39 @@ def cmd_batch(args) -> int:
               f"{journal_path} (--resume continues); no summary written", file=sys.stderr)
         return 128 + e.signum
     finally:
+        try:
+            while unjournalled:             # the stopped runs' part files are gone now: there may be room
+                journal.add(*unjournalled[0])
+                unjournalled.pop(0)
+        except OSError:
+            pass
         journal.close()
         if client is not None:
             client.close()
     results = [skip.get(i) for i in range(len(specs))]
     for k, i in enumerate(todo):
         results[i] = part.results[k]
-    outcome = batch.Outcome(results, part.signal, part.wall_seconds, part.jobs, part.where)
-    written, note = batch_report.write(outcome, out_dir, title=f"{spec_path.name}: {len(specs)} runs")
+    outcome = batch.Outcome(results, part.signal, part.wall_seconds, part.jobs, part.where, part.halted)
+    finished = len(outcome.done) + len(outcome.failures)
+    if outcome.halted is not None:
+        n = len(unjournalled)
+        lost = f"; {n} finished run{'s are' if n > 1 else ' is'} missing from {journal_path}: --resume " \
+            "--overwrite runs them again" if n else ""
+        print(f"driftframe: error: {outcome.halted}; the batch stopped: {finished} of {len(specs)} runs "
+              f"finished, their outputs whole (free some space, then --resume runs the rest{lost})",
+              file=sys.stderr)
+    try:
+        written, note = batch_report.write(outcome, out_dir, title=f"{spec_path.name}: {len(specs)} runs")
+    except OSError as e:
+        tail = "" if outcome.halted else f"; {finished} of {len(specs)} runs finished (their outputs are whole; " \
+            "--resume runs the rest)"
+        print(f"driftframe: error: {e}{tail}", file=sys.stderr)
+        return outcome.exit_status or 1
     if note:
         print(f"driftframe: {note}", file=sys.stderr)
-    finished = len(outcome.done) + len(outcome.failures)
-    if outcome.interrupted:
+    if outcome.halted is not None:
+        print(f"driftframe: wrote {', '.join(str(p) for p in written)}", file=sys.stderr)
+    elif outcome.interrupted:
         print(f"driftframe: interrupted ({batch.signal_name(outcome.signal)}): {finished} of {len(specs)} runs "
               f"finished (their outputs are whole; --resume runs the rest); wrote "
               f"{', '.join(str(p) for p in written)}", file=sys.stderr)

@@ -46,6 +46,7 @@ class Aborted(KeyboardInterrupt):
 class StopFlag:
     """While active (main thread only), SIGINT, SIGTERM and SIGHUP stop the batch: the first sets
     :attr:`event` and :attr:`signum` (runs stop at their next step), a second raises :class:`Aborted`.
+    :meth:`halt` stops it as the first signal would, with no signal (a full disk).
 
     A signal whose handler is not the default (SIGHUP ignored under ``nohup``,
     an application's own) is left alone; the command line's (which makes
@@ -68,9 +69,13 @@ class StopFlag:
         return self
 
     def _handler(self, signum, frame):
-        if self.event.is_set():
+        if self.signum is not None:
             raise Aborted(signum)
         self.signum = signum
+        self.halt()
+
+    def halt(self) -> None:
+        """Stop the batch: queued runs never start, running ones stop at their next step."""
         self.event.set()
         if self.on_stop is not None:
             self.on_stop()
@@ -333,7 +338,7 @@ def _exit_words(code) -> str:
     return f"exited with status {code}"
 
 
-def run_local(specs, jobs: int, lp, done, *, retries: int = 1, note=print) -> int | None:
+def run_local(specs, jobs: int, lp, done, *, retries: int = 1, note=print, flag: StopFlag | None = None) -> int | None:
     """Run ``specs`` on this process and ``jobs - 1`` workers; the stop signal's number, or None.
 
     Workers take specs from the front of the queue; this process, already set
@@ -341,7 +346,8 @@ def run_local(specs, jobs: int, lp, done, *, retries: int = 1, note=print) -> in
     one worker's start-up (about 0.6 s; on short runs most of what a pool
     costs). ``done(index, result)`` is called in this thread as each run
     ends. A worker that dies is reported through ``note`` and its run given
-    to a new worker up to ``retries`` times, then it is a Failure.
+    to a new worker up to ``retries`` times, then it is a Failure. ``flag``: the batch's stop (one is
+    made if None); ``done`` may :meth:`~StopFlag.halt` it.
     """
     import multiprocessing
     from multiprocessing.connection import wait
@@ -351,7 +357,7 @@ def run_local(specs, jobs: int, lp, done, *, retries: int = 1, note=print) -> in
     deaths: dict[int, int] = {}
     workers: list[_Worker] = []
     stopping = False
-    with StopFlag() as flag:
+    with flag or StopFlag() as flag:
         runner = _Runner(flag.event.is_set, lp)
         try:
             workers = [_Worker(ctx, lp) for _ in range(min(jobs - 1, len(specs)))]
@@ -562,9 +568,10 @@ def _cancel_unstarted(client, futures) -> list:
     return queued
 
 
-def run_cluster(client, specs, done, *, retries: int = 1) -> int | None:
+def run_cluster(client, specs, done, *, retries: int = 1, flag: StopFlag | None = None) -> int | None:
     """Submit every spec to ``client``'s cluster (each task with ``retries``: Dask reruns a task whose
-    worker died); ``done(index, result)`` as each ends. The stop signal's number, or None."""
+    worker died); ``done(index, result)`` as each ends (it may halt ``flag``, the batch's stop). The stop
+    signal's number, or None."""
     import uuid
 
     from distributed import Event
@@ -574,7 +581,7 @@ def run_cluster(client, specs, done, *, retries: int = 1) -> int | None:
     futures = {client.submit(_dask_attempt, spec, stop.name, pure=False, retries=retries,
                              key=f"driftframe-run-{i}-{tag}"): i
                for i, spec in enumerate(specs)}
-    with StopFlag() as flag:
+    with flag or StopFlag() as flag:
         pending = set(futures)
         stopped_at = None
         while pending:

@@ -16,6 +16,7 @@ While the batch runs, :class:`Journal` appends each run as it ends to
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -110,6 +111,10 @@ def markdown(outcome: Outcome, *, title: str, chart: str | None) -> str:
         missing = len(outcome.results) - len(done) - len(failed)
         lines += [f"Stopped by {signal_name(outcome.signal)}: {missing} runs did not run (or were stopped "
                   "and left nothing); `driftframe batch --resume` runs them.", ""]
+    elif outcome.halted is not None:
+        missing = len(outcome.results) - len(done) - len(failed)
+        lines += [f"Stopped: {outcome.halted}. {missing} runs did not run (or were stopped and left "
+                  "nothing); free some space, then `driftframe batch --resume` runs them.", ""]
     groups: dict[str, list] = {}
     for res in outcome.results:
         if res is not None:
@@ -213,20 +218,29 @@ def chart(outcome: Outcome, path: Path, *, title: str) -> Path:
 
 
 def write(outcome: Outcome, out_dir, *, title: str) -> tuple[list[Path], str | None]:
-    """Write the summary files; (paths written, a note when the chart could not be made)."""
+    """Write the summary files; (paths written, a note when the chart could not be made).
+
+    A chart that cannot be written (a full disk) leaves the CSV and the report without it, then raises
+    its :class:`~framework.output.OutputError`: the text is what matters.
+    """
     out_dir = Path(out_dir)
     written = [write_csv(outcome, out_dir / "summary.csv")]
     note = None
     chart_name = None
+    failed = None
     try:
         written.append(chart(outcome, out_dir / "summary.png", title=title))
         chart_name = "summary.png"
     except ImportError:
         note = "no chart: matplotlib is not installed (pip install 'driftframe[batch]')"
+    except OSError as e:
+        failed = e
     md = markdown(outcome, title=title, chart=chart_name)
     path = out_dir / "summary.md"
     _atomic_write(path, lambda f: f.write(md.encode()))
     written.insert(1, path)
+    if failed is not None:
+        raise failed
     return written, note
 
 
@@ -247,30 +261,69 @@ def _jsonable(v):
 class Journal:
     """Each finished run, appended the moment it ends: a JSON line in ``journal.jsonl`` (what
     ``--resume`` reads back) and a row in ``summary.csv``. A stop, a crash or SIGKILL loses at most the
-    line being written; :func:`read_journal` skips a torn last line. The summary files are written again,
-    whole and in run order, at the end (:func:`write`)."""
+    line being written; :func:`read_journal` skips a torn last line. A write that fails (a full disk) is
+    cut back to the last whole line and raised as an :class:`~framework.output.OutputError` naming the
+    file. The summary files are written again, whole and in run order, at the end (:func:`write`)."""
 
     def __init__(self, out_dir, *, append: bool):
         out_dir = Path(out_dir)
         self.path = out_dir / JOURNAL
-        self._json = open(self.path, "a" if append else "w", encoding="utf-8")
-        self._csv_file = open(out_dir / "summary.csv", "w", encoding="utf-8", newline="")
-        self._csv = csv.DictWriter(self._csv_file, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n")
-        self._csv.writeheader()
-        self._csv_file.flush()
+        self.csv_path = out_dir / "summary.csv"
+        self._json = self._csv = -1
+        try:
+            self._json = _open_log(self.path, append)
+            self._csv = _open_log(self.csv_path, False)
+            buf = io.StringIO()
+            csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n").writeheader()
+            _append(self._csv, self.csv_path, buf.getvalue())
+        except BaseException:
+            self.close()
+            raise
 
     def add(self, index: int, res, *, again: bool = True) -> None:
         """Append ``res``, the run at ``index``; ``again=False``: a resumed run, in the journal already
         (its CSV row only)."""
         if again:
-            self._json.write(json.dumps(_journal_row(index, res), separators=(",", ":")) + "\n")
-            self._json.flush()
-        self._csv.writerow(_row(index, res))
-        self._csv_file.flush()
+            _append(self._json, self.path, json.dumps(_journal_row(index, res), separators=(",", ":")) + "\n")
+        buf = io.StringIO()
+        csv.DictWriter(buf, fieldnames=COLUMNS, extrasaction="ignore", lineterminator="\n").writerow(_row(index, res))
+        _append(self._csv, self.csv_path, buf.getvalue())
 
     def close(self) -> None:
-        self._json.close()
-        self._csv_file.close()
+        for fd in (self._json, self._csv):
+            if fd >= 0:
+                os.close(fd)
+        self._json = self._csv = -1
+
+
+def _open_log(path: Path, append: bool) -> int:
+    """A file appended to as the batch runs (``0666 & ~umask``, as ``open()`` makes it); its descriptor."""
+    from driftframe.framework.output import OutputError
+
+    flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | (0 if append else os.O_TRUNC) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        return os.open(path, flags, 0o666)
+    except OSError as e:
+        what = "batch journal" if path.name == JOURNAL else "batch summary"
+        raise OutputError(e.errno, f"cannot write the {what} {str(path)!r}: {e.strerror or e}") from None
+
+
+def _append(fd: int, path: Path, text: str) -> None:
+    """``text`` appended whole, or the file cut back to where it was and an OutputError naming it: a full
+    disk never leaves a torn line for the next one to be glued to (--resume would lose both)."""
+    from driftframe.framework.output import OutputError, no_space
+
+    data = memoryview(text.encode("utf-8"))
+    start = os.lseek(fd, 0, os.SEEK_END)
+    try:
+        while data:
+            data = data[os.write(fd, data):]
+    except OSError as e:
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, start)
+        why = "no space left on the device" if no_space(e) else (e.strerror or str(e))
+        what = "batch journal" if path.name == JOURNAL else "batch summary"
+        raise OutputError(e.errno, f"cannot write the {what} {str(path)!r}: {why}") from None
 
 
 def _journal_row(index: int, res) -> dict:

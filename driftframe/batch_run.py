@@ -55,6 +55,9 @@ class Failure:
     error: str
     traceback: str
     wall_seconds: float = 0.0
+    #: Where the run failed for a full disk (or quota): the message, naming the file. Every later run
+    #: would fail the same way, so :func:`~driftframe.batch.run_all` stops the batch instead.
+    no_space: str | None = None
     ok = False
 
 
@@ -243,5 +246,19 @@ def attempt(spec: Spec, should_stop=None):
     except Interrupted:
         return None
     except Exception as e:   # noqa: BLE001 - one run's failure is reported, the batch goes on
-        return Failure(spec, f"{type(e).__name__}: {e}", traceback.format_exc(), time.perf_counter() - t0)
+        return Failure(spec, f"{type(e).__name__}: {e}", traceback.format_exc(), time.perf_counter() - t0,
+                       no_space=str(e) if _disk_full(e) else None)
+
+
+def _disk_full(e: BaseException | None) -> bool:
+    """Whether ``e``, or an error it was raised from (the recorder's RecordingError is raised ``from None``
+    over the OSError: its ``__context__`` keeps it), is a full disk or quota."""
+    from driftframe.framework.output import no_space
+
+    seen = 0
+    while e is not None and seen < 8:
+        if no_space(e):
+            return True
+        e, seen = e.__cause__ or e.__context__, seen + 1
+    return False
 

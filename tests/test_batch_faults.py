@@ -195,3 +195,44 @@ def test_a_killed_worker_is_reported_once_and_its_run_done_again(tmp_path):
     assert "Traceback" not in stderr and "InvalidStateError" not in stderr
     assert "6 of 6 runs ok, 0 failed" in stdout
     assert _outputs(out, 180) == [f"box-{s}.mp4" for s in range(6)]
+
+
+# -- a full disk ---------------------------------------------------------------------------------
+def _file_size_limit(nbytes):
+    """In the child: every file it writes stops at ``nbytes`` (EFBIG, as a full disk's ENOSPC; SIGXFSZ,
+    which would kill it, ignored), so the disk "fills" at a chosen file without a mount."""
+    def limit():
+        import resource
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
+    return limit
+
+
+@pytest.mark.parametrize("full", ["output", "journal"])
+def test_a_full_disk_stops_the_batch_keeps_what_finished_and_names_the_file(tmp_path, full):
+    # output: the second run's recording (200x200, about 37 KB) does not fit in 24 KB; the first (32x32,
+    # 14 KB) does. journal: headless runs, the journal's sixth line (about 700 bytes each) passes 4 KB.
+    if full == "output":
+        toml = 'scene = "batch_scenes:box"\nseeds = "0..3"\nseconds = 0.5\nsize = ["32x32", "200x200"]\n' \
+               'fps = 30\noutput = "box-{index}.mp4"\n'
+        limit, bad = 24_000, "box-1.mp4"
+    else:
+        toml, limit, bad = 'scene = "batch_scenes:box"\nseeds = "0..40"\nseconds = 0.1\n', 4096, "journal.jsonl"
+    spec = tmp_path / "s.toml"
+    spec.write_text(toml)
+    out = tmp_path / "o"
+    res = subprocess.run(EXE + ["batch", str(spec), "-o", str(out), "--quiet", "-j", "1"], cwd=HERE,
+                         capture_output=True, text=True, timeout=120, preexec_fn=_file_size_limit(limit))
+    assert res.returncode == 1, res.stderr
+    assert "Traceback" not in res.stderr and "run failed" not in res.stderr, res.stderr
+    first = res.stderr.splitlines()[0]
+    assert first.startswith(f"driftframe: error: cannot write {'the batch journal ' * (full == 'journal')}"
+                            f"'{out / bad}': no space left on the device") and "the batch stopped: " in first, first
+    journal = (out / "journal.jsonl").read_text().splitlines()
+    assert all(line.endswith("}") for line in journal)            # whole lines: --resume reads every one
+    if full == "output":
+        assert "the batch stopped: 1 of 8 runs finished" in first and len(journal) == 1
+        assert _outputs(out, 15) == ["box-0.mp4"]                 # kept whole; no part file of box-1 left
+    else:
+        assert 4 <= len(journal) <= 6 and not [p for p in out.iterdir() if p.name.startswith(".")]
+    assert "Stopped: cannot write" in (out / "summary.md").read_text()
