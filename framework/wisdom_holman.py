@@ -23,10 +23,11 @@ into one, so ``n_steps`` steps cost ``n_steps`` drifts and kicks (WHFast's ``saf
 
 **The Kepler drift** (:func:`_kepler_drift`): the universal-variable solution, one body at a time, in
 place. ``alpha = 2/r0 - v0^2/mu`` (1/a), ``sigma0 = r0.v0/sqrt(mu)``, ``psi = alpha chi^2``, Stumpff's
-``c2, c3`` (:func:`framework.kepler_kernels._stumpff1`); Kepler's equation in ``chi`` (m^1/2),
-``sqrt(mu) t = chi^3 c3 + sigma0 chi^2 c2 + r0 chi (1 - psi c3)``, solved by Laguerre's method (n = 5,
-Conway 1986: it converges from any start), from the second-order guess ``chi = sqrt(mu) t/r0 (1 - t
-r0.v0/(2 r0^2))``, a whole number of periods taken out of ``t`` first. Then ``f - 1 = -chi^2 c2/r0``,
+``c2, c3`` (the series with as many terms as ``|psi|`` needs, :func:`_stumpff`); Kepler's equation in
+``chi`` (m^1/2), ``sqrt(mu) t = chi^3 c3 + sigma0 chi^2 c2 + r0 chi (1 - psi c3)``, solved by Laguerre's
+method (n = 5, Conway 1986: it converges from any start), from the third-order guess ``chi = sqrt(mu) u
+(1 - u rd/2 + u^2 (rd^2 - r0 rdd/2)/3)``, ``u = t/r0`` (``rd``, ``rdd``: the first two time derivatives of
+``r``; a drift of a few percent of an orbit then needs one iteration), a whole number of periods taken out of ``t`` first. Then ``f - 1 = -chi^2 c2/r0``,
 ``g = t - chi^3 c3/sqrt(mu)``, ``fdot = sqrt(mu) chi (psi c3 - 1)/(r r0)``, ``gdot - 1 = -chi^2 c2/r``
 (``r`` = Kepler's equation's derivative), added as increments (``x += (f-1) x0 + g v0``) so a short drift
 loses no digits. The project's :func:`~framework.kepler_kernels._at_compiled` propagates whole columns from
@@ -43,7 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.kepler_kernels import _stumpff1
+from driftframe.framework.kepler_kernels import _C2_SERIES, _C3_SERIES, _stumpff1
 from driftframe.framework.kernels import kernel
 
 #: The corrector orders available (Wisdom, Holman & Touma 1996), 0 = none.
@@ -101,49 +102,76 @@ _CORRECTORS = {order: _corrector_table(order) for order in CORRECTOR_ORDERS}
 
 
 # -- the Kepler drift -------------------------------------------------------------------------------------
-@kernel
+@kernel(error_model="numpy")     # a zero divisor gives inf, not a raise (no check per division)
+def _stumpff(psi):
+    """Stumpff's ``c2, c3`` with as few series terms as ``|psi|`` needs: the remainder of k terms is about
+    ``|psi|^k / (2k+2)!``, below 1e-18 with 4 terms at ``|psi| <= 1e-3`` and 7 at ``<= 0.1`` (a drift of
+    a few percent of an orbit has ``psi ~ (2 pi dt / P)^2``); the 12-term series and the closed forms
+    beyond (:func:`framework.kepler_kernels._stumpff1`) otherwise."""
+    a = abs(psi)
+    if a <= 1e-3:
+        c2 = _C2[0] + psi * (_C2[1] + psi * (_C2[2] + psi * _C2[3]))
+        c3 = _C3[0] + psi * (_C3[1] + psi * (_C3[2] + psi * _C3[3]))
+        return c2, c3
+    if a <= 0.1:
+        c2 = _C2[6]
+        c3 = _C3[6]
+        for k in range(5, -1, -1):
+            c2 = c2 * psi + _C2[k]
+            c3 = c3 * psi + _C3[k]
+        return c2, c3
+    return _stumpff1(psi)
+
+
+_C2 = _C2_SERIES.copy()
+_C3 = _C3_SERIES.copy()
+
+
+@kernel(error_model="numpy")
 def _kepler_drift(x, v, i, mu, t):
     """Row ``i`` of ``x, v`` (relative to the attracting centre) moved along its Kepler orbit of ``mu``
     for time ``t``, in place (module docstring: the formulas)."""
     x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
     v0, v1, v2 = v[i, 0], v[i, 1], v[i, 2]
     r0 = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    r0i = 1.0 / r0
     rv = x0 * v0 + x1 * v1 + x2 * v2
-    alpha = 2.0 / r0 - (v0 * v0 + v1 * v1 + v2 * v2) / mu
+    vv = v0 * v0 + v1 * v1 + v2 * v2
+    mui = 1.0 / mu
+    alpha = 2.0 * r0i - vv * mui
     sqmu = np.sqrt(mu)
     sigma0 = rv / sqmu
-    if alpha > 0.0:                                   # ellipse: whole periods changed nothing
-        period = 2.0 * np.pi / (sqmu * alpha * np.sqrt(alpha))
-        if abs(t) > period:
-            t = t - period * np.round(t / period)
+    if alpha > 0.0 and t * t * mu * alpha * alpha * alpha > 4.0 * np.pi * np.pi:
+        period = 2.0 * np.pi / (sqmu * alpha * np.sqrt(alpha))       # more than an orbit: whole ones out
+        t = t - period * np.round(t / period)
     target = sqmu * t
-    chi = target / r0 * (1.0 - 0.5 * t * rv / (r0 * r0))
-    c2, c3 = 0.5, 1.0 / 6.0
-    psi = 0.0
-    fp = r0
+    # chi = sqrt(mu) * integral of dt/r to third order in u = t/r0: r = r0 + rd t + rdd t^2/2 + ...
+    u = t * r0i
+    rd = rv * r0i
+    rdd = (vv - rd * rd) * r0i - mu * r0i * r0i
+    chi = sqmu * u * (1.0 - 0.5 * u * rd + u * u * (rd * rd - 0.5 * r0 * rdd) / 3.0)
     for _ in range(64):
         chi2 = chi * chi
         psi = alpha * chi2
-        c2, c3 = _stumpff1(psi)
+        c2, c3 = _stumpff(psi)
         one_c3 = 1.0 - psi * c3
         f = chi2 * chi * c3 + sigma0 * chi2 * c2 + r0 * chi * one_c3 - target
         fp = chi2 * c2 + sigma0 * chi * one_c3 + r0 * (1.0 - psi * c2)
         fpp = sigma0 * (1.0 - psi * c2) + (1.0 - alpha * r0) * chi * one_c3
         disc = np.sqrt(abs(16.0 * fp * fp - 20.0 * f * fpp))
         step = 5.0 * f / (fp + disc if fp >= 0.0 else fp - disc)
-        new = chi - step
-        if new == chi or abs(step) <= 2e-16 * abs(chi):
-            chi = new
+        chi = chi - step
+        if abs(step) <= 1e-7 * abs(chi):             # cubic: the next step would be below 1e-20 chi
             break
-        chi = new
     chi2 = chi * chi
     psi = alpha * chi2
-    c2, c3 = _stumpff1(psi)
+    c2, c3 = _stumpff(psi)
     r = chi2 * c2 + sigma0 * chi * (1.0 - psi * c3) + r0 * (1.0 - psi * c2)
-    fm1 = -chi2 * c2 / r0
+    ri = 1.0 / r
+    fm1 = -chi2 * c2 * r0i
     g = t - chi2 * chi * c3 / sqmu
-    fd = sqmu * chi * (psi * c3 - 1.0) / (r * r0)
-    gdm1 = -chi2 * c2 / r
+    fd = sqmu * chi * (psi * c3 - 1.0) * ri * r0i
+    gdm1 = -chi2 * c2 * ri
     x[i, 0] = x0 + (fm1 * x0 + g * v0)
     x[i, 1] = x1 + (fm1 * x1 + g * v1)
     x[i, 2] = x2 + (fm1 * x2 + g * v2)
@@ -152,8 +180,14 @@ def _kepler_drift(x, v, i, mu, t):
     v[i, 2] = v2 + (fd * x2 + gdm1 * v2)
 
 
+@kernel(error_model="numpy")
+def _kepler_drift_all(x, v, mu, t):
+    for i in range(x.shape[0]):
+        _kepler_drift(x, v, i, mu, t)
+
+
 # -- pairwise pulls -------------------------------------------------------------------------------------
-@kernel
+@kernel(error_model="numpy")
 def _pair_accel(x, gm, first, skip01, a):
     """``a_i = sum_j G m_j (x_j - x_i)/|x_j - x_i|^3`` over bodies ``first..n-1``, each pair once (both
     ends updated); ``skip01``: leave the pair (0, 1) out. Rows before ``first`` are left at zero."""
@@ -191,7 +225,7 @@ def _pair_accel(x, gm, first, skip01, a):
 
 
 # -- Jacobi coordinates ---------------------------------------------------------------------------------
-@kernel
+@kernel(error_model="numpy")
 def _prefix_masses(gm, eta):
     """``eta_i = G (m_0 + ... + m_i)``."""
     s = 0.0
@@ -200,49 +234,43 @@ def _prefix_masses(gm, eta):
         eta[i] = s
 
 
-@kernel
+@kernel(error_model="numpy")
 def _to_jacobi(x, v, gm, eta, xj, vj):
     """Inertial ``x, v`` to Jacobi ``xj, vj``: row i from the centre of mass C_{i-1} of rows 0..i-1, row 0
     the whole system's centre of mass. ``C_i = C_{i-1} + m_i xj_i / eta_i``."""
-    c = np.empty(6)
     for k in range(3):
-        c[k] = x[0, k]
-        c[3 + k] = v[0, k]
-    for i in range(1, x.shape[0]):
-        w = gm[i] / eta[i]
-        for k in range(3):
-            xj[i, k] = x[i, k] - c[k]
-            vj[i, k] = v[i, k] - c[3 + k]
-            c[k] += w * xj[i, k]
-            c[3 + k] += w * vj[i, k]
-    for k in range(3):
-        xj[0, k] = c[k]
-        vj[0, k] = c[3 + k]
+        c = x[0, k]
+        cv = v[0, k]
+        for i in range(1, x.shape[0]):
+            w = gm[i] / eta[i]
+            xj[i, k] = x[i, k] - c
+            vj[i, k] = v[i, k] - cv
+            c += w * xj[i, k]
+            cv += w * vj[i, k]
+        xj[0, k] = c
+        vj[0, k] = cv
 
 
-@kernel
+@kernel(error_model="numpy")
 def _from_jacobi(xj, vj, gm, eta, x, v, with_v):
     """Jacobi back to inertial (``with_v``: velocities too): ``C_{i-1} = C_i - m_i xj_i / eta_i``,
     ``x_i = xj_i + C_{i-1}``, going down from the whole system's centre of mass."""
-    c = np.empty(6)
     for k in range(3):
-        c[k] = xj[0, k]
-        c[3 + k] = vj[0, k]
-    for i in range(x.shape[0] - 1, 0, -1):
-        w = gm[i] / eta[i]
-        for k in range(3):
-            c[k] -= w * xj[i, k]
-            x[i, k] = xj[i, k] + c[k]
+        c = xj[0, k]
+        cv = vj[0, k]
+        for i in range(x.shape[0] - 1, 0, -1):
+            w = gm[i] / eta[i]
+            c -= w * xj[i, k]
+            x[i, k] = xj[i, k] + c
             if with_v:
-                c[3 + k] -= w * vj[i, k]
-                v[i, k] = vj[i, k] + c[3 + k]
-    for k in range(3):
-        x[0, k] = c[k]
+                cv -= w * vj[i, k]
+                v[i, k] = vj[i, k] + cv
+        x[0, k] = c
         if with_v:
-            v[0, k] = c[3 + k]
+            v[0, k] = cv
 
 
-@kernel
+@kernel(error_model="numpy")
 def _jacobi_drift(xj, vj, eta, t):
     """Every Jacobi row 1.. on its Kepler orbit of ``mu = eta_i`` for ``t`` (the centre of mass moves in
     the caller)."""
@@ -250,7 +278,7 @@ def _jacobi_drift(xj, vj, eta, t):
         _kepler_drift(xj, vj, i, eta[i], t)
 
 
-@kernel
+@kernel(error_model="numpy")
 def _jacobi_kick(xj, vj, gm, eta, x, a, t):
     """``vj += t * (Jacobi acceleration of H_int)`` (module docstring); ``x, a``: scratch."""
     _from_jacobi(xj, vj, gm, eta, x, x, np.bool_(False))     # np.bool_/np.int64: see contact_params._NOT_LITERAL
@@ -274,7 +302,7 @@ def _jacobi_kick(xj, vj, gm, eta, x, a, t):
         vj[i, 2] += t * aj2
 
 
-@kernel
+@kernel(error_model="numpy")
 def _corrector_z(xj, vj, gm, eta, x, a, ta, tb):
     """Wisdom, Holman & Touma's ``Z(a, b) = K(a) I(-b) K(-2a) I(b) K(a)`` (K: drift, I: kick)."""
     _jacobi_drift(xj, vj, eta, ta)
@@ -284,7 +312,7 @@ def _corrector_z(xj, vj, gm, eta, x, a, ta, tb):
     _jacobi_drift(xj, vj, eta, ta)
 
 
-@kernel
+@kernel(error_model="numpy")
 def _apply_corrector(xj, vj, gm, eta, x, a, table, dt, inverse):
     """The corrector (``table``: rows (a, b) in units of dt), or its inverse: the same operators with the
     kick coefficients negated (``Z(a, b)^-1 = Z(-a, b)``, and the product taken in the same order reads
@@ -294,7 +322,7 @@ def _apply_corrector(xj, vj, gm, eta, x, a, table, dt, inverse):
         _corrector_z(xj, vj, gm, eta, x, a, table[k, 0] * dt, s * table[k, 1] * dt)
 
 
-@kernel
+@kernel(error_model="numpy")
 def _wh_jacobi(x, v, gm, dt, n_steps, table):
     n = x.shape[0]
     eta = np.empty(n)
@@ -318,7 +346,7 @@ def _wh_jacobi(x, v, gm, dt, n_steps, table):
 
 
 # -- democratic heliocentric ------------------------------------------------------------------------------
-@kernel
+@kernel(error_model="numpy")
 def _dh_kick_jump(X, V, gm, a, t_kick, t_jump, jump):
     """The pairs without body 0 kick the barycentric velocities for ``t_kick``; around it the jump
     ``X_i += t_jump P / (G m_0)``, ``P = sum G m_j V_j`` (when ``jump``)."""
@@ -344,7 +372,7 @@ def _dh_kick_jump(X, V, gm, a, t_kick, t_jump, jump):
                     V[i, k] += t_kick * a[i, k]
 
 
-@kernel
+@kernel(error_model="numpy")
 def _wh_democratic(x, v, gm, dt, n_steps, fixed):
     """Democratic heliocentric WH (``fixed``: body 0 an immovable well at its own constant velocity)."""
     n = x.shape[0]
@@ -399,7 +427,7 @@ def _wh_democratic(x, v, gm, dt, n_steps, fixed):
 
 
 # -- leapfrog -------------------------------------------------------------------------------------------
-@kernel
+@kernel(error_model="numpy")
 def _leapfrog(x, v, gm, dt, n_steps):
     n = x.shape[0]
     a = np.empty_like(x)
@@ -481,8 +509,7 @@ def kepler_drift(x, v, mu: float, t: float):
     del gm
     if not (np.isfinite(mu) and mu > 0.0):
         raise ValueError(f"kepler_drift: mu must be finite and > 0, got {mu!r}")
-    for i in range(x.shape[0]):
-        _kepler_drift(x, v, i, float(mu), float(t))
+    _kepler_drift_all(x, v, float(mu), float(t))
     return x, v
 
 
