@@ -145,23 +145,56 @@ def _kepler_drift(x, v, i, mu, t):
         period = 2.0 * np.pi / (sqmu * alpha * np.sqrt(alpha))       # more than an orbit: whole ones out
         t = t - period * np.round(t / period)
     target = sqmu * t
+    # a bracket of the root (Kepler's equation rises with chi: its slope is r > 0): an ellipse's chi
+    # gains 2 pi/sqrt(alpha) an orbit; an open orbit's at most sqrt(mu)/q a second (q: periapsis)
+    span = np.inf
+    if alpha > 0.0:
+        span = 2.0 * np.pi / np.sqrt(alpha)
+    else:
+        h2 = r0 * r0 * vv - rv * rv
+        e = np.sqrt(max(1.0 - alpha * h2 * mui, 0.0))       # e^2 = 1 - alpha p, p = h^2/mu
+        if h2 > 0.0:
+            span = sqmu * abs(t) * (1.0 + e) * mu / h2
+    lo = 0.0 if t >= 0.0 else -span
+    hi = span if t >= 0.0 else 0.0
     # chi = sqrt(mu) * integral of dt/r to third order in u = t/r0: r = r0 + rd t + rdd t^2/2 + ...
     u = t * r0i
     rd = rv * r0i
     rdd = (vv - rd * rd) * r0i - mu * r0i * r0i
     chi = sqmu * u * (1.0 - 0.5 * u * rd + u * u * (rd * rd - 0.5 * r0 * rdd) / 3.0)
-    for _ in range(64):
+    if not (chi > lo and chi < hi) or abs(u) * np.sqrt(vv) > 0.5:    # a long drift: Vallado's starts
+        if alpha > 0.0:
+            chi = sqmu * t * alpha
+        else:
+            a = 1.0 / alpha
+            arg = -2.0 * mu * alpha * t / (rv + np.copysign(np.sqrt(-mu * a), t) * (1.0 - r0 * alpha))
+            chi = np.copysign(np.sqrt(-a), t) * np.log(arg) if arg > 0.0 else sqmu * t * r0i
+        if not (chi > lo and chi < hi):
+            chi = 0.5 * (lo + hi) if np.isfinite(span) else sqmu * t * r0i
+    for _ in range(100):
         chi2 = chi * chi
         psi = alpha * chi2
         c2, c3 = _stumpff(psi)
         one_c3 = 1.0 - psi * c3
         f = chi2 * chi * c3 + sigma0 * chi2 * c2 + r0 * chi * one_c3 - target
+        if f > 0.0:
+            hi = min(hi, chi)
+        elif f < 0.0:
+            lo = max(lo, chi)
+        else:
+            break
         fp = chi2 * c2 + sigma0 * chi * one_c3 + r0 * (1.0 - psi * c2)
         fpp = sigma0 * (1.0 - psi * c2) + (1.0 - alpha * r0) * chi * one_c3
         disc = np.sqrt(abs(16.0 * fp * fp - 20.0 * f * fpp))
         step = 5.0 * f / (fp + disc if fp >= 0.0 else fp - disc)
-        chi = chi - step
-        if abs(step) <= 1e-7 * abs(chi):             # cubic: the next step would be below 1e-20 chi
+        new = chi - step
+        if not (new >= lo and new <= hi):            # out of the bracket (or not a number): bisect
+            width = max(abs(chi), abs(target) * r0i)
+            new = 0.5 * (lo + hi) if np.isfinite(lo) and np.isfinite(hi) else (
+                hi - width if np.isfinite(hi) else lo + width)
+            step = chi - new
+        chi = new
+        if abs(step) <= 1e-7 * abs(chi) or hi - lo <= 4e-16 * abs(chi):   # cubic: the next step is below 1e-20 chi
             break
     chi2 = chi * chi
     psi = alpha * chi2
