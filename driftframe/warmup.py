@@ -10,7 +10,8 @@ from driftframe.framework import kernels
 
 def workload() -> None:
     """Calls that reach the kernels: two steps of each demo scene (the second checks the neighbour list),
-    a Kepler propagation of enough bodies for the compiled loops, one frame through the NV12 converter."""
+    a Kepler propagation of enough bodies for the compiled loops, the n-body kernels, one frame through the
+    NV12 converter."""
     import numpy as np
 
     from driftframe import demos
@@ -45,6 +46,12 @@ def workload() -> None:
     v = np.stack([-np.sin(angle), np.cos(angle), np.zeros(n)], axis=1)
     r1, v1, chi = kepler.Epoch(r, v, 1.0).at(0.1, chi=np.full(n, 0.1))
     kepler.next_chi(chi, r1, v1, 1.0, 0.1)
+    from driftframe.framework import wisdom_holman as wh      # the n-body kernels: every coordinate path, a corrector
+    for coordinates, corrector in (("jacobi", 3), ("democratic", 0), ("fixed", 0)):
+        wh.wisdom_holman(r[:3].copy(), v[:3].copy(), np.array([1.0, 1e-3, 1e-3]), 0.01, 2,
+                         coordinates=coordinates, corrector=corrector)
+    wh.leapfrog(r[:3].copy(), v[:3].copy(), np.ones(3), 0.01, 2)
+    wh.kepler_drift(r[:2].copy(), v[:2].copy(), 1.0, 0.1)
     rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
 
 
