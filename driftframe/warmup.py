@@ -37,9 +37,10 @@ def workload() -> None:
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])          # two unit balls touching, closing at 2 m/s
     u = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
     pi, pj = contact.all_pairs(2)
-    for solve in (contact.solve_all_pairs, contact.solve_all_pairs_stick):
-        solve(x.copy(), u.copy(), np.full(2, 0.5), np.ones(2), np.ones(2), np.ones(2, np.bool_),
-              np.full(2, -np.inf), 0.0, pi, pj, 1.0 / 60.0, contact.TC / 60.0, contact.CAP, None)
+    for stick in (False, True):
+        contact.solve_step(contact.StepInputs(x.copy(), u.copy(), np.full(2, 0.5), np.ones(2), np.ones(2),
+                                              np.ones(2, np.bool_), np.full(2, -np.inf), 0.0, pi, pj, 1.0 / 60.0,
+                                              contact.TC / 60.0, contact.CAP, None), stick=stick)
     n = kepler.COMPILED_MIN
     angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1

@@ -10,8 +10,8 @@ Windows) ``/driftframe/kernels/<key>``; never beside the sources, so a
 read-only install works and uninstalling leaves nothing behind. ``<key>`` is
 driftframe's version and a digest of every kernel module's source: numba
 alone checks only the file a kernel is written in, so a kernel that calls
-one in another file (``contact.solve_step`` calls
-``broadphase.territory_query``) would go on running the old callee after
+one in another file (``contact_solve.solve_listed`` calls
+``broadphase_list.territory_query``) would go on running the old callee after
 that file changed. Each cache file also carries a SHA-256 of its bytes and
 each compiled entry the key it was saved under: a damaged file, or one
 another process overwrote (numba's cache is not safe against concurrent
@@ -32,9 +32,14 @@ from pathlib import Path
 
 from driftframe.framework import __version__
 
-#: The modules (in ``driftframe.framework``) that declare kernels, and the package modules they import
-#: names from at compile time. The cache key digests all of them: a test checks the list is complete.
-KERNEL_MODULES = ("broadphase", "contact", "kepler_kernels", "quiet_step", "wisdom_holman", "yuv")
+#: The modules (in ``driftframe.framework``) that declare kernels. The cache key digests them and
+#: :data:`KERNEL_IMPORTS`: a test checks both lists are complete.
+KERNEL_MODULES = ("broadphase_list", "contact_again", "contact_bodies", "contact_heap", "contact_islands",
+                  "contact_jam", "contact_pairs", "contact_solve", "contact_toi", "kepler_kernels", "quiet_step",
+                  "sorting", "wisdom_holman", "yuv")
+#: Modules that declare no kernel but whose names kernels read at compile time (numba freezes a global's
+#: value into the code): constants and the records kernels take.
+KERNEL_IMPORTS = ("contact_params",)
 
 _HERE = Path(__file__).resolve().parent
 _registry: list = []                 # every kernel's dispatcher, in declaration order
@@ -55,11 +60,12 @@ def user_cache_root() -> Path:
 
 
 def source_digest() -> str:
-    """SHA-256 (hex, first 16 digits) of every kernel module's source, in :data:`KERNEL_MODULES` order."""
+    """SHA-256 (hex, first 16 digits) of every kernel module's source, in :data:`KERNEL_MODULES` order, then
+    :data:`KERNEL_IMPORTS`."""
     global _digest
     if _digest is None:
         h = hashlib.sha256()
-        for name in KERNEL_MODULES:
+        for name in KERNEL_MODULES + KERNEL_IMPORTS:
             data = (_HERE / f"{name}.py").read_bytes()
             h.update(f"{name}.py {len(data)}\n".encode())
             h.update(data)
@@ -158,7 +164,7 @@ def registry(load: bool = True) -> list:
 
 
 def kernel_name(dispatcher) -> str:
-    """``contact.solve_step``: the module's last part and the function's name."""
+    """``contact_solve.solve_listed``: the module's last part and the function's name."""
     return f"{dispatcher.py_func.__module__.rsplit('.', 1)[-1]}.{dispatcher.py_func.__name__}"
 
 
@@ -277,7 +283,7 @@ class CompileWatch:
             return kernel_name(ours[-1]) if ours else ""
 
     def line(self) -> str:
-        """``3 of 14 kernels, 12 s: contact.solve_step``"""
+        """``3 of 14 kernels, 12 s: contact_solve.solve_listed``"""
         now = self.current()
         return f"{self.n} of {self.m} kernels, {self.elapsed():.0f} s" + (f": {now}" if now else "")
 

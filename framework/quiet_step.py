@@ -5,7 +5,7 @@ cue ball arrives) have no contact. The solver finds that out too, but only
 after setting up its event loop (heap, scratch arrays, the last-contact
 times made relative to ``now`` and back), which costs more than the test
 itself when there are a handful of pairs. :func:`quiet_all_pairs` is that
-test alone, with the solver's own pair rule (:func:`contact.toi` and the
+test alone, with the solver's own pair rule (:func:`contact_toi.toi` and the
 overlap test of its first pass), so a step it calls quiet is one the solver
 would have left unchanged: no contact, no event, no flag, no overlap report.
 """
@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import math
 
-from driftframe.framework.contact import TOUCH, gather_bodies, toi
+from driftframe.framework.contact_bodies import gather_bodies
+from driftframe.framework.contact_params import TOUCH
+from driftframe.framework.contact_toi import toi
 from driftframe.framework.kernels import kernel
 
 
@@ -46,7 +48,7 @@ def quiet_all_pairs(x, u, r, inv, live, pi, pj, dt):
 @kernel(error_model="numpy", no_cfunc_wrapper=True)
 def gather_quiet(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,
                  x0, v0, a, inv, r, e, x, u, live, pi, pj):
-    """:func:`contact.gather_bodies` and then, when every body is valid and one moves,
+    """:func:`contact_bodies.gather_bodies` and then, when every body is valid and one moves,
     :func:`quiet_all_pairs` over the pairs ``pi, pj``, in one call (a small scene's step otherwise pays
     the call twice). Returns ``(bad, moving, quiet)``; ``quiet`` is False when it was not tested."""
     bad, moving = gather_bodies(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,

@@ -338,14 +338,13 @@ class CollisionSystem(esper.Processor):
         if listed:
             nl = self._list
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
-            lst = (nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width), int(nl.budget),
-                   self._tosweep, self._newlo, self._newhi)
+            lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width),
+                                       int(nl.budget), self._tosweep, self._newlo, self._newhi)
             pi, pj = self._pi, self._pj
-            solvers = (contact.solve_listed, contact.solve_listed_stick)
         else:
             lst = None
             pi, pj = self._pairs
-            solvers = (contact.solve_all_pairs, contact.solve_all_pairs_stick)
+        solvers = contact.solvers(listed)
         t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
         args = (st.x, st.u, st.r, st.inv, st.e, st.live, t_last, 0.0, pi, pj, float(dt), float(t_c),
                 self.max_contacts, lst)
@@ -523,11 +522,7 @@ class CollisionSystem(esper.Processor):
                 self.stats["pairs"] = len(pi)             # what the solver would say of a quiet step
                 self._finish(lay, st, self._unchanged(n), dt)
                 return
-            args = (x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, self.max_contacts, None)
-            out = contact.solve_all_pairs_stick(*args) if self._stick else contact.solve_all_pairs(*args)
-            if out[5] & contact.F_AGAIN:                     # a jam: the variant with the jam path, from now on
-                self._stick = True
-                out = contact.solve_all_pairs_stick(*args)
+            lst = None
         else:
             nl = self._list
             rebuild = self._list_dirty or self._list_layout is not lay or len(nl.radius) != n
@@ -540,34 +535,33 @@ class CollisionSystem(esper.Processor):
                 self._build_list(lay, st, dt, x, u, r)
                 self.stats["builds"] = 1
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
-            args = (x, u, r, inv, e, live, t_last, now, self._pi, self._pj, dt, t_c, self.max_contacts,
-                    (nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width), int(nl.budget),
-                     self._tosweep, self._newlo, self._newhi))
-            out = contact.solve_listed_stick(*args) if self._stick else contact.solve_listed(*args)
-            if out[5] & contact.F_AGAIN:                     # a jam: the variant with the jam path, from now on
-                self._stick = True
-                out = contact.solve_listed_stick(*args)
-        changed, ev, ev_n, ev_x, stats, flags = out
-        s = stats.tolist()
+            pi, pj = self._pi, self._pj
+            lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width),
+                                       int(nl.budget), self._tosweep, self._newlo, self._newhi)
+        res = contact.solve_step(contact.StepInputs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c,
+                                                    self.max_contacts, lst), stick=self._stick)
+        self._stick = res.stick                              # after a jam, the variant with the jam path
+        changed, s, flags = res.changed, res.stats, res.flags
+        ev, ev_n, ev_x = res.events, res.normals, res.points
         st_ = self.stats
-        st_["pairs"], st_["contacts"], st_["waves"] = int(s[0]), int(s[1]), int(s[2])
-        if s[3]:
-            st_["swept"] += int(s[3])
-        if s[4] or s[8]:
-            st_["overlaps"], st_["sequential"] = int(s[4]), int(s[8])
+        st_["pairs"], st_["contacts"], st_["waves"] = int(s.pairs), int(s.contacts), int(s.waves)
+        if s.swept:
+            st_["swept"] += int(s.swept)
+        if s.overlaps or s.sequential:
+            st_["overlaps"], st_["sequential"] = int(s.overlaps), int(s.sequential)
         if flags:
             if flags & contact.F_REBUILD:
                 self._list_dirty = True
             self._flags(flags, lay)
-        if s[4] and self._reported_overlap is not lay:
+        if s.overlaps and self._reported_overlap is not lay:
             self._reported_overlap = lay
-            i, j = int(stats[5]), int(stats[6])
-            warnings.warn(f"collision: {int(stats[4])} pairs of spheres overlap at t = {self._now()!r} s; the "
+            i, j = int(s.worst_i), int(s.worst_j)
+            warnings.warn(f"collision: {int(s.overlaps)} pairs of spheres overlap at t = {self._now()!r} s; the "
                           f"deepest: entities {int(lay.entities[i])} and {int(lay.entities[j])}, centres "
-                          f"{float(stats[7]):.6g} of r_a + r_b apart. Pairs that approach bounce at once, the "
+                          f"{s.worst:.6g} of r_a + r_b apart. Pairs that approach bounce at once, the "
                           f"rest separate (use driftframe.framework.placement to place bodies apart)",
                           RuntimeWarning, stacklevel=3)
-        if not (s[1] or s[2] or flags):
+        if not (s.contacts or s.waves or flags):
             changed = self._unchanged(n)                    # no contact, no wave, no flag: nothing changed
         self._finish(lay, st, changed, dt)
         if len(ev) and self.events and self.world is not None:

@@ -7,6 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from driftframe.framework import broadphase as bp
+from driftframe.framework import broadphase_list
 
 METHODS = ["all", "sweep", "grid", "kdtree", "auto"]
 
@@ -195,7 +196,7 @@ def test_compiled_grid_build_on_a_sparse_scene_uses_sorted_cells_and_finds_the_s
     r = rng.uniform(0.25, 0.75, len(c))
     nl = bp.NeighbourList()
     nl.build(c.T, r, np.full(len(c), 0.02))
-    h, hh, *_, nx, ny, nz = bp._grid_setup(nl.centre, nl.reach, nl.swept)
+    h, hh, *_, nx, ny, nz = broadphase_list._grid_setup(nl.centre, nl.reach, nl.swept)
     assert nx * ny * nz > 8 * len(c) + 4096                           # the sparse path
     want = _brute(nl.centre, nl.reach, nl.swept)
     assert len(want) > 100 and set(zip(nl.i.tolist(), nl.j.tolist())) == want

@@ -62,12 +62,13 @@ def test_every_module_that_declares_a_kernel_is_in_the_cache_key_and_none_uses_n
         if p.name not in ("kernels.py", "kernel_cache.py"):
             assert not re.search(r"^\s*(from numba import|@(numba\.)?n?jit)", p.read_text(), re.M), p
     # a kernel module's compile-time globals from another driftframe module: that module is keyed too
-    for name in kernels.KERNEL_MODULES:
+    keyed = kernels.KERNEL_MODULES + kernels.KERNEL_IMPORTS
+    for name in keyed:
         text = (ROOT / "framework" / f"{name}.py").read_text()
         for mod in re.findall(r"^from driftframe\.framework import (\w+)", text, re.M):
-            assert mod in kernels.KERNEL_MODULES, (name, mod)
+            assert mod in keyed, (name, mod)
         for mod in re.findall(r"^from driftframe\.framework\.(\w+) import", text, re.M):
-            assert mod in kernels.KERNEL_MODULES + ("kernels",), (name, mod)
+            assert mod in keyed + ("kernels",), (name, mod)
 
 
 def test_the_folder_is_per_user_keyed_by_version_and_sources_and_honours_numba_cache_dir(tmp_path):
@@ -96,13 +97,13 @@ def _copy_package(dest: Path) -> Path:
 
 @pytest.mark.slow
 def test_editing_a_callee_in_another_file_changes_the_callers_result(tmp_path):
-    # the bug: contact's kernel calls broadphase's; numba alone re-checks only the caller's own file
+    # the bug: contact's kernel calls the neighbour list's; numba alone re-checks only the caller's own file
     pkg = _copy_package(tmp_path / "src")
-    bp, contact = pkg / "framework" / "broadphase.py", pkg / "framework" / "contact.py"
+    bp, contact = pkg / "framework" / "broadphase_list.py", pkg / "framework" / "contact_pairs.py"
     bp.write_text(bp.read_text() + "\n\n@kernel\ndef _probe_callee(x):\n    return x + 1\n")
-    contact.write_text(contact.read_text() + "\n\n@kernel\ndef _probe(x):\n    return bp._probe_callee(x) * 10\n")
+    contact.write_text(contact.read_text() + "\n\n@kernel\ndef _probe(x):\n    return broadphase_list._probe_callee(x) * 10\n")
     env = _env(PYTHONPATH=tmp_path / "src", NUMBA_CACHE_DIR=tmp_path / "cache")
-    code = ("import driftframe.framework.contact as c; assert c.__file__.startswith(%r); "
+    code = ("import driftframe.framework.contact_pairs as c; assert c.__file__.startswith(%r); "
             "print(c._probe(1), sum(c._probe.stats.cache_hits.values()))" % str(tmp_path / "src"))
     first = _py(code, env=env)
     assert first.stdout.split() == ["20", "0"], first.stderr

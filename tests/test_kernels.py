@@ -87,8 +87,8 @@ def test_no_kernel_is_compiled_for_a_literal_argument():
         for _ in range(120):
             world.step()
     called = {name: k for name, k in _kernels() if k.signatures}
-    assert "driftframe.framework.contact.solve_all_pairs" in called     # the scenes reached both solver paths
-    assert "driftframe.framework.contact.solve_listed" in called
+    assert "driftframe.framework.contact_solve.solve_all_pairs" in called     # the scenes reached both solver paths
+    assert "driftframe.framework.contact_solve.solve_listed" in called
     done = set()
     while _type_cached_signatures(dict(_kernels()), done):    # typing a copy may load more kernels from the cache
         pass
@@ -165,14 +165,14 @@ def test_a_step_that_needs_the_jam_path_is_run_again_with_it_and_gives_the_same_
 def test_argsort_stable_and_median_match_numpy():
     import numpy as np
 
-    from driftframe.framework import broadphase as bp
+    from driftframe.framework import sorting
 
     rng = np.random.default_rng(3)
     for n in (0, 1, 2, 15, 16, 17, 33, 100, 1000):
         for a in (rng.integers(0, 7, n).astype(np.int64), rng.random(n), np.round(rng.random(n), 1)):
             for m in sorted({0, n // 2, n}):
-                assert np.array_equal(bp.argsort_stable(a, m), np.argsort(a[:m], kind="stable"))
+                assert np.array_equal(sorting.argsort_stable(a, m), np.argsort(a[:m], kind="stable"))
             if n and a.dtype == np.float64 and not np.isnan(a).any():
-                assert bp.median(a) == np.median(a)
+                assert sorting.median(a) == np.median(a)
     a = np.array([3.0, np.nan, 1.0, 2.0, np.nan, 0.5])
-    assert np.array_equal(bp.argsort_stable(a, 6), np.argsort(a, kind="stable"))
+    assert np.array_equal(sorting.argsort_stable(a, 6), np.argsort(a, kind="stable"))

@@ -1,0 +1,494 @@
+"""The neighbour list (a Verlet list): the pairs of spheres that can touch over several steps.
+
+Built from sphere centres with a skin per body; it stays valid while no body leaves its territory, and
+bodies that do are *swept*: the contact solver tests their paths against the territories
+(:func:`territory_query`) and each other. The one-step broad phase over boxes is :mod:`.broadphase`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from driftframe.framework import sorting
+from driftframe.framework.kernels import kernel
+
+#: The cost model that sets a neighbour list's skin (see :class:`NeighbourList`), in seconds: a
+#: build (fixed, per body) and one listed pair for one step (how they were measured: docs/design/broadphase.md).
+BUILD_COST = (25e-6, 0.1e-6)
+PAIR_COST = 0.015e-6
+MAX_SKIN_SCALE = 4.0
+
+
+class NeighbourList:
+    """Pairs of spheres that can touch while no body strays out of its territory (a Verlet list).
+
+    Each body gets a *territory*: the ball of radius ``r_i + s_i`` about its
+    position ``c_i`` at the build, where its skin ``s_i`` is ``skin_steps``
+    times its displacement per step (at least the median body's, so bodies at
+    rest get room too). A pair is listed when the territories overlap,
+    ``|c_i - c_j| <= r_i + r_j + s_i + s_j``; while both bodies stay within
+    ``s`` of their ``c``, two bodies not listed together cannot touch. So the
+    list lasts about ``skin_steps`` steps whatever the speeds.
+
+    A body that leaves its territory (or whose skin would be far larger than
+    the others', e.g. a bullet among asteroids) is marked ``swept``: the list
+    no longer speaks for it, and the caller tests its actual path box against
+    the others' territories (:meth:`territories`, a binary search on the
+    build's x order) and against the other swept bodies. The caller rebuilds
+    when more than ``budget`` bodies are swept. Positions are ``(3, n)`` arrays.
+
+    The skin's length trades builds against pairs: a build costs about
+    ``BUILD_COST`` (a fixed part, then per body), each listed pair
+    ``PAIR_COST`` a step, and doubling the skin halves the builds for about
+    three times the pairs. So when a build finds that the pairs cost less
+    than an eighth of what the builds cost per step, the next build gets
+    twice the skin (up to ``MAX_SKIN_SCALE`` times ``skin_steps``); when they
+    cost more than twice as much, it goes back to ``skin_steps``. The model
+    reads counts only, never timings: the same scene builds the same lists
+    on any machine (its constants and what it gained: docs/design/broadphase.md).
+    """
+
+    def __init__(self, skin_steps: float = 8.0, method: str = "auto"):
+        # broadphase imports this module (it re-exports the list's names): its names are taken at the call
+        from driftframe.framework.broadphase import METHODS
+        if method not in METHODS:
+            raise ValueError(f"broad phase method must be one of {METHODS}, got {method!r}")
+        self.skin_steps = float(skin_steps)
+        self.method = method
+        self.i = np.empty(0, np.intp)
+        self.j = np.empty(0, np.intp)
+        self.centre = np.empty((3, 0))
+        self.radius = np.empty(0)
+        self.skin = np.empty(0)
+        self.reach = np.empty(0)
+        self.swept = np.zeros(0, bool)
+        self.budget = 2
+        self.builds = 0
+        self.scale = 1.0                                  # the skin's factor for the next build
+
+    def build(self, centres: np.ndarray, radii: np.ndarray, step_disp: np.ndarray) -> None:
+        """(Re)build from centres (3, n), radii (n,) and each body's displacement per step (n,), m."""
+        from driftframe.framework.broadphase import ALL_PAIRS_MAX, sphere_pairs
+        c = np.array(centres, np.float64, order="C")      # C order: the compiled kernels take one layout
+        r = np.array(radii, np.float64)
+        d = np.asarray(step_disp, np.float64)
+        n = len(r)
+        skin, swept, reach = _territory(r, d, self.skin_steps * self.scale)   # one compiled pass (medians and all)
+        n_slow = n - int(np.count_nonzero(swept))
+        got = None
+        if self.method in ("auto", "grid") and n_slow > ALL_PAIRS_MAX:
+            # one compiled pass: counting sort into a dense grid, then the exact sphere test over the
+            # half stencil (the same pairs as sphere_pairs; their order does not matter to the solver)
+            got = _grid_build(c, reach, swept, n_slow)
+        if got is not None:
+            self.i, self.j = got
+        else:
+            slow = np.flatnonzero(~swept)
+            i, j = sphere_pairs(c[:, slow], reach[slow], self.method, soa=True)
+            self.i, self.j = slow[i], slow[j]
+        self.centre, self.radius, self.skin, self.reach, self.swept = c, r, skin, reach, swept
+        # x order of the territories' low ends, for territories()
+        self._order, self._lo_x, self._width = _x_order(c, reach, swept)
+        # each swept body costs a query per step, a build ~n log n: allow a few
+        self.budget = 2 + n // 128
+        self.builds += 1
+        lasts = self.skin_steps * self.scale                       # steps, about
+        builds = (BUILD_COST[0] + BUILD_COST[1] * n) / lasts        # s per step
+        pairs = PAIR_COST * len(self.i)
+        if 8.0 * pairs < builds:
+            self.scale = min(2.0 * self.scale, MAX_SKIN_SCALE)
+        elif pairs > 2.0 * builds:
+            self.scale = 1.0
+
+    def strays(self, *points: np.ndarray, which=None) -> np.ndarray:
+        """Which listed (not swept) bodies are at their skin's distance or more from their build
+        centre at any of ``points`` (each ``(3, n)``, or ``(3, len(which))`` for the bodies ``which``)."""
+        if which is None:
+            c, skin, swept = self.centre, self.skin, self.swept
+        else:
+            c, skin, swept = self.centre[:, which], self.skin[which], self.swept[which]
+        far2 = None
+        for p in points:
+            off = p - c
+            d2 = off[0] * off[0] + off[1] * off[1] + off[2] * off[2]
+            far2 = d2 if far2 is None else np.maximum(far2, d2)
+        return (far2 >= skin * skin) & ~swept
+
+    def kernel_arrays(self):
+        """The arrays :func:`territory_query` reads: ``(centre, skin, reach, order, lo_x, width)``."""
+        return (self.centre, self.skin, self.reach, self._order.astype(np.int64, copy=False), self._lo_x, self._width)
+
+    def territories(self, lo, hi) -> np.ndarray:
+        """Listed (not swept) bodies whose territory box overlaps the box ``[lo, hi]`` (3-vectors)."""
+        a = np.searchsorted(self._lo_x, lo[0] - self._width, side="left")
+        b = np.searchsorted(self._lo_x, hi[0], side="right")
+        cand = self._order[a:b]
+        c = self.centre[:, cand]
+        rr = self.reach[cand]
+        keep = ~self.swept[cand]
+        for k in range(3):
+            keep &= (c[k] - rr <= hi[k]) & (c[k] + rr >= lo[k])
+        return cand[keep]
+
+
+
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
+    """Compiled :meth:`NeighbourList.territories`: listed bodies whose territory box meets ``[lo, hi]``.
+
+    ``order``, ``lo_x``, ``width``, ``centre`` (3, n), ``reach``, ``swept``: the list's arrays
+    (:meth:`NeighbourList.kernel_arrays`). Used by the contact kernel for bodies swept mid-step.
+    """
+    a = sorting.bisect(lo_x, lo[0] - width, np.bool_(False))     # np.bool_: see contact_params' _NOT_LITERAL
+    b = sorting.bisect(lo_x, hi[0], np.bool_(True))
+    out = np.empty(max(b - a, 0), np.int64)
+    m = 0
+    for q in range(a, b):
+        k = order[q]
+        if swept[k]:
+            continue
+        rr = reach[k]
+        ok = True
+        for d in range(3):
+            if centre[d, k] - rr > hi[d] or centre[d, k] + rr < lo[d]:
+                ok = False
+                break
+        if ok:
+            out[m] = k
+            m += 1
+    return out[:m]
+
+
+@kernel(no_cfunc_wrapper=True)
+def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
+    """Mark as swept every listed body whose path ``x + u t``, 0 <= t <= dt, leaves its territory
+    (either end at its skin's distance or more from its build centre; a ball is convex).
+    ``x``, ``u``: (n, 3); ``centre``: (3, n). Returns ``(newly swept, swept now)``, or ``(-1, -1)``
+    and marks nothing when the radii ``r`` are not those of the build (``built_r``): rebuild."""
+    if r.shape[0] != built_r.shape[0]:
+        return -1, -1
+    for k in range(r.shape[0]):
+        if r[k] != built_r[k]:
+            return -1, -1
+    total = 0
+    new = 0
+    for k in range(x.shape[0]):
+        if not swept[k]:
+            s2 = skin[k] * skin[k]
+            a = 0.0
+            b = 0.0
+            for d in range(3):
+                o = x[k, d] - centre[d, k]
+                a += o * o
+                o2 = x[k, d] + u[k, d] * dt - centre[d, k]
+                b += o2 * o2
+            if a >= s2 or b >= s2:
+                swept[k] = True
+                new += 1
+        if swept[k]:
+            total += 1
+    return new, total
+
+
+def _grid_build(c, reach, swept, n_slow):
+    """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`; None when the scene spans
+    too many cells for int64 keys (the caller falls back on sort and sweep)."""
+    h, hh, bx, by, bz, nx, ny, nz = _grid_setup(c, reach, swept)
+    if not h > 0 or max(nx, ny, nz) > _KEY_SPAN:
+        return None
+    # a dense table of cells when they are few; sorted keys and binary searches when the scene is sparse
+    dense = float(nx) * float(ny) * float(nz) <= 8.0 * n_slow + 4096
+    cap = 8 * n_slow + 64
+    while True:
+        oi = np.empty(cap, np.int64)
+        oj = np.empty(cap, np.int64)
+        p = _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj)
+        if p <= cap:
+            return oi[:p], oj[:p]
+        cap = p
+
+
+#: Cells per axis at most (with the ghost layers), so that a cell key (x * ny + y) * nz + z fits in int64.
+_KEY_SPAN = 2_000_000
+
+
+@kernel(no_cfunc_wrapper=True)
+def _grid_setup(c, reach, swept):
+    """Cell side ``h``, the largest ordinary reach ``hh``, low corner and cells per axis.
+
+    Ordinary bodies have a reach of at most twice the median's; ``h`` is a hair over twice the largest
+    of those (so rounding in a cell index never separates an ordinary pair by two cells). A few bodies
+    made fast by collisions must not inflate every cell: they search a wider block of cells instead
+    (:func:`_grid_pairs`). A ghost layer each side spares the stencil its bounds tests."""
+    m = 0
+    for k in range(reach.shape[0]):
+        if not swept[k]:
+            m += 1
+    if m == 0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0
+    rs = np.empty(m)
+    m = 0
+    for k in range(reach.shape[0]):
+        if not swept[k]:
+            rs[m] = reach[k]
+            m += 1
+    cut = 2.0 * sorting.median(rs)
+    hh = 0.0
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for k in range(reach.shape[0]):
+        if swept[k]:
+            continue
+        if reach[k] <= cut:
+            hh = max(hh, reach[k])
+        for d in range(3):
+            lo[d] = min(lo[d], c[d, k])
+            hi[d] = max(hi[d], c[d, k])
+    h = 2.0 * hh * (1.0 + 1e-9)
+    if not h > 0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0
+    dims = np.empty(3, np.int64)
+    for d in range(3):
+        dims[d] = int(min(np.floor((hi[d] - lo[d]) / h), 4e6)) + 3     # capped: the int never overflows
+    return h, hh, lo[0], lo[1], lo[2], dims[0], dims[1], dims[2]
+
+
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+def _cell_index(v, base, h):
+    """The cell of coordinate ``v`` along one axis: cells of side ``h`` from ``base``, after one ghost layer."""
+    return int((v - base) / h) + 1
+
+
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+def _cell_range(q, dense, start, ukey, ustart, nu):
+    """The bodies filed under cell ``q``: ``body[b0:b1]``, from the dense table of all cells (``start``) or
+    by a binary search of the occupied cells' sorted keys (``ukey``, ``ustart``, ``nu`` of them)."""
+    if dense:
+        return start[q], start[q + 1]
+    kk = sorting.bisect(ukey, q, np.bool_(False))      # np.bool_: see contact_params' _NOT_LITERAL
+    if kk < nu and ukey[kk] == q:
+        return ustart[kk], ustart[kk + 1]
+    return np.int64(0), np.int64(0)
+
+
+@kernel(no_cfunc_wrapper=True)
+def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
+    """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
+
+    Cells of side ``h > 2 hh`` by centre, so a pair of ordinary bodies (reach <= ``hh``) lies in the
+    same or neighbouring cells. The bodies are filed by cell (``dense``: a counting sort into a table of
+    all cells, O(n + cells); else a sort of the occupied cells' keys, found by binary search), and each
+    ordinary body tests the later ordinary bodies of its own cell and those of the 13 cells of a half
+    stencil. A large body (reach > ``hh``) tests every body in the block of cells its reach plus the
+    largest can span (large-large pairs once, from the lower index).
+
+    Writes the pairs into ``oi``, ``oj`` as far as they hold and returns how many there are (the
+    caller gives larger arrays and calls again when they did not hold them all: growing arrays
+    inside the loop would cost reference counting on every iteration)."""
+    n = reach.shape[0]
+    cell = np.full(n, -1, np.int64)
+    big = 0.0
+    m = 0
+    for k in range(n):
+        if swept[k]:
+            continue
+        big = max(big, reach[k])
+        cell[k] = (_cell_index(c[0, k], bx, h) * ny + _cell_index(c[1, k], by, h)) * nz + _cell_index(c[2, k], bz, h)
+        m += 1
+    body = np.empty(m, np.int64)
+    if dense:
+        ncell = nx * ny * nz
+        start = np.zeros(ncell + 1, np.int64)
+        for k in range(n):
+            if cell[k] >= 0:
+                start[cell[k] + 1] += 1
+        for q in range(ncell):
+            start[q + 1] += start[q]
+        fill = np.empty(ncell, np.int64)
+        for q in range(ncell):
+            fill[q] = start[q]
+        for k in range(n):
+            q = cell[k]
+            if q >= 0:
+                body[fill[q]] = k
+                fill[q] += 1
+        ukey = np.empty(0, np.int64)
+        ustart = np.empty(0, np.int64)
+        nu = 0
+    else:
+        start = np.empty(0, np.int64)
+        keys = np.empty(m, np.int64)
+        idx = np.empty(m, np.int64)
+        j = 0
+        for k in range(n):
+            if cell[k] >= 0:
+                keys[j] = cell[k]
+                idx[j] = k
+                j += 1
+        order = sorting.argsort_stable(keys, keys.shape[0])     # (not m: see contact_params' _NOT_LITERAL)
+        nu = 0
+        for s in range(m):
+            body[s] = idx[order[s]]
+            if s == 0 or keys[order[s]] != keys[order[s - 1]]:
+                nu += 1
+        ukey = np.empty(nu, np.int64)
+        ustart = np.empty(nu + 1, np.int64)
+        nu = 0
+        for s in range(m):
+            if s == 0 or keys[order[s]] != keys[order[s - 1]]:
+                ukey[nu] = keys[order[s]]
+                ustart[nu] = s
+                nu += 1
+        ustart[nu] = m
+    # coordinates and reaches in cell order: the stencil reads them contiguously
+    sx = np.empty(m)
+    sy = np.empty(m)
+    sz = np.empty(m)
+    sr = np.empty(m)
+    for s in range(m):
+        k = body[s]
+        sx[s] = c[0, k]
+        sy[s] = c[1, k]
+        sz[s] = c[2, k]
+        sr[s] = reach[k]
+    # the 13 neighbour cells after this one in (x, y, z) order
+    offs = np.empty(13, np.int64)
+    o = 0
+    for dx in range(-1, 2):
+        for dy in range(-1, 2):
+            for dz in range(-1, 2):
+                if dx > 0 or (dx == 0 and (dy > 0 or (dy == 0 and dz > 0))):
+                    offs[o] = (dx * ny + dy) * nz + dz
+                    o += 1
+    cap = oi.shape[0]
+    p = 0
+    a1 = 0
+    for s in range(m):
+        a = body[s]
+        q = cell[a]
+        if s >= a1:                                       # the first body of its cell: where the cell ends
+            b0, b1 = _cell_range(q, dense, start, ukey, ustart, nu)
+            a1 = b1
+        ax = sx[s]
+        ay = sy[s]
+        az = sz[s]
+        ar = sr[s]
+        if ar > hh:
+            continue                                      # a large body: its own search below
+        for t in range(-1, 13):
+            if t < 0:
+                b0 = s + 1
+                b1 = a1
+            else:
+                b0, b1 = _cell_range(q + offs[t], dense, start, ukey, ustart, nu)
+            for u in range(b0, b1):
+                if sr[u] > hh:
+                    continue                              # found from the large body's side
+                dx_ = sx[u] - ax
+                dy_ = sy[u] - ay
+                dz_ = sz[u] - az
+                R = ar + sr[u]
+                if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
+                    if p < cap:
+                        b = body[u]
+                        oi[p] = min(a, b)
+                        oj[p] = max(a, b)
+                    p += 1
+    for s in range(m):
+        ar = sr[s]
+        if ar <= hh:
+            continue
+        a = body[s]
+        ax = sx[s]
+        ay = sy[s]
+        az = sz[s]
+        w = int((ar + big) / h) + 2
+        ix = _cell_index(ax, bx, h)
+        iy = _cell_index(ay, by, h)
+        iz = _cell_index(az, bz, h)
+        span = 1.0                                         # the block's cells (a float: no overflow)
+        for i0, nd in ((ix, nx), (iy, ny), (iz, nz)):
+            span *= min(i0 + w, nd - 1) - max(i0 - w, 0) + 1
+        if span > m:
+            # a body far larger than the rest (a radius ratio of hundreds) spans more cells than there
+            # are bodies: test every body once instead of visiting the cells (O(n), not O(cells))
+            for u in range(m):
+                b = body[u]
+                if b == a or (sr[u] > hh and b < a):
+                    continue
+                dx_ = sx[u] - ax
+                dy_ = sy[u] - ay
+                dz_ = sz[u] - az
+                R = ar + sr[u]
+                if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
+                    if p < cap:
+                        oi[p] = min(a, b)
+                        oj[p] = max(a, b)
+                    p += 1
+            continue
+        for gx in range(max(ix - w, 0), min(ix + w, nx - 1) + 1):
+            for gy in range(max(iy - w, 0), min(iy + w, ny - 1) + 1):
+                for gz in range(max(iz - w, 0), min(iz + w, nz - 1) + 1):
+                    b0, b1 = _cell_range((gx * ny + gy) * nz + gz, dense, start, ukey, ustart, nu)
+                    for u in range(b0, b1):
+                        b = body[u]
+                        if b == a or (sr[u] > hh and b < a):
+                            continue
+                        dx_ = sx[u] - ax
+                        dy_ = sy[u] - ay
+                        dz_ = sz[u] - az
+                        R = ar + sr[u]
+                        if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
+                            if p < cap:
+                                oi[p] = min(a, b)
+                                oj[p] = max(a, b)
+                            p += 1
+    return p
+
+
+@kernel(no_cfunc_wrapper=True)
+def _territory(r, d, skin_steps):
+    """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
+
+    Room for ``skin_steps`` steps at the body's own speed ``d`` per step (at least the median's, and at
+    least 2 % of the median radius a step: a scene at rest, a crystal or a pile, gets a skin of 0.16 r,
+    so the bodies an impact sets moving stay inside their territory instead of each being swept again
+    in every wave of the impact); a body whose skin dwarfs the
+    others' (more than 8 median skins + 4 largest radii; a bullet among asteroids) would make huge
+    cells and many pairs: it is swept instead."""
+    n = r.shape[0]
+    skin = np.empty(n)
+    swept = np.zeros(n, np.bool_)
+    reach = np.empty(n)
+    if n == 0:
+        return skin, swept, reach
+    floor_ = max(sorting.median(d), 0.02 * sorting.median(r))
+    for k in range(n):
+        skin[k] = skin_steps * max(d[k], floor_)
+    big = r[0]
+    for k in range(n):
+        big = max(big, r[k])
+    limit = 8.0 * sorting.median(skin) + 4.0 * big
+    for k in range(n):
+        swept[k] = skin[k] > limit
+    for k in range(n):
+        reach[k] = r[k] + skin[k]
+    return skin, swept, reach
+
+
+@kernel(no_cfunc_wrapper=True)
+def _x_order(c, reach, swept):
+    """The territories' low ends in x, sorted (a stable sort), their order, and twice the largest
+    listed reach: what :meth:`NeighbourList.territories` and :func:`territory_query` search."""
+    n = reach.shape[0]
+    lo_x = np.empty(n)
+    for k in range(n):
+        lo_x[k] = c[0, k] - reach[k]
+    order = sorting.argsort_stable(lo_x, lo_x.shape[0])
+    width = 0.0
+    for k in range(reach.shape[0]):
+        if not swept[k]:
+            width = max(width, 2.0 * reach[k])
+    lo_sorted = np.empty(n)
+    for k in range(n):
+        lo_sorted[k] = lo_x[order[k]]
+    return order, lo_sorted, width

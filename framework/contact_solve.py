@@ -1,0 +1,375 @@
+"""The step's event loop, and the four solvers compiled from it (the method: :mod:`.contact`).
+
+:func:`_solve` is the loop: pop the earliest contact from the heap, gather its wave, solve the wave's
+islands, record its events, apply the impulses, look again at the pairs of the bodies that changed. Each
+stage is a kernel of its own, pasted into the loop (``inline="always"``: the loop compiles as one unit,
+as it did when they were written in it, and no array is reference-counted per call).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from driftframe.framework import sorting
+from driftframe.framework.contact_again import (keep_listed, keep_nothing, keep_pairs, put_back_listed,
+                                                put_back_nothing, put_back_pairs)
+from driftframe.framework.contact_heap import grow_f, heap_pop, heap_push, sift_down
+from driftframe.framework.contact_islands import islands, restitution, solve_island
+from driftframe.framework.contact_jam import no_stick, stick_cluster
+from driftframe.framework.contact_pairs import (initial_heap, listed_resweep, listed_start, pair_structures,
+                                                unlisted_resweep, unlisted_start)
+from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F_LIMIT, F_STICK, N_STATS, S_BACK,
+                                                 S_CONTACTS, S_OVERLAPS, S_PAIRS, S_POPPED, S_PUSHED, S_SWEPT,
+                                                 S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
+from driftframe.framework.contact_toi import toi
+from driftframe.framework.kernels import kernel
+
+_OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+@kernel(**_OPTS)
+def wave_scratch(cap):
+    """A wave's arrays for up to ``cap`` contacts: pair, i, j, island root, island members, normal,
+    normal velocity, restitution, impulse, stuck; the entries put back (time, pair, version, slack);
+    right-hand side."""
+    return (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
+            np.empty(cap, np.int64), np.empty((cap, 3)), np.empty(cap), np.empty(cap), np.empty(cap),
+            np.zeros(cap, np.bool_), np.empty(cap), np.empty(cap, np.int64), np.empty(cap, np.int64),
+            np.empty(cap), np.empty(cap))
+
+
+@kernel(**_OPTS)
+def body_scratch(n):
+    """A step's arrays per body: velocity changed; x and u as they came (for F_AGAIN); burst and count of
+    contacts; the wave that last kicked it, joined it in an island, counted its contact, took it into a
+    stuck cluster; union-find parents; the cluster's queue; the wave's moved bodies and their velocity
+    changes."""
+    return (np.zeros(n, np.bool_), np.empty((n, 3)), np.empty((n, 3)), np.zeros(n, np.int64), np.zeros(n, np.int64),
+            np.full(n, -1, np.int64), np.full(n, -1, np.int64), np.full(n, -1, np.int64), np.full(n, -1, np.int64),
+            np.arange(n), np.empty(n, np.int64), np.empty(n, np.int64), np.zeros((n, 3)))
+
+
+@kernel(**_OPTS)
+def _shift(t, d):
+    """``t += d`` in place, element by element (``t - now`` and ``+ now`` without two numpy calls a step)."""
+    for k in range(t.shape[0]):
+        t[k] += d
+
+
+@kernel(**_OPTS, inline="always")
+def gather_wave(H, hn, t0, p0, dt, ver, PI, PJ, x, u, spd, wp, wi, wj, wn, wvn, back_t, back_p, back_v, back_s,
+                stats):
+    """The wave of pair ``p0``'s entry at ``t0`` (just popped, valid): it and every valid entry within its
+    own slack of ``t0`` whose pair still approaches there, into ``wp`` (pair), ``wi``, ``wj``, ``wn``
+    (normal i to j), ``wvn`` (normal velocity); the entries popped on the way that are not of this instant
+    go back into the heap. Returns ``(H, hn, K)``: the heap (grown when needed), its size, the contacts."""
+    K = np.int64(0)                                        # see contact_params._NOT_LITERAL
+    nb = 0
+    horizon = t0 + SLACK_MAX * dt
+    cand_p = p0
+    cand_ok = True
+    while True:
+        if cand_ok:
+            i, j = PI[cand_p], PJ[cand_p]
+            wx = u[j, 0] - u[i, 0]
+            wy = u[j, 1] - u[i, 1]
+            wz = u[j, 2] - u[i, 2]
+            dx = x[j, 0] - x[i, 0] + wx * t0
+            dy = x[j, 1] - x[i, 1] + wy * t0
+            dz = x[j, 2] - x[i, 2] + wz * t0
+            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if dist > 0.0:
+                nx, ny, nz = dx / dist, dy / dist, dz / dist
+                vn = nx * wx + ny * wy + nz * wz
+            else:
+                nx = ny = nz = vn = 0.0
+            if vn < -APPROACH * (spd[i] + spd[j]):
+                wp[K], wi[K], wj[K] = cand_p, i, j
+                wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
+                wvn[K] = vn
+                K += 1
+        if hn == 0 or H[0, 0] > horizon:
+            break
+        tp, pp, vv, ss = H[0, 0], int(H[0, 1]), int(H[0, 2]), H[0, 3]
+        stats[S_POPPED] += 1
+        hn -= 1
+        heap_pop(H, hn)
+        if vv != ver[pp]:
+            cand_ok = False
+            continue
+        if tp - t0 <= ss:
+            cand_p = pp
+            cand_ok = True
+            ver[pp] += 1                                   # taken: its entry is void from now on
+        else:
+            back_t[nb], back_p[nb], back_v[nb], back_s[nb] = tp, pp, vv, ss
+            nb += 1
+            cand_ok = False
+    ver[p0] += 1
+    stats[S_BACK] += nb
+    if hn + nb > H.shape[0]:
+        H = grow_f(H, hn + nb)
+    for b in range(nb):                                    # not this instant: back into the heap
+        heap_push(H, hn, back_t[b], back_p[b], back_v[b], back_s[b])
+        hn += 1
+    return H, hn, K
+
+
+@kernel(**_OPTS, inline="always")
+def record_wave(K, wi, wj, wn, wlam, e, x, u, r, t, t_c, t_last, burst, count, kstamp, waves, ev, ev_n, ev_x, ne):
+    """Bookkeeping of the bodies that took an impulse at ``t`` (last contact, burst, inelastic count) and
+    one event per contact with an impulse: ``(i, j, t, impulse)``, the normal, the points on i and on j.
+    Returns the event arrays (grown when needed) and their count."""
+    if ne + K > ev.shape[0]:
+        ev, ev_n, ev_x = grow_f(ev, ne + K), grow_f(ev_n, ne + K), grow_f(ev_x, ne + K)
+    for k in range(K):
+        if not (wlam[k] > 0.0):
+            continue
+        i, j = wi[k], wj[k]
+        for b in (i, j):
+            if kstamp[b] != waves:
+                kstamp[b] = waves                          # once per body per wave
+                burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
+                t_last[b] = t
+                if min(e[i], e[j]) < 1.0:
+                    count[b] += 1                          # the cap is on inelastic contacts
+        ev[ne, 0], ev[ne, 1], ev[ne, 2], ev[ne, 3] = i, j, t, wlam[k]
+        for d in range(3):
+            ev_n[ne, d] = wn[k, d]
+            ev_x[ne, d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
+            ev_x[ne, 3 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
+        ne += 1
+    return ev, ev_n, ev_x, ne
+
+
+@kernel(**_OPTS, inline="always")
+def apply_wave(moved, nm, t, dv, x, u, spd, changed, x_in, u_in):
+    """The moved bodies' new velocity ``u + dv`` from ``t`` on; ``p(t) = x + u t`` stays where it was."""
+    for a in range(nm):
+        b = moved[a]
+        if not changed[b]:                                 # its x and u as they came (for F_AGAIN)
+            for d in range(3):
+                x_in[b, d] = x[b, d]
+                u_in[b, d] = u[b, d]
+        for d in range(3):
+            u[b, d] += dv[b, d]
+            x[b, d] -= dv[b, d] * t
+        spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
+        changed[b] = True
+
+
+@kernel(**_OPTS, inline="always")
+def reexamine(moved, nm, waves, t, dt, head, nxt, mark, ver, PI, PJ, P, x, u, r, inv, live, spd, H, hn, stats):
+    """Every pair of the bodies that changed, from ``t`` on: its old entries void, its next contact (if any)
+    pushed, each pair once. Returns the heap (grown when needed) and its size."""
+    if hn + P > H.shape[0]:
+        H = grow_f(H, hn + P)
+    for a in range(nm):
+        b = moved[a]
+        node = head[b]
+        while node >= 0:
+            p = node >> 1
+            node = nxt[node]
+            if mark[p] == waves:
+                continue
+            mark[p] = waves
+            ver[p] += 1
+            i, j = PI[p], PJ[p]
+            if not (live[i] and live[j]):
+                continue
+            tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
+                         u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
+                         r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], t, dt)
+            if tp >= 0.0:
+                heap_push(H, hn, tp, p, ver[p], sl)
+                hn += 1
+                stats[S_PUSHED] += 1
+    return H, hn
+
+
+def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
+    """The step's event loop: the body of every solver (:func:`solve_all_pairs`, :func:`solve_listed`
+    and their ``_stick`` variants), each compiled from it with its own pieces (see :func:`_solver`)."""
+    keep = _keep(x, u, t_last, lst)
+    _shift(t_last, -now)
+    n = x.shape[0]
+    stats = np.zeros(N_STATS)
+    flags = 0
+    # the pair structures (adjacency, versions) are made only when needed: a quiet step makes none
+    n_swept, P, PI, PJ, head, nxt, ver, mark = _start(lst, pi, pj, x, u, r, live, dt)
+    early = n_swept > 0
+    stats[S_SWEPT] = n_swept
+    spd = np.empty(n)
+    for k in range(n):
+        spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
+
+    # -- heap of pending contacts --
+    H, hn, overlaps, worst, wi_, wj_ = initial_heap(PI, PJ, P, x, u, r, inv, live, spd, dt)
+    for k in range((hn >> 1) - 1, -1, -1):
+        sift_down(H, k, hn)
+    stats[S_OVERLAPS] = overlaps
+    stats[S_WORST_I], stats[S_WORST_J], stats[S_WORST] = wi_, wj_, worst
+    if hn == 0:                                            # no contact this step
+        stats[S_PAIRS] = P
+        _shift(t_last, now)
+        return np.zeros(n, np.bool_), np.empty((0, 4)), np.empty((0, 3)), np.empty((0, 6)), stats, flags
+    if not early:
+        P, PI, PJ, head, nxt, ver, mark = pair_structures(pi, pj, n)
+
+    # -- per body bookkeeping --
+    (changed, x_in, u_in, burst, count, bmark, ustamp, kstamp, sseen, parent, squeue, moved,
+     dv) = body_scratch(n)
+    same = SLACK_MAX * dt
+    # wave scratch, per wave (a wave holds at most one valid entry per pair and per heap entry: it is
+    # made large enough before each wave, never inside the loops that fill it, where an array that
+    # may be replaced is reference-counted on every pass)
+    wcap = np.int64(64)                  # see contact_params._NOT_LITERAL
+    wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = wave_scratch(wcap)
+    A = np.empty((DENSE_MAX, DENSE_MAX))
+    y = np.empty(DENSE_MAX)
+    sub = np.empty(DENSE_MAX, np.int64)
+    act = np.empty(DENSE_MAX, np.bool_)
+    one = np.zeros(1, np.int64)
+    # events
+    ev = np.empty((64, 4))
+    ev_n = np.empty((64, 3))
+    ev_x = np.empty((64, 6))
+    ne = 0
+
+    waves = 0
+    limit = 64 * (n + P) + 100_000
+    while hn > 0:
+        # -- pop the earliest valid entry --
+        t0 = H[0, 0]
+        p0 = int(H[0, 1])
+        v0 = int(H[0, 2])
+        hn -= 1
+        heap_pop(H, hn)
+        if v0 != ver[p0]:
+            continue
+        if waves >= limit:
+            flags |= F_LIMIT
+            break
+        # -- the wave: every valid entry within its own slack of t0 --
+        need = min(P, hn) + 1                              # entries it can take (valid ones: one per pair)
+        if need > wcap:
+            wcap = max(2 * wcap, need)
+            wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = \
+                wave_scratch(wcap)
+        H, hn, K = gather_wave(H, hn, t0, p0, dt, ver, PI, PJ, x, u, spd, wp, wi, wj, wn, wvn,
+                               back_t, back_p, back_v, back_s, stats)
+        if K == 0:
+            continue
+        waves += 1
+        t = t0
+        # -- restitution of each contact: the pair's, or the TC model / the bounds; islands --
+        fl, stick_any = restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, we)
+        flags |= fl
+        islands(K, wi, wj, inv, parent, ustamp, waves, wroot)
+        for k in range(K):
+            rhs[k] = -(1.0 + we[k]) * wvn[k]
+            wlam[k] = 0.0
+        if K == 1:
+            ordk = one                                     # a lone contact (most waves): nothing to sort
+        else:
+            ordk = sorting.argsort_stable(wroot, K)        # islands together, wave order inside
+        nm = np.int64(0)                 # see contact_params._NOT_LITERAL
+        s = 0
+        while s < K:
+            root = wroot[ordk[s]]
+            f = s
+            while f < K and wroot[ordk[f]] == root:
+                f += 1
+            m = f - s
+            for a in range(m):
+                cs[a] = ordk[s + a]
+            stick = False
+            if stick_any:
+                for a in range(m):
+                    if wstick[cs[a]]:
+                        stick = True
+            if stick:
+                nm = _stick_fn(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head,
+                               nxt, PI, PJ, sseen, squeue)
+                if nm < 0:
+                    break                                  # no_stick: this driver cannot; F_AGAIN below
+                flags |= F_STICK
+            else:
+                nm = solve_island(cs, m, wi, wj, wn, we, rhs, u, inv, spd, wlam, dv, moved, nm, bmark, waves,
+                                  A, y, sub, act, stats)
+            s = f
+        if nm < 0:
+            flags |= F_AGAIN
+            break
+        ev, ev_n, ev_x, ne = record_wave(K, wi, wj, wn, wlam, e, x, u, r, t, t_c, t_last, burst, count, kstamp,
+                                         waves, ev, ev_n, ev_x, ne)
+        apply_wave(moved, nm, t, dv, x, u, spd, changed, x_in, u_in)
+        # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
+        P, PI, PJ, nxt, ver, mark, n_swept, flags = _resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt,
+                                                             ver, mark, n_swept, stats, flags)
+        H, hn = reexamine(moved, nm, waves, t, dt, head, nxt, mark, ver, PI, PJ, P, x, u, r, inv, live, spd, H, hn,
+                          stats)
+    stats[S_PAIRS] = P
+    stats[S_CONTACTS] = ne
+    stats[S_WAVES] = waves
+    _shift(t_last, now)
+    if flags & F_AGAIN:
+        _put_back(keep, x, u, t_last, lst, changed, x_in, u_in)
+    return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
+
+
+def _solver(name, doc, **pieces):
+    """A solver compiled from :func:`_solve` with ``pieces`` for its names ``_start``, ``_resweep``,
+    ``_stick_fn``, ``_keep``, ``_put_back``: one compiled unit each, holding only the code its scenes run
+    (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
+    copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""
+    import types
+    scope = dict(globals(), **pieces)
+    f = types.FunctionType(_solve.__code__, scope, name)
+    f.__qualname__ = name
+    f.__doc__ = doc
+    f.__module__ = __name__
+    return kernel(error_model="numpy")(f)
+
+
+_LISTED_DOC = """One step of contacts for bodies on paths ``x + u t`` (``x``, ``u``: (n, 3), changed in place).
+
+    ``r``, ``inv``, ``e``: radius, inverse mass (0 = immovable), restitution
+    per body; ``live``: bodies taking part (False: a body with non-finite
+    state, left out); ``t_last``: each body's last contact time in absolute
+    seconds (-inf: none), updated in place (the TC model looks back across
+    steps); ``now``: the step's start, s (inside, times are relative to it).
+    ``pi``, ``pj``: candidate pairs, from a
+    :class:`~driftframe.framework.broadphase.NeighbourList` whose arrays
+    ``lst`` holds: ``(swept, blo, bhi, centre, skin, reach, order, lo_x, width,
+    budget, tosweep, newlo, newhi)`` (``blo``/``bhi``: (n, 3) path boxes of
+    swept bodies; ``centre`` (3, n); ``budget``: swept bodies before
+    F_REBUILD; the last three: scratch of n, (n, 3), (n, 3)); ``swept``,
+    ``blo``, ``bhi`` are changed in place for bodies whose path leaves their
+    territory: they are swept against the others and their new pairs added.
+
+    Returns ``(changed, events, ev_n, ev_point, stats, flags)``: which bodies'
+    velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
+    and the contact points on i's and on j's surface (6 numbers); ``stats``
+    (indexed by the S_* constants); ``flags`` (F_* bits). With F_AGAIN the
+    step needs the jam path: every input is as it came; run
+    :func:`solve_listed_stick` with them.
+    """
+
+# The solvers. A scene of few bodies compiles no neighbour-list code, and no scene compiles the jam path
+# (stick_cluster) until one jams: a step that needs it ends with F_AGAIN and its inputs as they came, and the
+# caller runs it again with the _stick variant (the same result, bit for bit, as that variant alone).
+solve_listed = _solver("solve_listed", _LISTED_DOC, _start=listed_start, _resweep=listed_resweep,
+                       _stick_fn=no_stick, _keep=keep_listed, _put_back=put_back_listed)
+solve_listed_stick = _solver("solve_listed_stick", ":func:`solve_listed` with the jam path (:func:`stick_cluster`).",
+                             _start=listed_start, _resweep=listed_resweep, _stick_fn=stick_cluster,
+                             _keep=keep_nothing, _put_back=put_back_nothing)
+solve_all_pairs = _solver("solve_all_pairs", """:func:`solve_listed` with every pair a candidate (few bodies)
+    and ``lst`` None; with F_AGAIN run :func:`solve_all_pairs_stick`.""",
+                          _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=no_stick,
+                          _keep=keep_pairs, _put_back=put_back_pairs)
+solve_all_pairs_stick = _solver("solve_all_pairs_stick", ":func:`solve_all_pairs` with the jam path.",
+                                _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=stick_cluster,
+                                _keep=keep_nothing, _put_back=put_back_nothing)
+

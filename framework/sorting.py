@@ -1,0 +1,118 @@
+"""Compiled search and order statistics: binary search, a stable argsort, the median.
+
+numba's own ``searchsorted``, ``argsort`` and ``median`` compile comparisons or partitions for every
+dtype, complex included; these compile a fraction of that (docs/bench/compile.md). Used by the
+neighbour list and the contact solver.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from driftframe.framework.kernels import kernel
+
+
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def bisect(a, v, right):
+    """``np.searchsorted(a, v, side="right" if right else "left")`` for a sorted 1-d array (NaN last):
+    the first index whose element is above ``v`` (right) or not below it (left). numba's searchsorted
+    compiles comparisons for every dtype, complex included (docs/bench/compile.md)."""
+    lo = 0
+    hi = a.shape[0]
+    while lo < hi:
+        m = (lo + hi) >> 1
+        if a[m] < v or (right and a[m] == v):
+            lo = m + 1
+        else:
+            hi = m
+    return lo
+
+
+@kernel(no_cfunc_wrapper=True)
+def argsort_stable(a, m):
+    """The order that sorts ``a[:m]`` ascending, ties in index order: what ``np.argsort(a[:m],
+    kind="stable")`` gives (NaN last). Merge sort of insertion-sorted runs of 16; its compile costs a
+    fraction of numba's argsort (see docs/bench/compile.md)."""
+    idx = np.empty(m, np.int64)
+    for k in range(m):
+        idx[k] = k
+    for s in range(0, m, 16):
+        f = min(s + 16, m)
+        for k in range(s + 1, f):
+            v = idx[k]
+            key = a[v]
+            q = k - 1
+            while q >= s:
+                w = a[idx[q]]
+                if not (key < w or (w != w and key == key)):     # key < w, NaN last
+                    break
+                idx[q + 1] = idx[q]
+                q -= 1
+            idx[q + 1] = v
+    tmp = np.empty(m, np.int64)
+    width = 16
+    while width < m:
+        for s in range(0, m, 2 * width):
+            mid = min(s + width, m)
+            f = min(s + 2 * width, m)
+            i = s
+            j = mid
+            k = s
+            while i < mid and j < f:
+                x = a[idx[j]]
+                y = a[idx[i]]
+                if x < y or (y != y and x == x):                  # the right one only when smaller: stable
+                    tmp[k] = idx[j]
+                    j += 1
+                else:
+                    tmp[k] = idx[i]
+                    i += 1
+                k += 1
+            while i < mid:
+                tmp[k] = idx[i]
+                i += 1
+                k += 1
+            while j < f:
+                tmp[k] = idx[j]
+                j += 1
+                k += 1
+        idx, tmp = tmp, idx
+        width *= 2
+    return idx
+
+
+@kernel(no_cfunc_wrapper=True)
+def median(a):
+    """``np.median`` of a 1-d float array without NaN (the mean of the middle two for an even count; NaN
+    when empty) by Wirth's selection, O(n): numba's median compiles a partition for every dtype, complex
+    included (see docs/bench/compile.md). The order statistics are unique, so the bits are numpy's."""
+    n = a.shape[0]
+    if n == 0:
+        return np.nan
+    w = a.copy()
+    h = n >> 1
+    lo = 0
+    hi = n - 1
+    while lo < hi:                     # Wirth: w[h] the h-th smallest, w[:h] <= w[h] <= w[h + 1:]
+        x = w[h]
+        i = lo
+        j = hi
+        while i <= j:
+            while w[i] < x:
+                i += 1
+            while x < w[j]:
+                j -= 1
+            if i <= j:
+                w[i], w[j] = w[j], w[i]
+                i += 1
+                j -= 1
+        if j < h:
+            lo = i
+        if h < i:
+            hi = j
+    if n & 1:
+        return w[h]
+    below = w[0]
+    for k in range(1, h):
+        below = max(below, w[k])
+    return (below + w[h]) / 2
+
