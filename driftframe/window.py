@@ -379,13 +379,11 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
     """:func:`play`'s body, under its signal handlers; returns the signal that stopped it, or None."""
     from driftframe.app import attach_rendering, make_world
     from driftframe.framework.audio import RATE
-    from driftframe.framework.bindings import gamepad_actions, gamepad_channels
     from driftframe.framework.gl import wrap_current_context
     from driftframe.framework.hashlog import attach_hash_log
     from driftframe.framework.input import TrackRecorder
     from driftframe.framework.loop import FixedStepLoop, FrameStats
     from driftframe.framework.output import write_file
-    from driftframe.systems.camera import switch_camera
     from driftframe.systems.hud import HudSystem
     from driftframe.systems.input import InputSystem
     from driftframe.systems.interpolation import attach_interpolation
@@ -427,110 +425,13 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
         if setup is not None:
             setup(world)
         loop = FixedStepLoop(world, time.perf_counter, **(loop_options or {}))
-        keys = key_table(glfw, bindings.keys)
         ui = {"screenshot": False, "overlay": bool(overlay), "fullscreen": False, "windowed": None,
               "told_behind": False}
-        key_held: set[str] = set()
-        pressed_at: dict[str, int] = {}        # held action -> world.step_count when its key went down
-        release_later: set[str] = set()        # tapped between two steps: released after the next step
-        pad_held: set[str] = set()
-        pad_down: set[str] = set()
-
-        def fire(action):
-            if action == "quit":
-                glfw.set_window_should_close(win, True)
-            elif action == "pause":
-                loop.paused = not loop.paused
-            elif action == "screenshot":
-                ui["screenshot"] = True
-            elif action == "overlay":
-                ui["overlay"] = not ui["overlay"]
-            elif action == "fullscreen":
-                toggle_fullscreen()
-            elif action in ("quick_save", "quick_load"):   # between two steps (keys are polled between ticks)
-                quick(action)
-            elif loop.paused and action == "switch_camera":   # while paused: at once, written down for the replay
-                switch_camera(world)
-                if recorder is not None:
-                    recorder.press(world.step_count, action)
-                if interp is not None:
-                    interp.snapshot.take()      # no blending across the jump
-            else:                      # otherwise at the next fixed step
-                inputs.press(action)
-
-        slot = os.path.join(screenshot_dir, f"{label.replace(':', '-')}-quicksave.npz")
-
-        def quick(action):
-            """F5: the world into the slot (replacing the last); F9: the slot into the world. A quick-load
-            would rewind a flight being written down, so it is refused then (one line says why)."""
-            from driftframe.framework.inputfile import InputFileError
-            from driftframe.framework.save import SaveError
-            try:
-                if action == "quick_save":
-                    world.save(slot, overwrite=True)
-                    print(f"quick-save: {slot} (step {world.step_count})", file=sys.stderr)
-                elif save_track or hash_log:
-                    print("quick-load is off while --save-track or --hash-log writes the flight down",
-                          file=sys.stderr)
-                else:
-                    world.restore(slot)
-                    if interp is not None:
-                        interp.snapshot.take()        # no blending across the jump
-                    print(f"quick-load: {slot} (step {world.step_count})", file=sys.stderr)
-            except (SaveError, InputFileError, OSError) as e:
-                print(f"driftframe: {action.replace('_', '-')}: {e}", file=sys.stderr)
-
-        def toggle_fullscreen():
-            if glfw.get_window_monitor(win):
-                x, y, w, h = ui["windowed"]
-                glfw.set_window_monitor(win, None, x, y, w, h, 0)
-                ui["fullscreen"] = False
-            else:
-                ui["windowed"] = (*glfw.get_window_pos(win), *glfw.get_window_size(win))
-                mon = glfw.get_primary_monitor()
-                mode = glfw.get_video_mode(mon)
-                glfw.set_window_monitor(win, mon, 0, 0, mode.size.width, mode.size.height, mode.refresh_rate)
-                ui["fullscreen"] = True
-
-        def on_key(_win, key, _scancode, action, _mods):
-            name_ = keys.get(key)
-            if name_ is None:
-                return
-            if name_ in HELD:
-                if action == glfw.PRESS:
-                    key_held.add(name_)
-                    release_later.discard(name_)
-                    pressed_at[name_] = world.step_count
-                elif action == glfw.RELEASE:
-                    if pressed_at.get(name_) == world.step_count and not loop.paused:
-                        release_later.add(name_)      # a tap shorter than a step still acts for one step
-                    else:
-                        key_held.discard(name_)
-            elif action == glfw.PRESS:
-                fire(name_)
-
-        def on_resize(_win, w, h):
-            if w > 0 and h > 0:           # 0 x 0 while minimised: keep the last picture size
-                target.fit((w, h))
-
-        def poll_gamepad():
-            st = pads.state()
-            if st is None:
-                inputs.axes = {}
-                pad_held.clear()
-                return
-            axes, buttons = st
-            inputs.axes = gamepad_channels(axes, bindings)
-            down = gamepad_actions(buttons, bindings)
-            pad_held.clear()
-            pad_held.update(a for a in down if a in HELD)
-            for a in sorted(down - pad_down - set(HELD)):
-                fire(a)
-            pad_down.clear()
-            pad_down.update(down)
-
-        glfw.set_key_callback(win, on_key)
-        glfw.set_framebuffer_size_callback(win, on_resize)
+        controls = _Controls(glfw, win, world, loop, inputs, bindings, pads, ui, target, recorder=recorder,
+                             interp=interp, slot=os.path.join(screenshot_dir, f"{label.replace(':', '-')}-quicksave.npz"),
+                             writing_down=bool(save_track or hash_log))
+        glfw.set_key_callback(win, controls.on_key)
+        glfw.set_framebuffer_size_callback(win, controls.on_resize)
         if not quiet:
             print(f"playing {label}: Esc quits, P pauses, C switches camera, F11 fullscreen, F3 overlay "
                   "(`driftframe keys` lists them all)", file=sys.stderr)
@@ -541,11 +442,11 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
         try:
             while not glfw.window_should_close(win) and stop.requested is None:
                 glfw.poll_events()
-                poll_gamepad()
-                inputs.held = key_held | pad_held
-                if loop.tick() and release_later:
-                    key_held.difference_update(release_later)
-                    release_later.clear()
+                controls.poll_gamepad()
+                inputs.held = controls.key_held | controls.pad_held
+                if loop.tick() and controls.release_later:
+                    controls.key_held.difference_update(controls.release_later)
+                    controls.release_later.clear()
                 if loop.behind and not ui["told_behind"]:
                     ui["told_behind"] = True
                     n = loop.step_limit
@@ -625,6 +526,121 @@ def _play(glfw, demo, flight, stop, *, name, size, seed, camera, state_out, scre
 
 
 play.last_run = None
+
+
+class _Controls:
+    """``play``'s keys and gamepads: held actions for the InputSystem, presses fired (pause, screenshot,
+    overlay, fullscreen, quick save/load, a camera switch while paused), the window's resizes."""
+
+    def __init__(self, glfw, win, world, loop, inputs, bindings, pads, ui, target, *, recorder, interp, slot,
+                 writing_down):
+        self.glfw, self.win, self.world, self.loop, self.inputs = glfw, win, world, loop, inputs
+        self.bindings, self.pads, self.ui, self.target = bindings, pads, ui, target
+        self.recorder, self.interp, self.slot, self.writing_down = recorder, interp, slot, writing_down
+        self.keys = key_table(glfw, bindings.keys)
+        self.key_held: set[str] = set()
+        self.pressed_at: dict[str, int] = {}     # held action -> world.step_count when its key went down
+        self.release_later: set[str] = set()     # tapped between two steps: released after the next step
+        self.pad_held: set[str] = set()
+        self.pad_down: set[str] = set()
+
+    def fire(self, action):
+        from driftframe.systems.camera import switch_camera
+
+        glfw, loop, ui, world = self.glfw, self.loop, self.ui, self.world
+        if action == "quit":
+            glfw.set_window_should_close(self.win, True)
+        elif action == "pause":
+            loop.paused = not loop.paused
+        elif action == "screenshot":
+            ui["screenshot"] = True
+        elif action == "overlay":
+            ui["overlay"] = not ui["overlay"]
+        elif action == "fullscreen":
+            self.toggle_fullscreen()
+        elif action in ("quick_save", "quick_load"):   # between two steps (keys are polled between ticks)
+            self.quick(action)
+        elif loop.paused and action == "switch_camera":   # while paused: at once, written down for the replay
+            switch_camera(world)
+            if self.recorder is not None:
+                self.recorder.press(world.step_count, action)
+            if self.interp is not None:
+                self.interp.snapshot.take()      # no blending across the jump
+        else:                      # otherwise at the next fixed step
+            self.inputs.press(action)
+
+    def quick(self, action):
+        """F5: the world into the slot (replacing the last); F9: the slot into the world. A quick-load
+        would rewind a flight being written down, so it is refused then (one line says why)."""
+        from driftframe.framework.inputfile import InputFileError
+        from driftframe.framework.save import SaveError
+        world, slot = self.world, self.slot
+        try:
+            if action == "quick_save":
+                world.save(slot, overwrite=True)
+                print(f"quick-save: {slot} (step {world.step_count})", file=sys.stderr)
+            elif self.writing_down:
+                print("quick-load is off while --save-track or --hash-log writes the flight down",
+                      file=sys.stderr)
+            else:
+                world.restore(slot)
+                if self.interp is not None:
+                    self.interp.snapshot.take()        # no blending across the jump
+                print(f"quick-load: {slot} (step {world.step_count})", file=sys.stderr)
+        except (SaveError, InputFileError, OSError) as e:
+            print(f"driftframe: {action.replace('_', '-')}: {e}", file=sys.stderr)
+
+    def toggle_fullscreen(self):
+        glfw, win, ui = self.glfw, self.win, self.ui
+        if glfw.get_window_monitor(win):
+            x, y, w, h = ui["windowed"]
+            glfw.set_window_monitor(win, None, x, y, w, h, 0)
+            ui["fullscreen"] = False
+        else:
+            ui["windowed"] = (*glfw.get_window_pos(win), *glfw.get_window_size(win))
+            mon = glfw.get_primary_monitor()
+            mode = glfw.get_video_mode(mon)
+            glfw.set_window_monitor(win, mon, 0, 0, mode.size.width, mode.size.height, mode.refresh_rate)
+            ui["fullscreen"] = True
+
+    def on_key(self, _win, key, _scancode, action, _mods):
+        name_ = self.keys.get(key)
+        if name_ is None:
+            return
+        if name_ in HELD:
+            if action == self.glfw.PRESS:
+                self.key_held.add(name_)
+                self.release_later.discard(name_)
+                self.pressed_at[name_] = self.world.step_count
+            elif action == self.glfw.RELEASE:
+                if self.pressed_at.get(name_) == self.world.step_count and not self.loop.paused:
+                    self.release_later.add(name_)      # a tap shorter than a step still acts for one step
+                else:
+                    self.key_held.discard(name_)
+        elif action == self.glfw.PRESS:
+            self.fire(name_)
+
+    def on_resize(self, _win, w, h):
+        if w > 0 and h > 0:           # 0 x 0 while minimised: keep the last picture size
+            self.target.fit((w, h))
+
+    def poll_gamepad(self):
+        from driftframe.framework.bindings import gamepad_actions, gamepad_channels
+
+        st = self.pads.state()
+        if st is None:
+            self.inputs.axes = {}
+            self.pad_held.clear()
+            return
+        axes, buttons = st
+        self.inputs.axes = gamepad_channels(axes, self.bindings)
+        down = gamepad_actions(buttons, self.bindings)
+        self.pad_held.clear()
+        self.pad_held.update(a for a in down if a in HELD)
+        for a in sorted(down - self.pad_down - set(HELD)):
+            self.fire(a)
+        self.pad_down.clear()
+        self.pad_down.update(down)
 
 
 def _summary(frame_times, wall, world, loop) -> dict:
