@@ -42,6 +42,8 @@ the same input gives the same bits.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from driftframe.framework.kepler_kernels import _C2_SERIES, _C3_SERIES, _stumpff1
@@ -128,49 +130,49 @@ _C3 = _C3_SERIES.copy()
 
 
 @kernel(error_model="numpy")
-def _kepler_drift(x, v, i, mu, t):
-    """Row ``i`` of ``x, v`` (relative to the attracting centre) moved along its Kepler orbit of ``mu``
-    for time ``t``, in place (module docstring: the formulas)."""
+def _kepler_drift(x, v, i, m, t):
+    """Row ``i`` of ``x, v`` (relative to the attracting centre) moved along its Kepler orbit for time ``t``,
+    in place (module docstring: the formulas). ``m[i]``: ``(mu, sqrt(mu), 1/mu)``, taken once per call (a
+    drift's cost is its chain of square roots and divisions: five here for a short drift)."""
+    mu, sqmu, mui = m[i, 0], m[i, 1], m[i, 2]
     x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
     v0, v1, v2 = v[i, 0], v[i, 1], v[i, 2]
     r0 = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
     r0i = 1.0 / r0
     rv = x0 * v0 + x1 * v1 + x2 * v2
     vv = v0 * v0 + v1 * v1 + v2 * v2
-    mui = 1.0 / mu
     alpha = 2.0 * r0i - vv * mui
-    sqmu = np.sqrt(mu)
-    sigma0 = rv / sqmu
+    sigma0 = rv * (sqmu * mui)
     if alpha > 0.0 and t * t * mu * alpha * alpha * alpha > 4.0 * np.pi * np.pi:
         period = 2.0 * np.pi / (sqmu * alpha * np.sqrt(alpha))       # more than an orbit: whole ones out
         t = t - period * np.round(t / period)
     target = sqmu * t
-    # a bracket of the root (Kepler's equation rises with chi: its slope is r > 0): an ellipse's chi
-    # gains 2 pi/sqrt(alpha) an orbit; an open orbit's at most sqrt(mu)/q a second (q: periapsis)
-    span = np.inf
-    if alpha > 0.0:
-        span = 2.0 * np.pi / np.sqrt(alpha)
-    else:
-        h2 = r0 * r0 * vv - rv * rv
-        e = np.sqrt(max(1.0 - alpha * h2 * mui, 0.0))       # e^2 = 1 - alpha p, p = h^2/mu
-        if h2 > 0.0:
-            span = sqmu * abs(t) * (1.0 + e) * mu / h2
-    lo = 0.0 if t >= 0.0 else -span
-    hi = span if t >= 0.0 else 0.0
     # chi = sqrt(mu) * integral of dt/r to third order in u = t/r0: r = r0 + rd t + rdd t^2/2 + ...
     u = t * r0i
     rd = rv * r0i
     rdd = (vv - rd * rd) * r0i - mu * r0i * r0i
     chi = sqmu * u * (1.0 - 0.5 * u * rd + u * u * (rd * rd - 0.5 * r0 * rdd) / 3.0)
-    if not (chi > lo and chi < hi) or abs(u) * np.sqrt(vv) > 0.5:    # a long drift: Vallado's starts
+    lo = 0.0 if t >= 0.0 else -np.inf               # the root's bracket, narrowed by every iterate
+    hi = np.inf if t >= 0.0 else 0.0
+    if u * u * vv > 0.25:                           # a long drift: a bracket from the orbit, Vallado's starts
+        # Kepler's equation rises with chi (its slope is r > 0): an ellipse's chi gains 2 pi/sqrt(alpha)
+        # an orbit; an open orbit's at most sqrt(mu)/q a second (q: periapsis, q = p/(1 + e), p = h^2/mu)
+        span = np.inf
         if alpha > 0.0:
+            span = 2.0 * np.pi / np.sqrt(alpha)
             chi = sqmu * t * alpha
         else:
+            h2 = r0 * r0 * vv - rv * rv
+            e = np.sqrt(max(1.0 - alpha * h2 * mui, 0.0))             # e^2 = 1 - alpha p
+            if h2 > 0.0:
+                span = sqmu * abs(t) * (1.0 + e) * mu / h2
             a = 1.0 / alpha
             arg = -2.0 * mu * alpha * t / (rv + np.copysign(np.sqrt(-mu * a), t) * (1.0 - r0 * alpha))
             chi = np.copysign(np.sqrt(-a), t) * np.log(arg) if arg > 0.0 else sqmu * t * r0i
+        lo = 0.0 if t >= 0.0 else -span
+        hi = span if t >= 0.0 else 0.0
         if not (chi > lo and chi < hi):
-            chi = 0.5 * (lo + hi) if np.isfinite(span) else sqmu * t * r0i
+            chi = 0.5 * (lo + hi) if span < np.inf else sqmu * t * r0i
     for _ in range(100):
         chi2 = chi * chi
         psi = alpha * chi2
@@ -202,7 +204,7 @@ def _kepler_drift(x, v, i, mu, t):
     r = chi2 * c2 + sigma0 * chi * (1.0 - psi * c3) + r0 * (1.0 - psi * c2)
     ri = 1.0 / r
     fm1 = -chi2 * c2 * r0i
-    g = t - chi2 * chi * c3 / sqmu
+    g = t - chi2 * chi * c3 * (sqmu * mui)
     fd = sqmu * chi * (psi * c3 - 1.0) * ri * r0i
     gdm1 = -chi2 * c2 * ri
     x[i, 0] = x0 + (fm1 * x0 + g * v0)
@@ -214,9 +216,20 @@ def _kepler_drift(x, v, i, mu, t):
 
 
 @kernel(error_model="numpy")
+def _mu_rows(mu, m):
+    """``m[i] = (mu_i, sqrt(mu_i), 1/mu_i)`` for :func:`_kepler_drift`."""
+    for i in range(mu.shape[0]):
+        m[i, 0] = mu[i]
+        m[i, 1] = np.sqrt(mu[i])
+        m[i, 2] = 1.0 / mu[i]
+
+
+@kernel(error_model="numpy")
 def _kepler_drift_all(x, v, mu, t):
+    m = np.empty((x.shape[0], 3))
+    _mu_rows(np.full(x.shape[0], mu), m)
     for i in range(x.shape[0]):
-        _kepler_drift(x, v, i, mu, t)
+        _kepler_drift(x, v, i, m, t)
 
 
 # -- pairwise pulls -------------------------------------------------------------------------------------
@@ -304,11 +317,11 @@ def _from_jacobi(xj, vj, gm, eta, x, v, with_v):
 
 
 @kernel(error_model="numpy")
-def _jacobi_drift(xj, vj, eta, t):
+def _jacobi_drift(xj, vj, m, t):
     """Every Jacobi row 1.. on its Kepler orbit of ``mu = eta_i`` for ``t`` (the centre of mass moves in
     the caller)."""
     for i in range(1, xj.shape[0]):
-        _kepler_drift(xj, vj, i, eta[i], t)
+        _kepler_drift(xj, vj, i, m, t)
 
 
 @kernel(error_model="numpy")
@@ -336,23 +349,23 @@ def _jacobi_kick(xj, vj, gm, eta, x, a, t):
 
 
 @kernel(error_model="numpy")
-def _corrector_z(xj, vj, gm, eta, x, a, ta, tb):
+def _corrector_z(xj, vj, gm, eta, m, x, a, ta, tb):
     """Wisdom, Holman & Touma's ``Z(a, b) = K(a) I(-b) K(-2a) I(b) K(a)`` (K: drift, I: kick)."""
-    _jacobi_drift(xj, vj, eta, ta)
+    _jacobi_drift(xj, vj, m, ta)
     _jacobi_kick(xj, vj, gm, eta, x, a, -tb)
-    _jacobi_drift(xj, vj, eta, -2.0 * ta)
+    _jacobi_drift(xj, vj, m, -2.0 * ta)
     _jacobi_kick(xj, vj, gm, eta, x, a, tb)
-    _jacobi_drift(xj, vj, eta, ta)
+    _jacobi_drift(xj, vj, m, ta)
 
 
 @kernel(error_model="numpy")
-def _apply_corrector(xj, vj, gm, eta, x, a, table, dt, inverse):
+def _apply_corrector(xj, vj, gm, eta, m, x, a, table, dt, inverse):
     """The corrector (``table``: rows (a, b) in units of dt), or its inverse: the same operators with the
     kick coefficients negated (``Z(a, b)^-1 = Z(-a, b)``, and the product taken in the same order reads
     as the inverse because the table is symmetric: row k mirrors row -k with (-a, -b))."""
     s = -1.0 if inverse else 1.0
     for k in range(table.shape[0]):
-        _corrector_z(xj, vj, gm, eta, x, a, table[k, 0] * dt, s * table[k, 1] * dt)
+        _corrector_z(xj, vj, gm, eta, m, x, a, table[k, 0] * dt, s * table[k, 1] * dt)
 
 
 @kernel(error_model="numpy")
@@ -360,21 +373,23 @@ def _wh_jacobi(x, v, gm, dt, n_steps, table):
     n = x.shape[0]
     eta = np.empty(n)
     _prefix_masses(gm, eta)
+    m = np.empty((n, 3))
+    _mu_rows(eta, m)
     xj = np.empty_like(x)
     vj = np.empty_like(v)
     sx = np.empty_like(x)
     a = np.empty_like(x)
     _to_jacobi(x, v, gm, eta, xj, vj)
     if table.shape[0]:
-        _apply_corrector(xj, vj, gm, eta, sx, a, table, dt, np.bool_(False))
-    _jacobi_drift(xj, vj, eta, 0.5 * dt)
+        _apply_corrector(xj, vj, gm, eta, m, sx, a, table, dt, np.bool_(False))
+    _jacobi_drift(xj, vj, m, 0.5 * dt)
     for s in range(n_steps):
         _jacobi_kick(xj, vj, gm, eta, sx, a, dt)
-        _jacobi_drift(xj, vj, eta, dt if s < n_steps - 1 else 0.5 * dt)
+        _jacobi_drift(xj, vj, m, dt if s < n_steps - 1 else 0.5 * dt)
     for k in range(3):                                # the centre of mass: a straight line
         xj[0, k] += vj[0, k] * (n_steps * dt)
     if table.shape[0]:
-        _apply_corrector(xj, vj, gm, eta, sx, a, table, dt, np.bool_(True))
+        _apply_corrector(xj, vj, gm, eta, m, sx, a, table, dt, np.bool_(True))
     _from_jacobi(xj, vj, gm, eta, x, v, np.bool_(True))
 
 
@@ -432,15 +447,16 @@ def _wh_democratic(x, v, gm, dt, n_steps, fixed):
             V[i, k] = v[i, k] - cv[k]
         X[0, k] = 0.0
         V[0, k] = 0.0
-    mu = gm[0]
+    m = np.empty((n, 3))
+    _mu_rows(np.full(n, gm[0]), m)
     jump = not fixed
     for i in range(1, n):
-        _kepler_drift(X, V, i, mu, 0.5 * dt)
+        _kepler_drift(X, V, i, m, 0.5 * dt)
     for s in range(n_steps):
         _dh_kick_jump(X, V, gm, a, dt, 0.5 * dt, jump)
         h = dt if s < n_steps - 1 else 0.5 * dt
         for i in range(1, n):
-            _kepler_drift(X, V, i, mu, h)
+            _kepler_drift(X, V, i, m, h)
     T = n_steps * dt
     for k in range(3):
         cx[k] += cv[k] * T
@@ -480,6 +496,19 @@ def _leapfrog(x, v, gm, dt, n_steps):
 
 
 # -- the public calls -----------------------------------------------------------------------------------
+@kernel(error_model="numpy")
+def _values_ok(x, v, gm):
+    """Whether every position and velocity is finite and every gm finite and >= 0 (one pass, no temporaries:
+    a game calls these kernels once a step)."""
+    for i in range(x.shape[0]):
+        if not (gm[i] >= 0.0 and gm[i] < np.inf):
+            return False
+        for k in range(3):
+            if not (abs(x[i, k]) < np.inf and abs(v[i, k]) < np.inf):
+                return False
+    return True
+
+
 def _checked(x, v, gm, dt, n_steps, what):
     for name, arr in (("x", x), ("v", v)):
         if not (isinstance(arr, np.ndarray) and arr.dtype == np.float64 and arr.ndim == 2 and arr.shape[1] == 3
@@ -489,11 +518,11 @@ def _checked(x, v, gm, dt, n_steps, what):
     gm = np.ascontiguousarray(gm, dtype=np.float64)
     if x.shape != v.shape or gm.shape != (x.shape[0],):
         raise ValueError(f"{what}: x {x.shape}, v {v.shape} and gm {gm.shape} must agree: (n, 3), (n, 3), (n,)")
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
-        raise ValueError(f"{what}: x and v must be finite")
-    if not np.all(np.isfinite(gm)) or np.any(gm < 0.0):
+    if not _values_ok(x, v, gm):
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+            raise ValueError(f"{what}: x and v must be finite")
         raise ValueError(f"{what}: gm must be finite and >= 0, got {gm[~(np.isfinite(gm) & (gm >= 0))][:3]}")
-    if not (np.isfinite(dt) and dt != 0.0):
+    if not (math.isfinite(dt) and dt != 0.0):
         raise ValueError(f"{what}: dt must be finite and non-zero, got {dt!r}")
     if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 1:
         raise ValueError(f"{what}: n_steps must be a whole number >= 1, got {n_steps!r}")
