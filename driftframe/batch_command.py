@@ -93,13 +93,14 @@ def cmd_batch(args) -> int:
             unjournalled.append((todo[k], res))
             raise                       # run_all halts the batch on a full disk
 
+    aborted = None
     try:
         part = batch.run_all([specs[i] for i in todo], jobs=args.jobs, scheduler=client, progress=not args.quiet,
                              on_done=report, retries=args.retries)
     except batch.Aborted as e:
         print(f"driftframe: aborted ({batch.signal_name(e.signum)}): the runs that finished are in "
               f"{journal_path} (--resume continues); no summary written", file=sys.stderr)
-        return 128 + e.signum
+        aborted = e.signum
     finally:
         try:
             while unjournalled:             # the stopped runs' part files are gone now: there may be room
@@ -110,6 +111,12 @@ def cmd_batch(args) -> int:
         journal.close()
         if client is not None:
             client.close()
+    if aborted is not None:
+        # at once: a run cut in a compile leaves numba's and LLVM's state to an interpreter teardown of
+        # 0.5-0.8 s; the journal is closed, the workers ended, the part files removed: nothing is left to do
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(128 + aborted)
     results = [skip.get(i) for i in range(len(specs))]
     for k, i in enumerate(todo):
         results[i] = part.results[k]

@@ -421,9 +421,10 @@ def run_local(specs, jobs: int, lp, done, *, retries: int = 1, note=print, flag:
             for w in workers:
                 with contextlib.suppress(OSError):
                     w.proc.terminate()
+            deadline = time.monotonic() + 0.3          # one wait for all: they were told together
             for w in workers:
-                w.end(0.5)
-            runner.cut(0.5)
+                w.end(max(0.0, deadline - time.monotonic()))
+            runner.cut(max(0.0, deadline - time.monotonic()))
             workers = []
             raise
         finally:
