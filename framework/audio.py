@@ -83,6 +83,11 @@ class Soundtrack:
     ``t_end``. ``samples``: samples given so far.
     """
 
+    #: A world's soundtrack is ``world.resources[Soundtrack]``; a save does not hold it (a recording or a
+    #: window makes its own).
+    published_by = "driftframe.systems.sound.attach (attach_rendering adds it)"
+    saved = False
+
     def __init__(self, t0: float = 0.0):
         self._t = float(t0)
         self._pending: list[tuple[float, float, float]] = []   # (time, strength, size), this block

@@ -97,7 +97,7 @@ from driftframe.framework.record_nv12 import YUV_PATHS, _banded_nv12, _cpu_nv12,
 from driftframe.framework.record_sinks import (GIF_MAX_DELAY, X264_CRF, X264_DEFAULT_CRF, X264_PRESET,  # noqa: F401
                                                X264_PRESETS, X264_THREADS, X264_TUNING, _BT709, _GifSink, _H264Sink,
                                                _PngSink, _Sink, open_sink)
-from driftframe.framework.audio import frame_samples
+from driftframe.framework.audio import Soundtrack, frame_samples
 from driftframe.framework.record_writer import _Writer
 
 if TYPE_CHECKING:
@@ -282,7 +282,7 @@ def _checked(world, path, *, frames, fps, steps_per_frame, before_step, gif_scal
     if yuv == "gpu" and (fmt != "mp4" or getattr(target, "is_screen", True) or size[0] % 4):
         raise ValueError(f"yuv='gpu' needs an MP4 output from an off-screen target whose width is a multiple of 4, "
                          f"got {fmt} at {size[0]}x{size[1]}")
-    soundtrack = world.resources.get("soundtrack") if audio and fmt == "mp4" else None
+    soundtrack = world.resources.get(Soundtrack) if audio and fmt == "mp4" else None
     return _Plan(Path(os.fspath(path)), fmt, frames, steps_per_frame, motion_blur, rate, int(crf), preset, yuv,
                  gif_scale, target, size, soundtrack)
 

@@ -76,7 +76,7 @@ class EffectsSystem(esper.Processor):
     the render target (see the module docstring). ``render``: the render system it draws after."""
 
     stage = "render"
-    reads = (Mass, SphereCollider, Transform, FlightInput, Player)
+    reads = (CollisionEvent, Mass, SphereCollider, Transform, FlightInput, Player)
     writes = ()
 
     def __init__(self, render):

@@ -1,7 +1,7 @@
 """Sound cues from the frame's events: impacts from contacts, the engine from the player's throttle.
 
 The system only *describes* sounds: it adds cues to the world's
-:class:`~framework.audio.Soundtrack` (``world.resources["soundtrack"]``,
+:class:`~framework.audio.Soundtrack` (``world.resources[Soundtrack]``,
 added by :func:`attach`). Who hears them takes the samples: the recorder
 muxes them into the MP4 as an AAC track, the window plays them
 (:mod:`driftframe.window`). Nothing here touches the simulation.
@@ -31,8 +31,8 @@ class SoundSystem(esper.Processor):
     """
 
     stage = "render"
-    reads = (Mass, SphereCollider, FlightInput, Player, GravityWell)
-    writes = ()
+    reads = (CollisionEvent, SurfaceContact, Mass, SphereCollider, FlightInput, Player, GravityWell)
+    writes = (Soundtrack,)
 
     def __init__(self, soundtrack: Soundtrack):
         self.soundtrack = soundtrack
@@ -68,11 +68,11 @@ def _radius(ent: int) -> float:
 
 
 def attach(world) -> Soundtrack:
-    """Add a :class:`SoundSystem` and its soundtrack (``world.resources["soundtrack"]``, starting at the
+    """Add a :class:`SoundSystem` and its soundtrack (``world.resources[Soundtrack]``, starting at the
     world's time); returns the soundtrack. Attaching twice returns the one there."""
-    track = world.resources.get("soundtrack")
+    track = world.resources.get(Soundtrack)
     if track is None:
         track = Soundtrack(world.time)
-        world.resources["soundtrack"] = track
+        world.resources[Soundtrack] = track
         world.add_system(SoundSystem(track))
     return track
