@@ -25,6 +25,7 @@ The sounds:
   constant ``tau = 0.06 s + 0.05 s size`` (at most 0.3 s), plus a noise
   crack (time constant 12 ms) smoothed by a moving average whose length grows
   with the size (bigger bodies sound darker).
+* **alert** ``(time, kind)``: the HUD's alerts, two short tones (:func:`alert`);
 * **thrust** ``level`` in [0, 1]: a rumble of smoothed noise and a 42 Hz hum,
   its amplitude ramped linearly across each block from the last level to the
   new one (no clicks).
@@ -35,6 +36,7 @@ break or a swarm costs a bounded amount of work.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -74,6 +76,27 @@ def impact(strength: float, size: float) -> np.ndarray:
     return (gain * (0.7 * thud + 0.3 * crack)).astype(np.float32)
 
 
+#: HUD alerts: a warning (the warp dropped, the camera's target lost) falls, a job done (the autopilot
+#: arrived or finished a burn) rises.
+ALERTS = ("warning", "done")
+
+
+@functools.lru_cache(maxsize=len(ALERTS))
+def alert(kind: str) -> np.ndarray:
+    """Two 90 ms sine tones a fifth apart (A5 and D5), 5 ms fades, at 0.35: falling for ``"warning"``,
+    rising for ``"done"``."""
+    n = int(0.09 * RATE)
+    t = np.arange(n) / RATE
+    fade = np.minimum(1.0, np.minimum(t, t[::-1]) / 0.005)
+    hi, lo = 880.0, 587.33
+    pair = (hi, lo) if kind == "warning" else (lo, hi)
+    tones = [np.sin(2 * np.pi * f * t) * fade for f in pair]
+    out = 0.35 * np.concatenate([tones[0], np.zeros(int(0.03 * RATE)), tones[1]])
+    out = out.astype(np.float32)
+    out.flags.writeable = False
+    return out
+
+
 class Soundtrack:
     """Cues in simulated time, mixed into blocks of samples (see the module docstring).
 
@@ -90,7 +113,7 @@ class Soundtrack:
 
     def __init__(self, t0: float = 0.0):
         self._t = float(t0)
-        self._pending: list[tuple[float, float, float]] = []   # (time, strength, size), this block
+        self._pending: list[tuple[float, int, float, float]] = []   # (time, 0, strength, size) | (time, 1, alert, 0)
         self._voices: list[list] = []                          # [samples, position, loudness]
         self._level = 0.0                                      # thrust at the end of the last block
         self._next_level = 0.0
@@ -99,7 +122,13 @@ class Soundtrack:
     def impact(self, time: float, strength: float, size: float) -> None:
         """An impact at simulated ``time`` (s), closing speed ``strength`` (m/s), smaller radius ``size`` (m)."""
         if math.isfinite(time) and math.isfinite(strength) and math.isfinite(size):
-            self._pending.append((float(time), float(strength), float(size)))
+            self._pending.append((float(time), 0, float(strength), float(size)))
+
+    def alert(self, time: float, kind: str) -> None:
+        """A HUD alert at simulated ``time``: ``"warning"`` (two falling tones) or ``"done"`` (two rising)."""
+        if kind not in ALERTS:
+            raise ValueError(f"alert kind must be one of {', '.join(ALERTS)}, got {kind!r}")
+        self._pending.append((float(time), 1, float(ALERTS.index(kind)), 0.0))
 
     def thrust(self, level: float) -> None:
         """The engine's level in [0, 1] at the end of the block being made."""
@@ -111,9 +140,9 @@ class Soundtrack:
         out = np.zeros(n, np.float64)
         span = float(t_end) - self._t
         # this block's impacts, in time order (ties by strength, size: the same order on every run)
-        for time, strength, size in sorted(self._pending):
+        for time, what, a, b in sorted(self._pending):
             at = 0 if span <= 0 else min(n - 1, max(0, round(n * (time - self._t) / span)))
-            voice = impact(strength, size)
+            voice = impact(a, b) if what == 0 else alert(ALERTS[int(a)])
             self._voices.append([voice, -at, float(np.abs(voice).max())])
         self._pending.clear()
         if len(self._voices) > MAX_VOICES:                     # keep the loudest; stable, so ties keep order

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import esper
 
+from driftframe.components.autopilot import Autopilot
 from driftframe.components.body import Mass
+from driftframe.components.camera import Camera
 from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.control import FlightInput, Player
 from driftframe.components.gravity import GravityWell, SurfaceContact
 from driftframe.framework.audio import Soundtrack
+from driftframe.framework.warp import TimeWarp
 
 
 class SoundSystem(esper.Processor):
@@ -25,18 +28,23 @@ class SoundSystem(esper.Processor):
     ``J (1/m_a + 1/m_b)`` m/s (an immovable body's ``1/m`` is 0), its pitch
     from the smaller collider radius; a surface contact's loudness is twice its
     ``normal_speed`` (an elastic bounce reverses it), its size the well's
-    radius. The engine follows ``|throttle|``. Runs once per presented frame;
+    radius. The engine follows ``|throttle|``. The HUD's alerts sound as they appear: a warning when
+    the time warp is held below the request or the camera loses its target, a chime when the player's
+    autopilot finishes a task (``Autopilot.done``: a burn, an arrival). Runs once per presented frame;
     a frame rendered again without a step between (motion blur's sub-frames)
     adds nothing.
     """
 
     stage = "render"
-    reads = (CollisionEvent, SurfaceContact, Mass, SphereCollider, FlightInput, Player, GravityWell)
+    reads = (CollisionEvent, SurfaceContact, Mass, SphereCollider, FlightInput, Player, GravityWell, Autopilot,
+             Camera, TimeWarp)
     writes = (Soundtrack,)
 
     def __init__(self, soundtrack: Soundtrack):
         self.soundtrack = soundtrack
         self._heard_step = -1
+        self._was = {"dropped": False, "lost": False}      # what the last frame's alerts saw
+        self._chimed: dict[int, tuple] = {}               # player entity -> the autopilot task last chimed
 
     def process(self, dt: float) -> None:
         world = self.world
@@ -55,6 +63,24 @@ class SoundSystem(esper.Processor):
         for _, (_, flight) in esper.get_components(Player, FlightInput):
             level = max(level, abs(float(flight.throttle)))
         track.thrust(level)
+        self._alerts(world, track)
+
+    def _alerts(self, world, track: Soundtrack) -> None:
+        """The HUD's alerts as they appear: the warp held below the request, the camera's target lost (a
+        warning); the player's autopilot arriving or finishing a burn (done)."""
+        warp = world.resources.get(TimeWarp)
+        now = {"dropped": bool(warp is not None and warp.dropped),
+               "lost": any(cam.target_lost for _, cam in esper.get_component(Camera))}
+        was = self._was
+        if (now["dropped"] and not was["dropped"]) or (now["lost"] and not was["lost"]):
+            track.alert(world.time, "warning")
+        self._was = now
+        for ent, (_, ap) in esper.get_components(Player, Autopilot):
+            # once a task: its parameters name it (a flight plan may reuse the component for the next)
+            task = (ap.mode, ap.target, ap.point, ap.dv, ap.along, ap.at, ap.standoff)
+            if ap.done and self._chimed.get(ent) != task:
+                self._chimed[ent] = task
+                track.alert(world.time, "done")
 
 
 def _inverse_mass(ent: int) -> float:

@@ -115,3 +115,26 @@ def test_a_speaker_on_a_device_plays_what_it_is_fed_and_none_is_one_line(capsys,
     assert speaker.open_speaker() is None
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no sound: no audio output device" in err
+
+
+def test_the_huds_alerts_sound_once_as_they_appear(world):
+    from driftframe.framework.warp import TimeWarp
+    from driftframe.systems.sound import attach
+
+    warp = TimeWarp(10)
+    world.resources[TimeWarp] = warp
+    track = attach(world)
+
+    def frame():
+        world.step()
+        world.render()
+        return track.take(800, world.time)
+
+    assert np.abs(frame()).max() == 0.0                  # warp as asked: silence
+    warp.limit = 1                                        # the governor holds it at x1: a warning
+    x = np.concatenate([frame() for _ in range(16)])
+    beep = audio.alert("warning")                          # from the first block's last sample (its frame's end)
+    np.testing.assert_allclose(x[799:799 + len(beep)], np.tanh(beep), atol=1e-6)
+    assert np.abs(np.concatenate([frame() for _ in range(8)])).max() == 0.0     # once, not every frame
+    with pytest.raises(ValueError, match="alert kind must be one of warning, done, got 'beep'"):
+        track.alert(0.0, "beep")
