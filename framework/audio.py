@@ -19,7 +19,8 @@ The sounds:
 
 * **impact** ``(time, strength, size)``: ``strength`` is the closing speed the
   impulse took out, ``J (1/m_a + 1/m_b)`` (m/s); the loudness is
-  ``min(1, (strength / 6 m/s)^0.6)``, at least 0.05. ``size`` (m, the smaller
+  ``min(1, (strength / 6 m/s)^0.6)``, at least 0.05, times :func:`hearing` of its
+  distance from the listener (the camera). ``size`` (m, the smaller
   radius) sets the pitch: a thud at ``f0 = 90 Hz (1 m / size)^0.5`` (in
   [45, 700] Hz) gliding down from 1.6 f0 over 30 ms, decaying with time
   constant ``tau = 0.06 s + 0.05 s size`` (at most 0.3 s), plus a noise
@@ -60,9 +61,10 @@ def _smooth(x: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
-def impact(strength: float, size: float) -> np.ndarray:
-    """The samples of one impact (float32, starting at its contact): see the module docstring."""
-    gain = max(0.05, min(1.0, (max(strength, 0.0) / 6.0) ** 0.6))
+def impact(strength: float, size: float, distance: float = 0.0) -> np.ndarray:
+    """The samples of one impact (float32, starting at its contact), heard ``distance`` m away: see the
+    module docstring."""
+    gain = max(0.05, min(1.0, (max(strength, 0.0) / 6.0) ** 0.6)) * hearing(distance)
     size = min(max(size, 0.01), 1000.0)
     f0 = min(700.0, max(45.0, 90.0 / math.sqrt(size)))
     tau = min(0.3, 0.06 + 0.05 * size)
@@ -97,6 +99,12 @@ def alert(kind: str) -> np.ndarray:
     return out
 
 
+def hearing(distance: float) -> float:
+    """How much of an impact's loudness reaches an ear ``distance`` m away: all of it within 10 m, then
+    ``1 / (1 + (d - 10 m) / 30 m)`` (a half at 40 m, a third at 70 m): far hits are quieter, never silent."""
+    return 1.0 / (1.0 + max(0.0, float(distance) - 10.0) / 30.0)
+
+
 class Soundtrack:
     """Cues in simulated time, mixed into blocks of samples (see the module docstring).
 
@@ -113,22 +121,24 @@ class Soundtrack:
 
     def __init__(self, t0: float = 0.0):
         self._t = float(t0)
-        self._pending: list[tuple[float, int, float, float]] = []   # (time, 0, strength, size) | (time, 1, alert, 0)
+        # (time, 0, strength, size, distance) | (time, 1, alert, 0, 0), this block
+        self._pending: list[tuple[float, int, float, float, float]] = []
         self._voices: list[list] = []                          # [samples, position, loudness]
         self._level = 0.0                                      # thrust at the end of the last block
         self._next_level = 0.0
         self.samples = 0
 
-    def impact(self, time: float, strength: float, size: float) -> None:
-        """An impact at simulated ``time`` (s), closing speed ``strength`` (m/s), smaller radius ``size`` (m)."""
-        if math.isfinite(time) and math.isfinite(strength) and math.isfinite(size):
-            self._pending.append((float(time), 0, float(strength), float(size)))
+    def impact(self, time: float, strength: float, size: float, distance: float = 0.0) -> None:
+        """An impact at simulated ``time`` (s), closing speed ``strength`` (m/s), smaller radius ``size`` (m),
+        ``distance`` m from the listener (:func:`hearing`)."""
+        if all(math.isfinite(v) for v in (time, strength, size, distance)):
+            self._pending.append((float(time), 0, float(strength), float(size), float(distance)))
 
     def alert(self, time: float, kind: str) -> None:
         """A HUD alert at simulated ``time``: ``"warning"`` (two falling tones) or ``"done"`` (two rising)."""
         if kind not in ALERTS:
             raise ValueError(f"alert kind must be one of {', '.join(ALERTS)}, got {kind!r}")
-        self._pending.append((float(time), 1, float(ALERTS.index(kind)), 0.0))
+        self._pending.append((float(time), 1, float(ALERTS.index(kind)), 0.0, 0.0))
 
     def thrust(self, level: float) -> None:
         """The engine's level in [0, 1] at the end of the block being made."""
@@ -140,9 +150,9 @@ class Soundtrack:
         out = np.zeros(n, np.float64)
         span = float(t_end) - self._t
         # this block's impacts, in time order (ties by strength, size: the same order on every run)
-        for time, what, a, b in sorted(self._pending):
+        for time, what, a, b, d in sorted(self._pending):
             at = 0 if span <= 0 else min(n - 1, max(0, round(n * (time - self._t) / span)))
-            voice = impact(a, b) if what == 0 else alert(ALERTS[int(a)])
+            voice = impact(a, b, d) if what == 0 else alert(ALERTS[int(a)])
             self._voices.append([voice, -at, float(np.abs(voice).max())])
         self._pending.clear()
         if len(self._voices) > MAX_VOICES:                     # keep the loudest; stable, so ties keep order

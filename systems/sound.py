@@ -9,9 +9,10 @@ muxes them into the MP4 as an AAC track, the window plays them
 from __future__ import annotations
 
 import esper
+import numpy as np
 
 from driftframe.components.autopilot import Autopilot
-from driftframe.components.body import Mass
+from driftframe.components.body import Mass, Transform
 from driftframe.components.camera import Camera
 from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.control import FlightInput, Player
@@ -28,7 +29,8 @@ class SoundSystem(esper.Processor):
     ``J (1/m_a + 1/m_b)`` m/s (an immovable body's ``1/m`` is 0), its pitch
     from the smaller collider radius; a surface contact's loudness is twice its
     ``normal_speed`` (an elastic bounce reverses it), its size the well's
-    radius. The engine follows ``|throttle|``. The HUD's alerts sound as they appear: a warning when
+    radius; both quieter with their distance from the active camera's eye
+    (:func:`framework.audio.hearing`). The engine follows ``|throttle|``. The HUD's alerts sound as they appear: a warning when
     the time warp is held below the request or the camera loses its target, a chime when the player's
     autopilot finishes a task (``Autopilot.done``: a burn, an arrival). Runs once per presented frame;
     a frame rendered again without a step between (motion blur's sub-frames)
@@ -37,7 +39,7 @@ class SoundSystem(esper.Processor):
 
     stage = "render"
     reads = (CollisionEvent, SurfaceContact, Mass, SphereCollider, FlightInput, Player, GravityWell, Autopilot,
-             Camera, TimeWarp)
+             Camera, Transform, TimeWarp)
     writes = (Soundtrack,)
 
     def __init__(self, soundtrack: Soundtrack):
@@ -52,13 +54,17 @@ class SoundSystem(esper.Processor):
             return
         self._heard_step = world.step_count
         track = self.soundtrack
+        ear = _ear()
         for ev in world.events:
             if isinstance(ev, CollisionEvent):
                 inv = sum(_inverse_mass(e) for e in (ev.a, ev.b))
-                track.impact(ev.time, ev.impulse * inv, min(_radius(ev.a), _radius(ev.b)))
+                track.impact(ev.time, ev.impulse * inv, min(_radius(ev.a), _radius(ev.b)),
+                             _distance(ear, np.asarray(ev.point, float)))
             elif isinstance(ev, SurfaceContact):
                 well = esper.try_component(ev.well, GravityWell) if esper.entity_exists(ev.well) else None
-                track.impact(ev.time, 2.0 * abs(ev.normal_speed), 1.0 if well is None else float(well.radius))
+                body = esper.try_component(ev.entity, Transform) if esper.entity_exists(ev.entity) else None
+                track.impact(ev.time, 2.0 * abs(ev.normal_speed), 1.0 if well is None else float(well.radius),
+                             _distance(ear, None if body is None else body.position))
         level = 0.0
         for _, (_, flight) in esper.get_components(Player, FlightInput):
             level = max(level, abs(float(flight.throttle)))
@@ -81,6 +87,17 @@ class SoundSystem(esper.Processor):
             if ap.done and self._chimed.get(ent) != task:
                 self._chimed[ent] = task
                 track.alert(world.time, "done")
+
+
+def _ear():
+    """Where the listener is: the eye of the first active camera (its Transform, once placed), or None."""
+    cams = sorted(e for e, c in esper.get_component(Camera) if c.active)
+    tf = esper.try_component(cams[0], Transform) if cams else None
+    return None if tf is None else tf.position.copy()
+
+
+def _distance(ear, point) -> float:
+    return 0.0 if ear is None or point is None else float(np.linalg.norm(np.asarray(point) - ear))
 
 
 def _inverse_mass(ent: int) -> float:

@@ -36,6 +36,8 @@ def test_louder_for_a_harder_hit_lower_for_a_bigger_body_and_the_same_samples_ev
     zero_crossings = lambda x: np.count_nonzero(np.diff(np.sign(x[:4800])))    # noqa: E731
     assert zero_crossings(small) > 2 * zero_crossings(big)
     np.testing.assert_array_equal(audio.impact(3.0, 0.7), audio.impact(3.0, 0.7))
+    near, far = audio.impact(5.0, 0.5, 5.0), audio.impact(5.0, 0.5, 70.0)     # the camera's distance, m
+    np.testing.assert_allclose(np.abs(far).max() / np.abs(near).max(), 1 / 3, rtol=1e-3)
 
 
 def test_thrust_is_continuous_across_blocks_and_ramps_without_a_click():
