@@ -1,4 +1,5 @@
-"""Impacts you can see: sparks and a flash at every contact, and the engine's plume while it thrusts.
+"""Impacts you can see: sparks and a flash at every contact (a CollisionEvent, or a SurfaceContact with a
+well's surface), and the engine's plume while it thrusts.
 
 Pure presentation: the system reads the frame's events and the player's
 throttle and draws additive points into the render target; it never writes
@@ -34,6 +35,7 @@ import numpy as np
 from driftframe.components.body import Mass, Transform
 from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.control import FlightInput, Player
+from driftframe.components.gravity import SurfaceContact
 from driftframe.framework import frame as fr
 
 _VS = """
@@ -76,7 +78,7 @@ class EffectsSystem(esper.Processor):
     the render target (see the module docstring). ``render``: the render system it draws after."""
 
     stage = "render"
-    reads = (CollisionEvent, Mass, SphereCollider, Transform, FlightInput, Player)
+    reads = (CollisionEvent, SurfaceContact, Mass, SphereCollider, Transform, FlightInput, Player)
     writes = ()
 
     def __init__(self, render):
@@ -108,20 +110,37 @@ class EffectsSystem(esper.Processor):
 
     def _burst(self, ev: CollisionEvent) -> None:
         inv = sum(_inverse_mass(e) for e in (ev.a, ev.b))
-        s = min(1.0, (max(ev.impulse * inv, 0.0) / 6.0) ** 0.6)
         k = min(2.0, max(0.1, min(_radius(ev.a), _radius(ev.b))))   # the smaller body's radius sets the scale, m
-        rng = np.random.default_rng([max(ev.step, 0), ev.a, ev.b])
+        self._sparks(np.asarray(ev.point, float), np.asarray(ev.normal, float), ev.time, ev.impulse * inv, k,
+                     [max(ev.step, 0), ev.a, ev.b])
+
+    def _touchdown(self, ev: SurfaceContact) -> None:
+        """A body bouncing off a well's surface: sparks where it touched (under its centre, towards the
+        well), scaled by the body's radius, as loud as the sound's (twice the radial speed)."""
+        tf = esper.try_component(ev.entity, Transform) if esper.entity_exists(ev.entity) else None
+        well = esper.try_component(ev.well, Transform) if esper.entity_exists(ev.well) else None
+        if tf is None or well is None:
+            return
+        out = tf.position - well.position
+        if not np.linalg.norm(out) > 0:
+            return
+        n = out / np.linalg.norm(out)
+        r = _radius(ev.entity)
+        self._sparks(tf.position - n * r, n, ev.time, 2.0 * abs(ev.normal_speed), min(2.0, max(0.1, r)),
+                     [int(round(ev.time * 1e6)), ev.entity, ev.well])
+
+    def _sparks(self, point, normal, time: float, strength: float, k: float, seed) -> None:
+        s = min(1.0, (max(strength, 0.0) / 6.0) ** 0.6)
+        rng = np.random.default_rng(seed)
         n = int(6 + 30 * s)
-        normal = np.asarray(ev.normal, float)
         d = rng.normal(size=(n, 3)) + np.outer(np.where(rng.random(n) < 0.5, 1.5, -1.5), normal)
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         speed = k * (1.0 + 5.0 * s) * rng.uniform(0.3, 1.0, n)
-        point = np.asarray(ev.point, float)
         hot = rng.uniform(0.0, 1.0, (n, 1))
         rgb = np.array([1.0, 0.85, 0.45]) * (1 - hot) + np.array([1.0, 1.0, 0.9]) * hot
-        self._add(np.tile(point, (n, 1)), d * speed[:, None], np.full(n, ev.time), rng.uniform(0.3, 0.8, n),
+        self._add(np.tile(point, (n, 1)), d * speed[:, None], np.full(n, time), rng.uniform(0.3, 0.8, n),
                   rgb, np.full(n, k * (0.15 + 0.25 * s)))
-        self._add(point[None], np.zeros((1, 3)), [ev.time], [0.12], [[1.0, 0.95, 0.85]], [k * (0.5 + 1.5 * s)])
+        self._add(point[None], np.zeros((1, 3)), [time], [0.12], [[1.0, 0.95, 0.85]], [k * (0.5 + 1.5 * s)])
 
     def _plume(self, now: float, step: int) -> list[np.ndarray]:
         out = []
@@ -146,6 +165,8 @@ class EffectsSystem(esper.Processor):
             for ev in world.events:
                 if isinstance(ev, CollisionEvent):
                     self._burst(ev)
+                elif isinstance(ev, SurfaceContact):
+                    self._touchdown(ev)
         now = world.time
         age = now - self._born
         alive = age < self._life

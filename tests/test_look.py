@@ -298,3 +298,25 @@ def test_the_orbit_hud_covers_at_most_a_sixth_of_a_640x360_frame(ctx):
         assert width * height <= 640 * 360 / 6, (width, height)
     finally:
         world.close()
+
+
+@pytest.mark.gl
+def test_a_touchdown_on_a_wells_surface_shows_sparks_under_the_body(ctx, world):
+    from driftframe.app import attach_rendering
+    from driftframe.components.body import Transform
+    from driftframe.components.camera import Camera
+    from driftframe.components.gravity import SurfaceContact
+    from driftframe.framework import frame as fr
+    from driftframe.systems.effects import EffectsSystem
+
+    well = world.create_entity(Transform())
+    body = world.create_entity(Transform((0.0, 101.0, 0.0)))
+    eye = world.create_entity(Transform((0.0, 101.0, -20.0), fr.look_rotation((0.0, 0.0, 1.0))))
+    world.create_entity(Camera(target=eye, mode="cockpit"))
+    attach_rendering(world, ctx, size=(64, 48), own_context=False, sky=False, hud=False, sound=False)
+    world.step()
+    world.emit(SurfaceContact(body, well, world.time, 5.0, 4.0))
+    world.render()
+    fx = world.get_system(EffectsSystem)
+    assert fx.drawn > 20                                  # a burst and its flash
+    np.testing.assert_allclose(fx._p[-1], (0.0, 100.0, 0.0))   # the flash: on the surface under the body
