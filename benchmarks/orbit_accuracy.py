@@ -192,6 +192,101 @@ def have_rebound() -> bool:
         return False
 
 
+# ------------------------------------------------------------------------------------- every step
+ECC_EVERY = (0.0, 0.5, 0.9, 0.99, 0.999, 0.9999, 0.99999)
+#: Epochs (eccentric anomaly, rad): the periapsis start of the runs above, and two from the far side.
+EPOCHS = ((0.0, "periapsis"), (1.0, "E0 = 1 rad"), (math.pi, "apoapsis"))
+
+
+def tilted_periapsis(e):
+    """The periapsis state of the ellipse a = 1, mu = 1, e, tilted as :func:`ellipses`'s."""
+    rp = 1.0 - e
+    tilt = np.array([[1, 0, 0], [0, math.cos(0.4), -math.sin(0.4)], [0, math.sin(0.4), math.cos(0.4)]])
+    return np.array([[rp, 0.0, 0.0]]) @ tilt.T, np.array([[0.0, math.sqrt((1 + e) / rp), 0.0]]) @ tilt.T
+
+
+def every_step(e, E0, steps, with_ias):
+    """Worst ``|E/E0 - 1|`` and ``|h/h0 - 1|`` over *every* step, 10 steps per orbit, on rails from an
+    epoch at eccentric anomaly ``E0`` (the exact state there rounded to doubles); the same for the exact
+    state at each step rounded to doubles (the floor) and, with ``with_ias``, for IAS15 (read at each
+    step, ``exact_finish_time=1``). Energies and h in long double (:mod:`benchmarks.orbit_reference`)."""
+    from benchmarks import orbit_reference as ref
+    rp, vp = tilted_periapsis(e)
+    if E0:
+        t0 = np.array([E0 - e * math.sin(E0)])                 # mean anomaly = time (n = 1)
+        r0, v0 = (q.astype(np.float64) for q in ref.ellipse_states(rp[0], vp[0], t0))
+    else:
+        r0, v0 = rp, vp
+    dt = 2 * math.pi / 10
+    times = dt * np.arange(1, steps + 1)
+    ep = kepler.Epoch(r0, v0, 1.0)
+    R = np.empty((steps, 3))
+    V = np.empty((steps, 3))
+    r, v, chi = r0, v0, np.zeros(1)
+    for k in range(steps):
+        r, v, chi = ep.at(times[k], kepler.next_chi(chi, r, v, 1.0, dt))
+        R[k], V[k] = r[0], v[0]
+    E_ref, h_ref = ref.energy(r0, v0)[0], ref.ang_mom(r0, v0)[0]
+
+    def worst(rr, vv):
+        return (float(np.max(np.abs(ref.energy(rr, vv) / E_ref - 1))),
+                float(np.max(np.abs(ref.ang_mom(rr, vv) / h_ref - 1))))
+    out = {"rails": worst(R, V)}
+    if ref.EXTENDED:
+        xr, xv = ref.ellipse_states(r0[0], v0[0], times)
+        out["floor"] = worst(xr.astype(np.float64), xv.astype(np.float64))
+    if with_ias:
+        import rebound
+        sim = rebound.Simulation()
+        sim.G = 1.0
+        sim.add(m=1.0)
+        sim.add(m=0.0, x=r0[0, 0], y=r0[0, 1], z=r0[0, 2], vx=v0[0, 0], vy=v0[0, 1], vz=v0[0, 2])
+        sim.N_active = 1
+        sim.integrator = "ias15"
+        for k in range(steps):
+            sim.integrate(times[k], exact_finish_time=1)
+            p, c = sim.particles[1], sim.particles[0]
+            R[k] = (p.x - c.x, p.y - c.y, p.z - c.z)
+            V[k] = (p.vx - c.vx, p.vy - c.vy, p.vz - c.vz)
+        out["IAS15"] = worst(R, V)
+    return out
+
+
+#: The hyperbolic flyby of the angular-momentum check: about the Earth, periapsis 7,000 km, e = 5.
+HYP_MU, HYP_RP, HYP_E = 3.986004418e14, 7.0e6, 5.0
+HYP_TIMES = (1e4, 1e8, 1e10)
+
+
+def hyperbolic_h(with_ias):
+    """``|h/h0 - 1|`` of the e = 5 flyby at :data:`HYP_TIMES` (s) after periapsis: on rails (one evaluation
+    from the epoch, as every step on rails is) and IAS15 (integrated there)."""
+    from benchmarks import orbit_reference as ref
+    vp = math.sqrt(HYP_MU * (1 + HYP_E) / HYP_RP)
+    tilt = np.array([[1, 0, 0], [0, math.cos(0.4), -math.sin(0.4)], [0, math.sin(0.4), math.cos(0.4)]])
+    r0 = np.array([[HYP_RP, 0.0, 0.0]]) @ tilt.T
+    v0 = np.array([[0.0, vp, 0.0]]) @ tilt.T
+    h0 = ref.ang_mom(r0, v0)[0]
+    out = {"rails": [], "IAS15": []}
+    for t in HYP_TIMES:
+        r, v = kepler.propagate(r0, v0, HYP_MU, t)
+        out["rails"].append(float(abs(ref.ang_mom(r, v)[0] / h0 - 1)))
+    if with_ias:
+        import rebound
+        sim = rebound.Simulation()
+        sim.G = 1.0
+        sim.add(m=HYP_MU)
+        sim.add(m=0.0, x=r0[0, 0], y=r0[0, 1], z=r0[0, 2], vx=v0[0, 0], vy=v0[0, 1], vz=v0[0, 2])
+        sim.N_active = 1
+        sim.integrator = "ias15"
+        for t in HYP_TIMES:
+            sim.integrate(t, exact_finish_time=1)
+            p, c = sim.particles[1], sim.particles[0]
+            r = np.array([[p.x - c.x, p.y - c.y, p.z - c.z]])
+            v = np.array([[p.vx - c.vx, p.vy - c.vy, p.vz - c.vz]])
+            out["IAS15"].append(float(abs(ref.ang_mom(r, v)[0] / h0 - 1)))
+    return out
+
+
 # ------------------------------------------------------------------------------------- cost
 def cost_kernels(n: int, repeats: int):
     """ns per body-step at n bodies, interleaved: every method's step, and REBOUND WHFast's."""
@@ -356,9 +451,40 @@ def main(argv=None) -> int:
             r, v = run_rebound(integ, r0[k:k + 1], v0[k:k + 1], 2 * math.pi / 100, orbits * 2 * math.pi)
             anchor[integ] = (time.perf_counter() - t0, errors(r, v, r0[k:k + 1], v0[k:k + 1], r0[k:k + 1])[0][0])
 
+    # every step, 10 steps per orbit, from three epochs; the floor; IAS15 from periapsis
+    every_steps = 1_000 if args.quick else 10_000
+    ias_steps = 200 if args.quick else 2_000
+    every = {}
+    for E0, label in EPOCHS:
+        for e in ECC_EVERY:
+            every[(label, e)] = every_step(e, E0, every_steps, False)
+            if E0 == 0.0 and have_rebound():
+                every[(label, e)]["IAS15"] = every_step(e, E0, ias_steps, True)["IAS15"]
+            print(f"  every step from {label:11s} e={e:<8} " + "  ".join(
+                f"{k} {v[0]:.2e}/{v[1]:.2e}" for k, v in every[(label, e)].items()), flush=True)
+    hyp = hyperbolic_h(have_rebound())
+
     # ---- tables
     labels = [f"e={e}" for e in ECC] + [f"flyby e={E_HYP}"]
     body = []
+    body.append(f"**Every step** ({every_steps:,} steps at 10 per orbit, on rails from an epoch at the eccentric "
+                "anomaly shown): the worst |E/E0 - 1| and |h/h0 - 1| over all steps, beside the double-rounding "
+                "floor (the exact state at each step rounded to doubles; long-double reference, "
+                f"`benchmarks/orbit_reference.py`) and IAS15 read at each step ({ias_steps:,} steps, from "
+                "periapsis). Energies and h are evaluated in long double.\n")
+    rows = []
+    for E0, label in EPOCHS:
+        for e in ECC_EVERY:
+            o = every[(label, e)]
+            fl = o.get("floor", (float("nan"),) * 2)
+            ias = o.get("IAS15", (float("nan"),) * 2)
+            rows.append([label, e, o["rails"][0], fl[0], o["rails"][0] / fl[0], ias[0], o["rails"][1], fl[1], ias[1]])
+    body.append(common.table(["epoch", "e", "E rails", "E floor", "rails/floor", "E IAS15", "h rails", "h floor",
+                              "h IAS15"], rows) + "\n")
+    body.append(f"Hyperbolic flyby (mu = {HYP_MU:.4g} m^3/s^2, periapsis {HYP_RP:.0f} m, e = {HYP_E}): |h/h0 - 1| "
+                "at a time after periapsis, on rails (one evaluation from the epoch) and IAS15:\n")
+    body.append(common.table(["method"] + [f"t = {t:.0e} s" for t in HYP_TIMES],
+                             [[k] + v for k, v in hyp.items() if v]) + "\n")
     body.append("Relative energy error |E/E0 - 1| after the run (ellipses: whole orbits from periapsis; "
                 "flyby: from r = 20 rp in and out again in the same number of steps).\n")
     for spo, orbits in runs:
@@ -385,6 +511,14 @@ def main(argv=None) -> int:
                   float(np.max(results[("driftframe on rails", runs[0][0])][1][:4])))
     bars = [f"- On rails, 10 steps per orbit, {runs[0][1]:,} orbits: worst energy / angular-momentum error "
             f"{rails_e:.2e} (bar <= 1e-12): **{'met' if rails_e <= 1e-12 else 'NOT met'}**."]
+    low = max(every[(lb, e)]["rails"][0] for _, lb in EPOCHS for e in ECC_EVERY if e <= 0.999)
+    bars.append(f"- Every step, e <= 0.999, every epoch: worst energy error {low:.2e} (bar <= 1e-12): "
+                f"**{'met' if low <= 1e-12 else 'NOT met'}**.")
+    hi = [every[(lb, e)]["rails"][0] / every[(lb, e)]["floor"][0] for _, lb in EPOCHS for e in ECC_EVERY
+          if e > 0.999 and "floor" in every[(lb, e)]]
+    if hi:
+        bars.append(f"- Every step, e > 0.999: worst ratio to the double-rounding floor {max(hi):.2f} (bar <= 2): "
+                    f"**{'met' if max(hi) <= 2 else 'NOT met'}**.")
     if wf is not None:
         ratio = cost["driftframe on rails"] / wf
         ratio_sys = sys_med / wf

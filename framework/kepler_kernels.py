@@ -4,7 +4,8 @@ swept boxes of arcs of conics: one body at a time in a compiled loop.
 The same solution as the numpy path, one pass over the columns instead of ~170 numpy
 passes. Formulas and tolerances are those of the numpy path: Stumpff's series for
 ``|psi| <= 1`` (12 terms, Horner), the half-angle closed forms beyond; Laguerre
-(n = 5) from the guess, bracketed, Newton after 8 iterations; f, g from chi. The
+(n = 5) from the guess, bracketed, Newton after 8 iterations; f, g from chi, or for
+ellipses from e = 0.1 on the focal frame (``_focal1``). The
 series' coefficients live here (the kernels read them at compile time; the numpy
 path imports them from here).
 """
@@ -57,8 +58,29 @@ def _next_chi_compiled(chi, r, v, X, V, mu, step, out):
 
 
 @kernel
-def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1, dt, guess,
-                 out_r, out_v, out_chi):
+def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
+    """Body ``i``'s state from its focal frame: ``kepler_universal._focal_state``, one body, same order."""
+    half = 0.5 * np.sqrt(alpha) * chi
+    sd = np.sin(half)
+    cd = np.cos(half)
+    s = sh0[i] * cd + ch0[i] * sd
+    c = ch0[i] * cd - sh0[i] * sd
+    s2 = s * s
+    sin_e = 2.0 * s * c
+    cos_e = 1.0 - 2.0 * s2
+    x = a[i] * (ome[i] - 2.0 * s2)
+    y = a[i] * np.sqrt(ome[i] * (2.0 - ome[i])) * sin_e
+    rn = a[i] * (ome[i] + 2.0 * s2 - 2.0 * ome[i] * s2)
+    vx = -(np.sqrt(mu * a[i]) / rn) * sin_e
+    vy = (hn[i] / rn) * cos_e
+    for k in range(3):
+        out_r[i, k] = x * P[i, k] + y * Q[i, k]
+        out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
+
+
+@kernel
+def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1,
+                 focal, a, ome, P, Q, sh0, ch0, hn, dt, guess, out_r, out_v, out_chi):
     """Returns the number of bodies that needed the numpy path (a guess outside the bracket)."""
     n = r0.shape[0]
     tol = 4.0 * 2.220446049250313e-16
@@ -124,9 +146,12 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
         gd = 1.0 - chi2 * c2 / fp
         if t == 0.0:
             f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
-        for k in range(3):
-            out_r[i, k] = f_ * r0[i, k] + g_ * v0[i, k]
-            out_v[i, k] = fd * r0[i, k] + gd * v0[i, k]
+        if focal[i] and t != 0.0:                        # eccentric ellipses: from the focal frame
+            _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu[i], al, chi, out_r, out_v)
+        else:
+            for k in range(3):
+                out_r[i, k] = f_ * r0[i, k] + g_ * v0[i, k]
+                out_v[i, k] = fd * r0[i, k] + gd * v0[i, k]
         out_chi[i] = chi + turns * chi_turn[i]
     return 0
 
