@@ -204,3 +204,26 @@ def test_the_kepler_drift_agrees_with_the_projects_propagator_on_random_orbits()
         r_exact, v_exact = kepler.propagate(r[k:k + 1], v[k:k + 1], 1.0, t[k])
         assert np.linalg.norm(x1 - r_exact) <= 1e-10 * np.linalg.norm(r_exact), k
         assert np.linalg.norm(v1 - v_exact) <= 1e-10 * np.linalg.norm(v_exact), k
+
+
+@pytest.mark.parametrize("dt", [10.0, 600.0, 20_000.0])
+def test_a_lone_nbody_body_about_a_well_drifts_on_its_exact_conic_in_the_gravity_system(dt):
+    """The gravity system's n-body path: about one root well, an NBody body without a collider whose conic
+    clears the surface drifts on the conic (its kicks hold only the other bodies' pulls): alone it follows
+    the body on rails beside it at any step, a step of several orbits included."""
+    from driftframe import Mass, MovementSystem, Transform, Velocity, World
+    from driftframe.components.gravity import GravityWell, NBody
+    from driftframe.systems.gravity import GravitySystem
+    mu, r0 = 3.986004418e14, 7.0e6
+    v0 = (0.0, math.sqrt(mu / r0) * 1.1, 300.0)
+    with World(dt=dt) as w:
+        w.add_system(GravitySystem())
+        w.add_system(MovementSystem())
+        w.create_entity(Transform(), GravityWell(mu=mu, radius=6.371e6))
+        a = w.create_entity(Transform((r0, 0.0, 0.0)), Velocity(v0), Mass(1e3), NBody())
+        b = w.create_entity(Transform((r0, 0.0, 0.0)), Velocity(v0))           # on rails: exact Kepler
+        w.step(20)
+        x = w.columns(Transform, [a, b]).position
+        v = w.columns(Velocity, [a, b]).linear
+        assert np.linalg.norm(x[0] - x[1]) <= 1e-9 * r0
+        assert np.linalg.norm(v[0] - v[1]) <= 1e-9 * np.linalg.norm(v0)

@@ -61,10 +61,13 @@ step, and one after a surface bounce in the same step at the next step's start.
   is the exact orbit again the step the engine stops: the body goes straight
   back on rails from its new state. No mode flag is kept, so nothing can
   fall out of step.
-* *n-body* (opt-in, :class:`~components.gravity.NBody`): leapfrog
-  (kick-drift-kick, symplectic, second order) in the pull of every well and
-  of every other ``NBody`` body's :class:`~components.body.Mass`
-  (``G m``, pairwise, O(n^2)).
+* *n-body* (opt-in, :class:`~components.gravity.NBody`): kick-drift-kick
+  (symplectic, second order) in the pull of every well and of every other
+  ``NBody`` body's :class:`~components.body.Mass` (``G m``, pairwise,
+  O(n^2)). About a scene's one root well, a body without a collider whose
+  conic clears the surface drifts on that conic (Wisdom–Holman,
+  :mod:`framework.wisdom_holman`: exact for a lone body at any step); the
+  others drift on straight lines (leapfrog).
 
 **Surfaces.** A body on rails that reaches a well's surface sphere within the
 step is found exactly on its conic (:func:`framework.kepler.time_to_radius`;

@@ -1,6 +1,11 @@
-"""n-body bodies (:class:`~components.gravity.NBody`): leapfrog (kick-drift-kick) in the pull of every
-well and of each other, their straight drift met against the wells' surfaces; and the plain mutual pull of
-``NBody`` bodies in a scene without a well."""
+"""n-body bodies (:class:`~components.gravity.NBody`): kick-drift-kick in the pull of every well and of
+each other; and the plain mutual pull of ``NBody`` bodies in a scene without a well.
+
+The drift: about a scene's one root well, a body without a collider whose conic stays above the surface
+drifts on that conic (Wisdom–Holman: the well's pull is the exact Kepler drift,
+:func:`framework.wisdom_holman.kepler_drift`, the kicks hold only the other bodies' pulls and the thrust;
+symplectic, and exact for a lone body at any step); every other n-body body drifts on the straight line
+(leapfrog), met against the wells' surfaces and, with a collider, in the contact pass."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,6 +13,7 @@ import numpy as np
 from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.gravity import G, NBody, SurfaceContact
 from driftframe.framework import kepler
+from driftframe.framework import wisdom_holman as wh
 from driftframe.framework.step import advance
 from driftframe.framework.store import to_indices
 from driftframe.systems.gravity.context import Drift, GravityStep
@@ -58,14 +64,18 @@ class NBodyFlight:
             if sel.any():
                 ctx.position[t_rows[sel]], ctx.velocity[v_rows[sel]] = advance(x[sel], v[sel], a, dt)
 
-    def _accel(self, pos, X, gm):
-        """Pull of every well at positions ``pos`` and of the n-body bodies on each other (``G m``)."""
+    def _accel(self, pos, X, gm, on_conic=None):
+        """Pull of every well at positions ``pos`` and of the n-body bodies on each other (``G m``); the rows
+        ``on_conic`` (a mask) get no pull of the wells (their drift carries it)."""
         w = self._wells
         acc = np.zeros_like(pos)
         for wi in range(len(X)):
             d = pos - X[wi]
             r2 = np.einsum("ij,ij->i", d, d)
-            acc -= (w.mu[wi] / (r2 * np.sqrt(r2)))[:, None] * d
+            pull = (w.mu[wi] / (r2 * np.sqrt(r2)))[:, None] * d
+            if on_conic is not None:
+                pull[on_conic] = 0.0
+            acc -= pull
         if len(pos) > 1:
             d = pos[:, None, :] - pos[None, :, :]
             r2 = np.einsum("ijk,ijk->ij", d, d)
@@ -88,18 +98,48 @@ class NBodyFlight:
         gm = self.gm[sel]
         dt, t0 = step.dt, step.t0
         p, u = drift.p.copy(), drift.u.copy()
-        todo = np.arange(sel.size)
+        kep = self._on_conic(step, sel, p, u)
+        todo = np.flatnonzero(~kep)
         if surfaces_met:
-            todo = todo[self.nb_c_rows[sel] < 0]
+            todo = todo[self.nb_c_rows[sel][todo] < 0]
         if todo.size:
             t_hit, w_hit = self._line_surfaces(step, p[todo], u[todo], t0 + np.maximum(drift.since[todo], 0.0))
             for j in np.flatnonzero(np.isfinite(t_hit)):
                 k = todo[j]
                 p[k], u[k] = self._reflect(step, sel[k], p[k], u[k], int(w_hit[j]), float(t_hit[j]))
         q = p + u * dt
-        u = u + 0.5 * dt * (self._accel(q, step.X1, gm) + step.a[sel])
+        if kep.any():                                 # on the conic about the well, from the well's frame
+            r, w = wh.kepler_drift(np.ascontiguousarray(p[kep] - step.X0[0]), np.ascontiguousarray(u[kep] - step.V0[0]),
+                                   float(self._wells.mu[0]), dt)
+            q[kep] = r + step.X1[0]
+            u[kep] = w + step.V1[0]
+        u = u + 0.5 * dt * (self._accel(q, step.X1, gm, kep if kep.any() else None) + step.a[sel])
         step.x1[sel] = q
         step.v1[sel] = u
+
+    def _on_conic(self, step: GravityStep, sel, p, u):
+        """Which n-body bodies ``sel`` drift on their conic about the well (a mask; module docstring): the
+        scene's one well is a root, the body has no collider and its conic never reaches the surface
+        (periapsis above the radius). ``u`` of those rows loses the well's half kick (in place)."""
+        wells = self._wells
+        kep = np.zeros(sel.size, bool)
+        if len(wells) != 1 or wells.parent[0] >= 0:
+            return kep
+        cand = np.flatnonzero(self.nb_c_rows[sel] < 0)
+        if not cand.size:
+            return kep
+        mu, R = wells.mu[0], wells.radius[0]
+        d = p[cand] - step.X0[0]
+        r2 = np.einsum("ij,ij->i", d, d)
+        w = u[cand] + (0.5 * step.dt * mu / (r2 * np.sqrt(r2)))[:, None] * d - step.V0[0]   # its half kick taken back
+        h = np.cross(d, w)
+        h2 = np.einsum("ij,ij->i", h, h)
+        energy = 0.5 * np.einsum("ij,ij->i", w, w) - mu / np.sqrt(r2)
+        e = np.sqrt(np.maximum(1.0 + 2.0 * energy * h2 / (mu * mu), 0.0))
+        above = h2 / (mu * (1.0 + e)) > R            # periapsis q = h^2 / (mu (1 + e)), m
+        kep[cand[above]] = True
+        u[cand[above]] = w[above] + step.V0[0]
+        return kep
 
     def _line_surfaces(self, step: GravityStep, lp, lu, t_from):
         """The first surface contact of drift lines ``lp + lu (t - t0)`` (n-body bodies, world frame,
