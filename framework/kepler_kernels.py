@@ -58,8 +58,34 @@ def _next_chi_compiled(chi, r, v, X, V, mu, step, out):
 
 
 @kernel
+def _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
+    """``kepler_universal._focal_state_hyp`` for body ``i`` (``A = -a``, ``em1 = -ome``), same order."""
+    A = -a[i]
+    em1 = -ome[i]
+    half = 0.5 * np.sqrt(-alpha) * chi
+    sd = np.sinh(half)
+    cd = np.cosh(half)
+    s = sh0[i] * cd + ch0[i] * sd
+    s2 = s * s
+    c = np.sqrt(1.0 + s2)
+    sinh_h = 2.0 * s * c
+    cosh_h = 1.0 + 2.0 * s2
+    x = A * (em1 - 2.0 * s2)
+    y = A * np.sqrt(em1 * (2.0 + em1)) * sinh_h
+    rn = A * (em1 + 2.0 * s2 + 2.0 * em1 * s2)
+    vx = -(np.sqrt(mu * A) / rn) * sinh_h
+    vy = (hn[i] / rn) * cosh_h
+    for k in range(3):
+        out_r[i, k] = x * P[i, k] + y * Q[i, k]
+        out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
+
+
+@kernel
 def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
     """Body ``i``'s state from its focal frame: ``kepler_universal._focal_state``, one body, same order."""
+    if alpha < 0:
+        _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v)
+        return
     half = 0.5 * np.sqrt(alpha) * chi
     sd = np.sin(half)
     cd = np.cos(half)

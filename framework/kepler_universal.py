@@ -377,8 +377,10 @@ class Epoch:
         return r, v, chi
 
 
-#: Ellipses from this eccentricity on take their state from the focal frame (:func:`_focal_state`).
+#: Ellipses from this eccentricity on take their state from the focal frame (:func:`_focal_state`),
+#: and hyperbolas from FOCAL_MIN_HYP_E (near e = 1 the conic is taken as the Lagrange coefficients do).
 FOCAL_MIN_E = 0.1
+FOCAL_MIN_HYP_E = 1.01
 
 
 def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
@@ -396,13 +398,18 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
     with np.errstate(divide="ignore", invalid="ignore"):
         evec = ((vv - mu / r0n)[:, None] * r0 - rv[:, None] * v0) / mu[:, None]
         e = _norm(evec)
-        use = (alpha > 0) & (e >= FOCAL_MIN_E) & np.isfinite(e) & (r0n > 0)
+        hyp = (alpha < 0) & (e >= FOCAL_MIN_HYP_E)
+        use = ((alpha > 0) & (e >= FOCAL_MIN_E) | hyp) & np.isfinite(e) & (r0n > 0) & (hn > 0)
         a = 1.0 / alpha
-        ome = h2 * alpha / (mu * (1.0 + e))
+        ome = h2 * alpha / (mu * (1.0 + e))                            # 1 - e (< 0 for a hyperbola)
         P = evec / e[:, None]
-        Q = np.cross(h / np.where(hn > 0, hn, 1.0)[:, None], P)       # (h = 0, a radial line: Q = 0)
-        E0 = np.arctan2(sigma0 * np.sqrt(alpha), 1.0 - r0n * alpha)
-    return use, a, ome, P, Q, np.sin(0.5 * E0), np.cos(0.5 * E0), hn
+        Q = np.cross(h / np.where(hn > 0, hn, 1.0)[:, None], P)
+        sq = np.sqrt(np.abs(alpha))
+        E0 = np.arctan2(sigma0 * sq, 1.0 - r0n * alpha)
+        H0 = np.arcsinh(sigma0 * sq / e)                                  # e sinh H0 = sigma0 sqrt(-alpha)
+        sh0 = np.where(hyp, np.sinh(0.5 * H0), np.sin(0.5 * E0))
+        ch0 = np.where(hyp, np.cosh(0.5 * H0), np.cos(0.5 * E0))
+    return use, a, ome, P, Q, sh0, ch0, hn
 
 
 def _focal_state(a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi):
@@ -417,6 +424,14 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi):
     (``ome`` and ``2 s^2``), and the energy ``v^2/2 - mu/|r| = -mu/(2a)`` holds for *any* ``ome``, so
     the error stays a few roundings of the output (about 3x the floor): the energy depends on ``a``
     alone, ``e``'s rounding goes into ``h`` only. The compiled twin is ``kepler_kernels._focal1``."""
+    if (alpha < 0).all():
+        return _focal_state_hyp(-a, -ome, P, Q, sh0, ch0, hn, mu, alpha, chi)
+    if (alpha < 0).any():
+        r = np.empty(P.shape)
+        v = np.empty(P.shape)
+        for k in (alpha > 0, alpha < 0):
+            r[k], v[k] = _focal_state(*(q[k] for q in (a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi)))
+        return r, v
     half = 0.5 * np.sqrt(alpha) * chi
     sd = np.sin(half)
     cd = np.cos(half)
@@ -430,6 +445,30 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi):
     rn = a * (ome + 2.0 * s2 - 2.0 * ome * s2)                # a (1 - e cos E)
     vx = -(np.sqrt(mu * a) / rn) * sin_e
     vy = (hn / rn) * cos_e
+    r = x[:, None] * P + y[:, None] * Q
+    v = vx[:, None] * P + vy[:, None] * Q
+    return r, v
+
+
+def _focal_state_hyp(A, em1, P, Q, sh0, ch0, hn, mu, alpha, chi):
+    """:func:`_focal_state` for a hyperbola, ``A = -a``, ``em1 = e - 1``, at ``H = H0 + sqrt(-alpha) chi``:
+    ``r = A (e - cosh H) P + b sinh H Q``, ``e - cosh H = em1 - 2 sh^2``, ``|r| = A (em1 + 2 e sh^2)``,
+    ``sh = sinh(H/2)``, ``cosh(H/2) = sqrt(1 + sh^2)`` (so ``cosh^2 - sinh^2 = 1`` to rounding),
+    ``b = A sqrt(em1 (2 + em1))``. Why: ``f r0 + g v0`` lets ``h`` drift as ``|chi|`` grows (1e-9 of
+    h after 1e10 s); here ``h`` is a few roundings at any time."""
+    half = 0.5 * np.sqrt(-alpha) * chi
+    sd = np.sinh(half)
+    cd = np.cosh(half)
+    s = sh0 * cd + ch0 * sd                                   # sinh(H/2)
+    s2 = s * s
+    c = np.sqrt(1.0 + s2)                                     # cosh(H/2)
+    sinh_h = 2.0 * s * c
+    cosh_h = 1.0 + 2.0 * s2
+    x = A * (em1 - 2.0 * s2)
+    y = A * np.sqrt(em1 * (2.0 + em1)) * sinh_h
+    rn = A * (em1 + 2.0 * s2 + 2.0 * em1 * s2)
+    vx = -(np.sqrt(mu * A) / rn) * sinh_h
+    vy = (hn / rn) * cosh_h
     r = x[:, None] * P + y[:, None] * Q
     v = vx[:, None] * P + vy[:, None] * Q
     return r, v
