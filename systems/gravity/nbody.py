@@ -25,14 +25,14 @@ class NBodyFlight:
     def _pull_without_wells(self, dt: float) -> None:
         """A scene with ``NBody`` bodies and no well: they attract each other all the same.
 
-        Each step kicks every NBody body's velocity by the pull of the others,
-        ``v' = v + dt * sum_j G m_j (x_j - x_i) / |x_j - x_i|^3`` (positions at
-        the step's start), then drifts it, ``x += v' dt``, into the step context
-        in place of the movement stage's prediction (without a movement stage,
-        the kick alone): symplectic Euler, first order, energy bounded; the
-        collision system meets them as any other bodies. A body of infinite
-        (or no) mass pulls nothing and is not kicked. With a well in the scene
-        they are this system's own, on the leapfrog above.
+        Each step is a drift-kick-drift leapfrog on the others' pulls (second order, time-symmetric, energy
+        bounded): ``x_h = x + v dt/2``, ``v' = v + dt (g(x_h) + a)``, ``x' = x_h + v' dt/2``, with
+        ``g_i = sum_j G m_j (x_j - x_i) / |x_j - x_i|^3`` (:func:`framework.wisdom_holman.pair_accel`, each
+        pair once) and ``a`` the body's own thrust; written into the step context in place of the movement
+        stage's prediction (without a movement stage, the kick alone, from the step's start). The collision
+        system meets them as any other bodies. A body of infinite (or no) mass pulls nothing and is not
+        kicked; two at one point pull each other not at all. With a well in the scene they are this
+        system's own (kick-drift-kick, above).
         """
         q = self.world.query(NBody, Transform, Velocity, Mass, optional=(Acceleration,))
         q.refresh()
@@ -47,22 +47,20 @@ class NBodyFlight:
         t_rows, v_rows, gm = t_rows[live], v_rows[live], G * kg[live]
         a_rows = np.asarray(q.rows(Acceleration), np.intp)[live]
         x = world.table(Transform).data["position"][t_rows]
-        d = x[None, :, :] - x[:, None, :]                       # d[i, j] = x_j - x_i, m
-        r2 = np.einsum("ijk,ijk->ij", d, d)
-        np.fill_diagonal(r2, np.inf)                            # no self-pull
-        with np.errstate(divide="ignore", invalid="ignore"):
-            w = gm[None, :] / (r2 * np.sqrt(r2))                # G m_j / r^3, 1/s^2
-        w[~np.isfinite(w)] = 0.0                                # two bodies at one point: no kick
-        v = world.table(Velocity).data["linear"][v_rows] + dt * np.einsum("ij,ijk->ik", w, d)
+        v = world.table(Velocity).data["linear"][v_rows]
         ctx = world.step_context
         ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
         if not ctx.predicted:
-            ctx.velocity[v_rows] = v
+            ctx.velocity[v_rows] = v + dt * wh.pair_accel(x, gm)
             return
+        g = wh.pair_accel(x + (0.5 * dt) * v, gm)                # the pull at the half drift, m/s^2
+        vk = v + (0.5 * dt) * g             # advance(x, vk, a, dt) = x + dt (v + v')/2, v' = v + dt (g + a)
         has_a = a_rows >= 0
         for sel, a in ((~has_a, None), (has_a, world.table(Acceleration).data["linear"][a_rows[has_a]])):
             if sel.any():
-                ctx.position[t_rows[sel]], ctx.velocity[v_rows[sel]] = advance(x[sel], v[sel], a, dt)
+                x1, v1 = advance(x[sel], vk[sel], a, dt)
+                ctx.position[t_rows[sel]] = x1
+                ctx.velocity[v_rows[sel]] = v1 + (0.5 * dt) * g[sel]
 
     def _accel(self, pos, X, gm, on_conic=None):
         """Pull of every well at positions ``pos`` and of the n-body bodies on each other (``G m``); the rows
