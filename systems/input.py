@@ -45,8 +45,8 @@ class InputSystem(esper.Processor):
     stage = "input"
     reads = (Player, Velocity)
     # FlightInput of the Player; the handlers of pressed actions may write more (switch_camera:
-    # the camera's mode and its eye's Transform, placed from the target's Velocity)
-    writes = (FlightInput, Camera, Transform)
+    # the camera's mode and its eye's Transform, placed from the target's Velocity; warp_up/down: the TimeWarp)
+    writes = (FlightInput, Camera, Transform, time_warp.TimeWarp)
 
     def __init__(self, track: Track | None = None):
         if track is not None and not isinstance(track, Track):
