@@ -16,7 +16,12 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _ROOT]
 for _bare in ("framework", "components", "systems", "demos"):
     assert _bare not in sys.modules, f"{_bare!r} was imported as a top-level module"
 
+from driftframe.framework import access_check
 from driftframe.framework.world import World
+
+# the checking mode (framework/access_check.py): a system touching a component, resource or event it does not
+# declare is an error in every test of this process (DRIFTFRAME_CHECK_ACCESS=0 turns it off)
+access_check.enable(os.environ.get(access_check.ENV, "1") != "0")
 
 
 _SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
