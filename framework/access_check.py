@@ -7,7 +7,9 @@ declaration that lies makes both wrong. In the checking mode (the tests run
 in it: ``DRIFTFRAME_CHECK_ACCESS=1``, set by ``tests/conftest.py``; or
 :func:`enable`), while a system's ``process`` runs, each of these is checked
 against its declaration and an undeclared type is an :class:`AccessError`
-naming the system, the type and the call:
+naming the system, the type and the call. A system that declares anything
+(``reads``, ``writes`` or ``requires``) is held to all of it; one that
+declares nothing at all (a quick test's system) is not checked.
 
 * ``world.table(T)``, ``world.columns(T)``, ``world.query(T, ...)`` and a
   query's ``refresh()``;

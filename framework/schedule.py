@@ -92,7 +92,7 @@ class Entry:
     epoch ``idle_epoch``, it had nothing to do (see ``requires`` in :meth:`World.add_system`)."""
 
     __slots__ = ("system", "name", "phase", "stage", "after", "before", "seq", "key", "idle_epoch", "idle",
-                 "declared", "written")
+                 "declared", "written", "checked")
 
     def __init__(self, system: Any, name: str, phase: str, stage: str | None, after: tuple, before: tuple,
                  seq: int) -> None:
@@ -101,6 +101,9 @@ class Entry:
         self.key = stage or name                     # its line in World.profile
         self.idle_epoch, self.idle = -1, False
         #: What the system may touch (reads, writes and requires), by name: what the checking mode allows.
+        #: Whether the checking mode holds it to its declaration: a system that declares anything (reads,
+        #: writes or requires) is held to all of it; one that declares nothing is not (a quick test's system).
+        self.checked = any(hasattr(system, a) for a in ("reads", "writes", "requires"))
         self.written = frozenset(type_name(t) for t in access(system, "writes"))
         self.declared = self.written | {type_name(t) for t in access(system, "reads") + access(system, "requires")}
 

@@ -472,7 +472,7 @@ class World:
                     continue
                 last = e
                 t0 = clock()
-                if checked:
+                if checked and e.checked:
                     access_check.running = (name, e)
                 e.system.process(dt)
                 if checked:
