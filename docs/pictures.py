@@ -17,6 +17,7 @@ from PIL import Image
 
 from driftframe import demos
 from driftframe.app import attach_rendering, make_world
+from driftframe.framework.model_cache import ModelVariants
 from driftframe.framework.recorder import record
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -81,7 +82,7 @@ def before_after() -> Path:
         world, demo = make_world(name, seed=0)
         try:
             if old:                    # every rock variant back on the sphere, as the articles drew them
-                variants = world.resources["model_variants"]
+                variants = world.resources[ModelVariants]
                 for key, (base, scale, colour) in list(variants.items()):
                     if base.startswith("rock"):
                         variants[key] = ("sphere", scale, colour)

@@ -18,6 +18,7 @@ import numpy as np
 
 from driftframe.framework import validate
 from driftframe.framework.model_cache import declare_model_file as declare_model_file  # re-exported (PEP 484 form)
+from driftframe.framework.model_cache import ModelFiles, ModelVariants
 from driftframe.framework.model_cache import declare_variant as declare_variant
 from driftframe.framework.world import World
 
@@ -204,10 +205,10 @@ def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tu
     render = attach(world, ctx, size, skybox=sky, **options)
     cache = world.resources["model_cache"]
     with current(render.ctx):                      # (the meshes and the HUD's objects are this context's)
-        for mname, (path, colour, shading) in world.resources.get("model_files", {}).items():
+        for mname, (path, colour, shading) in world.resources.get(ModelFiles, {}).items():
             if mname not in cache:          # before the variants, which may scale them
                 cache.load(mname, path, shading=shading, **({} if colour is None else {"colour": colour}))
-        for vname, (base, scale, colour) in world.resources.get("model_variants", {}).items():
+        for vname, (base, scale, colour) in world.resources.get(ModelVariants, {}).items():
             if vname not in cache:
                 cache.variant(vname, base, scale=scale, colour=colour)
         if effects:

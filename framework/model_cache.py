@@ -148,6 +148,24 @@ class Model:
         return np.diag([*self.scale, 1.0])
 
 
+class ModelVariants(dict):
+    """The world's declared model variants, ``world.resources[ModelVariants]``: name -> ``(base, scale,
+    colour)``, made into :class:`ModelCache` entries when rendering is attached (:func:`declare_variant`)."""
+
+    published_by = "made by declare_variant(world, name, ...) (a scene's build)"
+    #: Not in a save: the scene's build declares them again.
+    saved = False
+
+
+class ModelFiles(dict):
+    """The world's declared model files, ``world.resources[ModelFiles]``: name -> ``(path, colour,
+    shading)``, read when rendering is attached (:func:`declare_model_file`)."""
+
+    published_by = "made by declare_model_file(world, name, path) (a scene's build)"
+    #: Not in a save: the scene's build declares them again.
+    saved = False
+
+
 class ModelCache:
     """Named models over shared GPU meshes, for one GL context.
 
@@ -157,6 +175,10 @@ class ModelCache:
     known names); ``buffers(model)`` returns its per-level ``(vbo, ibo)``
     pairs, building them on first use only. ``release()`` frees every buffer.
     """
+
+    published_by = "made by attach_rendering(world)"
+    #: Not in a save: GPU buffers, made again when rendering is attached.
+    saved = False
 
     def __init__(self, ctx, *, builtins: bool = True):
         self.ctx = ctx
@@ -304,14 +326,14 @@ def declare_variant(world: World, name: str, base: str = "sphere", *, scale: Arr
                     colour: ArrayLike | None = None) -> str:
     """Declare a model variant (a scaled entry sharing ``base``'s buffers); returns ``name``.
 
-    Stored in ``world.resources["model_variants"]`` until rendering is attached.
+    Stored in ``world.resources[ModelVariants]`` until rendering is attached.
     """
     if not isinstance(name, str) or not name:
         raise TypeError(f"variant name must be a non-empty str, got {name!r}")
     check_scale(f"variant {name!r} scale", scale)
     if colour is not None:
         check_colour(f"variant {name!r} colour", colour)
-    world.resources.setdefault("model_variants", {})[name] = (base, scale, colour)
+    world.resources.setdefault(ModelVariants, ModelVariants())[name] = (base, scale, colour)
     return name
 
 
@@ -319,7 +341,7 @@ def declare_model_file(world: World, name: str, path: str | os.PathLike[str], *,
                        shading: str = "smooth") -> str:
     """Declare base model ``name`` read from ``path`` (OBJ, glTF, GLB) when rendering is attached; returns ``name``.
 
-    Stored in ``world.resources["model_files"]``; the file is checked to
+    Stored in ``world.resources[ModelFiles]``; the file is checked to
     exist now (a clear error naming it), read when the model cache is made.
     """
     from pathlib import Path
@@ -336,5 +358,5 @@ def declare_model_file(world: World, name: str, path: str | os.PathLike[str], *,
         check_colour(f"model {name!r} colour", colour)
     if shading not in ("smooth", "flat"):
         raise ValueError(f"model {name!r} shading must be 'smooth' or 'flat', got {shading!r}")
-    world.resources.setdefault("model_files", {})[name] = (str(p), colour, shading)
+    world.resources.setdefault(ModelFiles, ModelFiles())[name] = (str(p), colour, shading)
     return name

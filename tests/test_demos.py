@@ -11,6 +11,7 @@ from driftframe.components.control import Player
 from driftframe.components.render import ModelRef
 from driftframe.app import make_world
 from driftframe.framework import frame as fr
+from driftframe.framework.model_cache import ModelVariants
 from driftframe.systems import camera as cs
 
 EXPECTED = {   # (bodies with a collider, players, cameras)
@@ -37,7 +38,7 @@ def test_demo_builds_and_runs_120_steps_without_nan(name):
                            (AngularVelocity, "angular")):
             assert np.isfinite(getattr(world.columns(cls), field)).all(), (name, cls.__name__)
         for _, ref in esper.get_component(ModelRef):
-            assert ref.name in ("ship",) or ref.name in world.resources["model_variants"]
+            assert ref.name in ("ship",) or ref.name in world.resources[ModelVariants]
         assert demo.TITLE and demo.DESCRIPTION and demo.SECONDS > 0
     finally:
         world.close()
@@ -54,7 +55,7 @@ def test_every_demo_module_is_listed_and_unknown_names_are_rejected():
 def test_asteroids_are_fifty_scaled_variants_of_four_rocks():
     world, _ = make_world("asteroids", seed=0)
     try:
-        variants = world.resources["model_variants"]
+        variants = world.resources[ModelVariants]
         names = {ref.name for _, ref in esper.get_component(ModelRef) if ref.name.startswith("asteroid_")}
         assert len([1 for _, ref in esper.get_component(ModelRef) if ref.name.startswith("asteroid_")]) == 50
         assert {variants[n][0] for n in names} <= {"rock0", "rock1", "rock2", "rock3"}
@@ -218,7 +219,7 @@ def test_billiards_is_seen_from_an_overhead_camera_above_a_table_under_every_bal
         assert cam.mode == "overhead" and cs.switch_camera(world) == "overhead"     # it stays overhead
         eye = esper.component_for_entity(ent, Transform)
         np.testing.assert_allclose(fr.rotate(eye.orientation, fr.FORWARD), [0.0, -1.0, 0.0], atol=1e-12)
-        variants = world.resources["model_variants"]
+        variants = world.resources[ModelVariants]
         slabs = [(esper.component_for_entity(e, Transform).position, variants[ref.name][1])
                  for e, ref in esper.get_component(ModelRef) if ref.name in ("felt", "table_frame")]
         assert slabs, "no table"

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from driftframe.framework import meshes
+from driftframe.framework.model_cache import ModelVariants
 
 
 def test_rocks_are_bounded_by_the_unit_sphere_centred_on_their_mass_and_not_round():
@@ -53,7 +54,7 @@ def test_the_asteroids_are_rocks_and_the_rotation_demo_keeps_the_green_lines():
 
     world, demo = make_world("asteroids", seed=0)
     try:
-        bases = {base for name, (base, _, _) in world.resources["model_variants"].items()
+        bases = {base for name, (base, _, _) in world.resources[ModelVariants].items()
                  if name.startswith("asteroid_")}
         assert bases == {f"rock{k}" for k in range(meshes.ROCK_SHAPES)}
     finally:
