@@ -148,6 +148,48 @@ def test_unsavable_resource_is_left_to_the_rebuild_and_a_component_is_an_error(t
     a.close()
 
 
+class Score:
+    """A type-keyed resource of the test's own (saved: plain values)."""
+
+    def __init__(self, points: int) -> None:
+        self.points = points
+
+
+class Lens:
+    """A type-keyed handle: not saved (the scene's build makes it again)."""
+    saved = False
+
+    def __init__(self) -> None:
+        self.fd = print
+
+
+def test_type_keyed_resources_are_saved_by_class_and_come_back_under_their_type(tmp_path):
+    a = _run("spin", 1)
+    a.resources[Score] = Score(7)
+    a.resources[Lens] = Lens()
+    a.save(tmp_path / "s.npz")
+    m = save.SaveFile(tmp_path / "s.npz").manifest
+    assert list(m["typed_resources"]) == [f"{__name__}:Score"]
+    assert f"{__name__}:Lens" in m["rebuilt_resources"]
+    b = World.load(tmp_path / "s.npz")
+    assert b.resource(Score).points == 7 and Lens not in b.resources
+    b.close()
+    # a save written before type keys (no typed_resources field) still loads
+    member = tmp_path / "s.npz"
+    with zipfile.ZipFile(member) as z:
+        files = {n: z.read(n) for n in z.namelist()}
+    old = json.loads(files["manifest.json"])
+    del old["typed_resources"]
+    files["manifest.json"] = json.dumps(old).encode()
+    with zipfile.ZipFile(tmp_path / "old.npz", "w") as z:
+        for n, data in files.items():
+            z.writestr(n, data)
+    c = World.load(tmp_path / "old.npz")
+    assert Score not in c.resources and c.state_hash() == a.state_hash()
+    c.close()
+    a.close()
+
+
 def test_own_world_loads_with_build_and_subscriptions_are_checked(tmp_path):
     from driftframe.components.collision import CollisionEvent
 
