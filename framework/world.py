@@ -26,6 +26,15 @@ subscribers (:meth:`World.subscribe`) are called at once, and
 rendered frame, so a reader in the render stage sees them all however many
 steps the frame took. A world that renders nothing keeps those of the last
 ``step()`` call.
+
+Resources are keyed by type (``world.resources[TimeWarp]``, typed through
+:meth:`World.resource`; :mod:`~driftframe.framework.resources`). esper's
+internals are read only through :mod:`~driftframe.framework.esper_adapter`;
+the checking mode (:mod:`~driftframe.framework.access_check`) holds each
+system to its ``reads``/``writes``. A World is never copied or pickled (a
+copy would share the esper context): ``save`` then ``load`` makes an
+independent one. A step that raises after systems ran leaves the world
+broken (:class:`WorldBrokenError` on the next step) until a save is loaded.
 """
 from __future__ import annotations
 
