@@ -465,6 +465,7 @@ class World:
         profile.update(self._schedule.zero[phase])
         unchanged = ea.structure_unchanged
         checked = access_check.enabled
+        outer = access_check.running                # (a system of another world stepping this one)
         ran = True                                  # code outside the step (or a system) ran since the last sync
         last = None                                 # the system running, or the last one that ran
         try:
@@ -485,7 +486,7 @@ class World:
                     access_check.running = (name, e)
                 e.system.process(dt)
                 if checked:
-                    access_check.running = None
+                    access_check.running = outer
                 took = clock() - t0
                 ran = True
                 key = e.key
@@ -494,7 +495,7 @@ class World:
             self.sync()
         except BaseException as exc:
             if checked:
-                access_check.running = None
+                access_check.running = outer
             if phase == "step" and last is not None:
                 self._break(last, exc)
             raise
