@@ -57,6 +57,93 @@ def _next_chi_compiled(chi, r, v, X, V, mu, step, out):
         out[i] = chi[i] + dchi if abs(alpha) * dchi * dchi <= 0.2 else np.nan
 
 
+def _both(fn):
+    """One source for numpy and the kernels: ``fn`` stays a plain function (elementwise on numpy columns)
+    and compiles inline into any kernel that calls it (numba's ``register_jitable``)."""
+    from numba.extending import register_jitable
+    return register_jitable(inline="always")(fn)
+
+
+# Error-free transformations (Dekker 1971, Knuth's TwoSum) for the focal state of very eccentric
+# ellipses: plain + - * / on doubles only (no fma, which numba does not promise), so one source serves
+# numpy (elementwise on columns) and the compiled loop, in the same order.
+@_both
+def _two_sum(a, b):
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+@_both
+def _fast_two_sum(a, b):          # |a| >= |b|
+    s = a + b
+    return s, b - (s - a)
+
+
+@_both
+def _two_prod(a, b):
+    p = a * b
+    c = 134217729.0 * a           # 2^27 + 1: Dekker's split into 26-bit halves
+    ah = c - (c - a)
+    al = a - ah
+    c = 134217729.0 * b
+    bh = c - (c - b)
+    bl = b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+@_both
+def _dd_mul_d(xh, xl, y):
+    p, e = _two_prod(xh, y)
+    return _fast_two_sum(p, e + xl * y)
+
+
+@_both
+def _dd_div(xh, xl, yh, yl):
+    q = xh / yh
+    ph, pl = _two_prod(q, yh)
+    r = ((xh - ph) - pl - q * yl + xl) / yh
+    return _fast_two_sum(q, r)
+
+
+@_both
+def _focal_dd(a, ome, b, sqmua, hn, s, c):
+    """The focal state's scalars ``a (cos E - e), b sin E, -sqrt(mu a) sin E / |r|, h cos E / |r|`` as
+    double-doubles from ``s = sin(E/2), c = cos(E/2)``: their roundings are what is left of the energy
+    error near periapsis (each ulp of ``|v|`` there is ``4/(1 - e)`` ulp of energy), so they are kept
+    to ~1e-32 and the state is rounded once (:func:`_dd_dot2`). ``s, c`` themselves may be off by an
+    ulp: that moves the body along the orbit (``E``), not off it."""
+    s2h, s2l = _two_prod(s, s)
+    seh, sel = _two_prod(s, c)
+    seh, sel = 2.0 * seh, 2.0 * sel                                  # sin E
+    ch_, cl_ = _two_sum(1.0, -2.0 * s2h)
+    ceh, cel = _fast_two_sum(ch_, cl_ - 2.0 * s2l)                   # cos E = 1 - 2 s^2
+    th, tl = _two_sum(ome, -2.0 * s2h)
+    th, tl = _two_sum(th, tl - 2.0 * s2l)                           # ome - 2 s^2 (may cross 0)
+    xh, xl = _dd_mul_d(th, tl, a)                                    # a (ome - 2 s^2)
+    eh, el = _two_sum(1.0, -ome)                                     # e
+    uh, ul = _two_prod(2.0 * s2h, eh)
+    ul = ul + 2.0 * s2h * el + 2.0 * s2l * eh
+    wh, wl = _two_sum(ome, uh)
+    wh, wl = _fast_two_sum(wh, wl + ul)                              # ome + 2 e s^2 (> 0)
+    rh, rl = _dd_mul_d(wh, wl, a)                                    # |r|
+    yh, yl = _dd_mul_d(seh, sel, b)
+    nh, nl = _dd_mul_d(seh, sel, sqmua)
+    vxh, vxl = _dd_div(-nh, -nl, rh, rl)
+    mh, ml = _dd_mul_d(ceh, cel, hn)
+    vyh, vyl = _dd_div(mh, ml, rh, rl)
+    return xh, xl, yh, yl, vxh, vxl, vyh, vyl
+
+
+@_both
+def _dd_dot2(xh, xl, p, yh, yl, q):
+    """``x p + y q`` rounded once, ``x, y`` double-doubles, ``p, q`` doubles."""
+    ph, pl = _two_prod(xh, p)
+    qh, ql = _two_prod(yh, q)
+    sh, sl = _two_sum(ph, qh)
+    return sh + (sl + pl + ql + xl * p + yl * q)
+
+
 @kernel
 def _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
     """``kepler_universal._focal_state_hyp`` for body ``i`` (``A = -a``, ``em1 = -ome``), same order."""
@@ -81,7 +168,7 @@ def _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
 
 
 @kernel
-def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
+def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, dd_ome, out_r, out_v):
     """Body ``i``'s state from its focal frame: ``kepler_universal._focal_state``, one body, same order."""
     if alpha < 0:
         _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v)
@@ -99,6 +186,13 @@ def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
     rn = a[i] * (ome[i] + 2.0 * s2 - 2.0 * ome[i] * s2)
     vx = -(np.sqrt(mu * a[i]) / rn) * sin_e
     vy = (hn[i] / rn) * cos_e
+    if ome[i] < dd_ome:
+        b = a[i] * np.sqrt(ome[i] * (2.0 - ome[i]))
+        xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], b, np.sqrt(mu * a[i]), hn[i], s, c)
+        for k in range(3):
+            out_r[i, k] = _dd_dot2(xh, xl, P[i, k], yh, yl, Q[i, k])
+            out_v[i, k] = _dd_dot2(uh, ul, P[i, k], wh, wl, Q[i, k])
+        return
     for k in range(3):
         out_r[i, k] = x * P[i, k] + y * Q[i, k]
         out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
@@ -106,7 +200,7 @@ def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
 
 @kernel
 def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1,
-                 focal, a, ome, P, Q, sh0, ch0, hn, dt, guess, out_r, out_v, out_chi):
+                 focal, a, ome, P, Q, sh0, ch0, hn, dd_ome, dt, guess, out_r, out_v, out_chi):
     """Returns the number of bodies that needed the numpy path (a guess outside the bracket)."""
     n = r0.shape[0]
     tol = 4.0 * 2.220446049250313e-16
@@ -173,7 +267,7 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
         if t == 0.0:
             f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
         if focal[i] and t != 0.0:                        # eccentric ellipses: from the focal frame
-            _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu[i], al, chi, out_r, out_v)
+            _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu[i], al, chi, dd_ome, out_r, out_v)
         else:
             for k in range(3):
                 out_r[i, k] = f_ * r0[i, k] + g_ * v0[i, k]
