@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from driftframe.framework import sorting
-from driftframe.framework.contact_params import APPROACH, DENSE_MAX, F_CAP, F_JAM, F_TC, JAM, S_SEQUENTIAL
+from driftframe.framework.contact_params import APPROACH, F_CAP, F_JAM, F_TC, JAM
 from driftframe.framework.kernels import kernel
 
 
@@ -213,32 +213,4 @@ def island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam
         wlam[c] = lam
         nm = kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
         nm = kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-    return nm
-
-
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
-def solve_island(cs, m, wi, wj, wn, we, rhs, u, inv, spd, wlam, dv, moved, nm, bmark, waves, A, y, sub, act, stats):
-    """The impulses of an island ``cs[:m]`` that does not stick, into ``wlam`` and ``dv``: a lone contact's
-    two-body impulse ``lambda = -(1 + e) v_n / (inv_i + inv_j)``, up to DENSE_MAX contacts at once
-    (:func:`island_dense`), more contact by contact (:func:`island_sequential`). Returns the new count of
-    moved bodies."""
-    if m == 1:
-        c = cs[0]
-        i, j = wi[c], wj[c]
-        lam = rhs[c] / (inv[i] + inv[j])
-        wlam[c] = lam
-        nm = kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-        nm = kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-    elif m <= DENSE_MAX:
-        island_dense(cs, m, wi, wj, wn, rhs, inv, wlam, A, y, sub, act)
-        for a in range(m):
-            c = cs[a]
-            lam = wlam[c]
-            if lam == 0.0:
-                continue
-            nm = kick(wi[c], -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-            nm = kick(wj[c], 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-    else:
-        stats[S_SEQUENTIAL] += 1
-        nm = island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam, moved, nm)
     return nm

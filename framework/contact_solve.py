@@ -1,9 +1,9 @@
 """The step's event loop, and the four solvers compiled from it (the method: :mod:`.contact`).
 
 :func:`_solve` is the loop: pop the earliest contact from the heap, gather its wave, solve the wave's
-islands, record its events, apply the impulses, look again at the pairs of the bodies that changed. Each
-stage is a kernel of its own, pasted into the loop (``inline="always"``: the loop compiles as one unit,
-as it did when they were written in it, and no array is reference-counted per call).
+islands, record its events, apply the impulses, look again at the pairs of the bodies that changed. Its
+stages are written in the loop, not called: as kernels of their own (called, or pasted with
+``inline="always"``) the same code ran slower (docs/design/contact.md).
 """
 from __future__ import annotations
 
@@ -15,13 +15,13 @@ from driftframe.framework import sorting
 from driftframe.framework.contact_again import (keep_listed, keep_nothing, keep_pairs, put_back_listed,
                                                 put_back_nothing, put_back_pairs)
 from driftframe.framework.contact_heap import grow_f, heap_pop, heap_push, sift_down
-from driftframe.framework.contact_islands import islands, restitution, solve_island
+from driftframe.framework.contact_islands import island_dense, island_sequential, islands, kick, restitution
 from driftframe.framework.contact_jam import no_stick, stick_cluster
 from driftframe.framework.contact_pairs import (initial_heap, listed_resweep, listed_start, pair_structures,
                                                 unlisted_resweep, unlisted_start)
 from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F_LIMIT, F_STICK, N_STATS, S_BACK,
-                                                 S_CONTACTS, S_OVERLAPS, S_PAIRS, S_POPPED, S_PUSHED, S_SWEPT,
-                                                 S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
+                                                 S_CONTACTS, S_OVERLAPS, S_PAIRS, S_POPPED, S_PUSHED, S_SEQUENTIAL,
+                                                 S_SWEPT, S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
 from driftframe.framework.contact_toi import toi
 from driftframe.framework.kernels import kernel
 
@@ -55,137 +55,6 @@ def _shift(t, d):
     """``t += d`` in place, element by element (``t - now`` and ``+ now`` without two numpy calls a step)."""
     for k in range(t.shape[0]):
         t[k] += d
-
-
-@kernel(**_OPTS, inline="always")
-def gather_wave(H, hn, t0, p0, dt, ver, PI, PJ, x, u, spd, wp, wi, wj, wn, wvn, back_t, back_p, back_v, back_s,
-                stats):
-    """The wave of pair ``p0``'s entry at ``t0`` (just popped, valid): it and every valid entry within its
-    own slack of ``t0`` whose pair still approaches there, into ``wp`` (pair), ``wi``, ``wj``, ``wn``
-    (normal i to j), ``wvn`` (normal velocity); the entries popped on the way that are not of this instant
-    go back into the heap. Returns ``(H, hn, K)``: the heap (grown when needed), its size, the contacts."""
-    K = np.int64(0)                                        # see contact_params._NOT_LITERAL
-    nb = 0
-    horizon = t0 + SLACK_MAX * dt
-    cand_p = p0
-    cand_ok = True
-    while True:
-        if cand_ok:
-            i, j = PI[cand_p], PJ[cand_p]
-            wx = u[j, 0] - u[i, 0]
-            wy = u[j, 1] - u[i, 1]
-            wz = u[j, 2] - u[i, 2]
-            dx = x[j, 0] - x[i, 0] + wx * t0
-            dy = x[j, 1] - x[i, 1] + wy * t0
-            dz = x[j, 2] - x[i, 2] + wz * t0
-            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if dist > 0.0:
-                nx, ny, nz = dx / dist, dy / dist, dz / dist
-                vn = nx * wx + ny * wy + nz * wz
-            else:
-                nx = ny = nz = vn = 0.0
-            if vn < -APPROACH * (spd[i] + spd[j]):
-                wp[K], wi[K], wj[K] = cand_p, i, j
-                wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
-                wvn[K] = vn
-                K += 1
-        if hn == 0 or H[0, 0] > horizon:
-            break
-        tp, pp, vv, ss = H[0, 0], int(H[0, 1]), int(H[0, 2]), H[0, 3]
-        stats[S_POPPED] += 1
-        hn -= 1
-        heap_pop(H, hn)
-        if vv != ver[pp]:
-            cand_ok = False
-            continue
-        if tp - t0 <= ss:
-            cand_p = pp
-            cand_ok = True
-            ver[pp] += 1                                   # taken: its entry is void from now on
-        else:
-            back_t[nb], back_p[nb], back_v[nb], back_s[nb] = tp, pp, vv, ss
-            nb += 1
-            cand_ok = False
-    ver[p0] += 1
-    stats[S_BACK] += nb
-    if hn + nb > H.shape[0]:
-        H = grow_f(H, hn + nb)
-    for b in range(nb):                                    # not this instant: back into the heap
-        heap_push(H, hn, back_t[b], back_p[b], back_v[b], back_s[b])
-        hn += 1
-    return H, hn, K
-
-
-@kernel(**_OPTS, inline="always")
-def record_wave(K, wi, wj, wn, wlam, e, x, u, r, t, t_c, t_last, burst, count, kstamp, waves, ev, ev_n, ev_x, ne):
-    """Bookkeeping of the bodies that took an impulse at ``t`` (last contact, burst, inelastic count) and
-    one event per contact with an impulse: ``(i, j, t, impulse)``, the normal, the points on i and on j.
-    Returns the event arrays (grown when needed) and their count."""
-    if ne + K > ev.shape[0]:
-        ev, ev_n, ev_x = grow_f(ev, ne + K), grow_f(ev_n, ne + K), grow_f(ev_x, ne + K)
-    for k in range(K):
-        if not (wlam[k] > 0.0):
-            continue
-        i, j = wi[k], wj[k]
-        for b in (i, j):
-            if kstamp[b] != waves:
-                kstamp[b] = waves                          # once per body per wave
-                burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
-                t_last[b] = t
-                if min(e[i], e[j]) < 1.0:
-                    count[b] += 1                          # the cap is on inelastic contacts
-        ev[ne, 0], ev[ne, 1], ev[ne, 2], ev[ne, 3] = i, j, t, wlam[k]
-        for d in range(3):
-            ev_n[ne, d] = wn[k, d]
-            ev_x[ne, d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
-            ev_x[ne, 3 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
-        ne += 1
-    return ev, ev_n, ev_x, ne
-
-
-@kernel(**_OPTS, inline="always")
-def apply_wave(moved, nm, t, dv, x, u, spd, changed, x_in, u_in):
-    """The moved bodies' new velocity ``u + dv`` from ``t`` on; ``p(t) = x + u t`` stays where it was."""
-    for a in range(nm):
-        b = moved[a]
-        if not changed[b]:                                 # its x and u as they came (for F_AGAIN)
-            for d in range(3):
-                x_in[b, d] = x[b, d]
-                u_in[b, d] = u[b, d]
-        for d in range(3):
-            u[b, d] += dv[b, d]
-            x[b, d] -= dv[b, d] * t
-        spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
-        changed[b] = True
-
-
-@kernel(**_OPTS, inline="always")
-def reexamine(moved, nm, waves, t, dt, head, nxt, mark, ver, PI, PJ, P, x, u, r, inv, live, spd, H, hn, stats):
-    """Every pair of the bodies that changed, from ``t`` on: its old entries void, its next contact (if any)
-    pushed, each pair once. Returns the heap (grown when needed) and its size."""
-    if hn + P > H.shape[0]:
-        H = grow_f(H, hn + P)
-    for a in range(nm):
-        b = moved[a]
-        node = head[b]
-        while node >= 0:
-            p = node >> 1
-            node = nxt[node]
-            if mark[p] == waves:
-                continue
-            mark[p] = waves
-            ver[p] += 1
-            i, j = PI[p], PJ[p]
-            if not (live[i] and live[j]):
-                continue
-            tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
-                         u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
-                         r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], t, dt)
-            if tp >= 0.0:
-                heap_push(H, hn, tp, p, ver[p], sl)
-                hn += 1
-                stats[S_PUSHED] += 1
-    return H, hn
 
 
 def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
@@ -257,8 +126,55 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
             wcap = max(2 * wcap, need)
             wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = \
                 wave_scratch(wcap)
-        H, hn, K = gather_wave(H, hn, t0, p0, dt, ver, PI, PJ, x, u, spd, wp, wi, wj, wn, wvn,
-                               back_t, back_p, back_v, back_s, stats)
+        K = np.int64(0)                                    # see contact_params._NOT_LITERAL
+        nb = 0
+        horizon = t0 + SLACK_MAX * dt
+        cand_p = p0
+        cand_ok = True
+        while True:
+            if cand_ok:
+                i, j = PI[cand_p], PJ[cand_p]
+                wx = u[j, 0] - u[i, 0]
+                wy = u[j, 1] - u[i, 1]
+                wz = u[j, 2] - u[i, 2]
+                dx = x[j, 0] - x[i, 0] + wx * t0
+                dy = x[j, 1] - x[i, 1] + wy * t0
+                dz = x[j, 2] - x[i, 2] + wz * t0
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if dist > 0.0:
+                    nx, ny, nz = dx / dist, dy / dist, dz / dist
+                    vn = nx * wx + ny * wy + nz * wz
+                else:
+                    nx = ny = nz = vn = 0.0
+                if vn < -APPROACH * (spd[i] + spd[j]):
+                    wp[K], wi[K], wj[K] = cand_p, i, j
+                    wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
+                    wvn[K] = vn
+                    K += 1
+            if hn == 0 or H[0, 0] > horizon:
+                break
+            tp, pp, vv, ss = H[0, 0], int(H[0, 1]), int(H[0, 2]), H[0, 3]
+            stats[S_POPPED] += 1
+            hn -= 1
+            heap_pop(H, hn)
+            if vv != ver[pp]:
+                cand_ok = False
+                continue
+            if tp - t0 <= ss:
+                cand_p = pp
+                cand_ok = True
+                ver[pp] += 1                               # taken: its entry is void from now on
+            else:
+                back_t[nb], back_p[nb], back_v[nb], back_s[nb] = tp, pp, vv, ss
+                nb += 1
+                cand_ok = False
+        ver[p0] += 1
+        stats[S_BACK] += nb
+        if hn + nb > H.shape[0]:
+            H = grow_f(H, hn + nb)
+        for b in range(nb):                                # not this instant: back into the heap
+            heap_push(H, hn, back_t[b], back_p[b], back_v[b], back_s[b])
+            hn += 1
         if K == 0:
             continue
         waves += 1
@@ -273,7 +189,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
         if K == 1:
             ordk = one                                     # a lone contact (most waves): nothing to sort
         else:
-            ordk = sorting.argsort_stable(wroot, K)        # islands together, wave order inside
+            ordk = sorting.argsort_stable(wroot, K)             # islands together, wave order inside
         nm = np.int64(0)                 # see contact_params._NOT_LITERAL
         s = 0
         while s < K:
@@ -293,23 +209,89 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 nm = _stick_fn(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head,
                                nxt, PI, PJ, sseen, squeue)
                 if nm < 0:
-                    break                                  # no_stick: this driver cannot; F_AGAIN below
+                    break                                  # _no_stick: this driver cannot; F_AGAIN below
                 flags |= F_STICK
+            elif m == 1:
+                c = cs[0]
+                i, j = wi[c], wj[c]
+                lam = rhs[c] / (inv[i] + inv[j])
+                wlam[c] = lam
+                nm = kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                nm = kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+            elif m <= DENSE_MAX:
+                island_dense(cs, m, wi, wj, wn, rhs, inv, wlam, A, y, sub, act)
+                for a in range(m):
+                    c = cs[a]
+                    lam = wlam[c]
+                    if lam == 0.0:
+                        continue
+                    nm = kick(wi[c], -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                    nm = kick(wj[c], 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
             else:
-                nm = solve_island(cs, m, wi, wj, wn, we, rhs, u, inv, spd, wlam, dv, moved, nm, bmark, waves,
-                                  A, y, sub, act, stats)
+                stats[S_SEQUENTIAL] += 1
+                nm = island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam, moved, nm)
             s = f
         if nm < 0:
             flags |= F_AGAIN
             break
-        ev, ev_n, ev_x, ne = record_wave(K, wi, wj, wn, wlam, e, x, u, r, t, t_c, t_last, burst, count, kstamp,
-                                         waves, ev, ev_n, ev_x, ne)
-        apply_wave(moved, nm, t, dv, x, u, spd, changed, x_in, u_in)
+        # -- bookkeeping of the bodies that took an impulse; events --
+        if ne + K > ev.shape[0]:
+            ev, ev_n, ev_x = grow_f(ev, ne + K), grow_f(ev_n, ne + K), grow_f(ev_x, ne + K)
+        for k in range(K):
+            if not (wlam[k] > 0.0):
+                continue
+            i, j = wi[k], wj[k]
+            for b in (i, j):
+                if kstamp[b] != waves:
+                    kstamp[b] = waves                      # once per body per wave
+                    burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
+                    t_last[b] = t
+                    if min(e[i], e[j]) < 1.0:
+                        count[b] += 1                      # the cap is on inelastic contacts
+            ev[ne, 0], ev[ne, 1], ev[ne, 2], ev[ne, 3] = i, j, t, wlam[k]
+            for d in range(3):
+                ev_n[ne, d] = wn[k, d]
+                ev_x[ne, d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
+                ev_x[ne, 3 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
+            ne += 1
+        # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
+        for a in range(nm):
+            b = moved[a]
+            if not changed[b]:                             # its x and u as they came (for F_AGAIN)
+                for d in range(3):
+                    x_in[b, d] = x[b, d]
+                    u_in[b, d] = u[b, d]
+            for d in range(3):
+                u[b, d] += dv[b, d]
+                x[b, d] -= dv[b, d] * t
+            spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
+            changed[b] = True
         # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
         P, PI, PJ, nxt, ver, mark, n_swept, flags = _resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt,
                                                              ver, mark, n_swept, stats, flags)
-        H, hn = reexamine(moved, nm, waves, t, dt, head, nxt, mark, ver, PI, PJ, P, x, u, r, inv, live, spd, H, hn,
-                          stats)
+        # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
+        if hn + P > H.shape[0]:
+            H = grow_f(H, hn + P)
+        for a in range(nm):
+            b = moved[a]
+            node = head[b]
+            while node >= 0:
+                p = node >> 1
+                node = nxt[node]
+                if mark[p] == waves:
+                    continue
+                mark[p] = waves
+                ver[p] += 1
+                i, j = PI[p], PJ[p]
+                if not (live[i] and live[j]):
+                    continue
+                tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
+                              u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
+                              r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], t, dt)
+                if tp >= 0.0:
+                    heap_push(H, hn, tp, p, ver[p], sl)
+                    hn += 1
+                    stats[S_PUSHED] += 1
     stats[S_PAIRS] = P
     stats[S_CONTACTS] = ne
     stats[S_WAVES] = waves
