@@ -107,9 +107,24 @@ def _dd_div(xh, xl, yh, yl):
 
 
 @_both
-def _focal_dd(a, ome, b, sqmua, hn, s, c):
+def _dd_mul(xh, xl, yh, yl):
+    p, e = _two_prod(xh, yh)
+    return _fast_two_sum(p, e + (xh * yl + xl * yh))
+
+
+@_both
+def _dd_sqrt(xh, xl):
+    s = np.sqrt(xh)
+    ph, pl = _two_prod(s, s)
+    return _fast_two_sum(s, ((xh - ph) - pl + xl) / (2.0 * s))
+
+
+@_both
+def _focal_dd(a, ome, ddc, s, c):
     """The focal state's scalars ``a (cos E - e), b sin E, -sqrt(mu a) sin E / |r|, h cos E / |r|`` as
-    double-doubles from ``s = sin(E/2), c = cos(E/2)``: their roundings are what is left of the energy
+    double-doubles from ``s = sin(E/2), c = cos(E/2)``; ``ddc``: ``b, sqrt(mu a), h`` as double-doubles
+    (hi, lo pairs) *of the double a and ome* (:func:`_focal_dd_constants`), so that ``v^2/2 - mu/|r|``
+    is ``-mu/(2a)`` of that ``a`` to ~1e-32, whatever ``ome``'s rounding: their roundings are what is left of the energy
     error near periapsis (each ulp of ``|v|`` there is ``4/(1 - e)`` ulp of energy), so they are kept
     to ~1e-32 and the state is rounded once (:func:`_dd_dot2`). ``s, c`` themselves may be off by an
     ulp: that moves the body along the orbit (``E``), not off it."""
@@ -127,21 +142,34 @@ def _focal_dd(a, ome, b, sqmua, hn, s, c):
     wh, wl = _two_sum(ome, uh)
     wh, wl = _fast_two_sum(wh, wl + ul)                              # ome + 2 e s^2 (> 0)
     rh, rl = _dd_mul_d(wh, wl, a)                                    # |r|
-    yh, yl = _dd_mul_d(seh, sel, b)
-    nh, nl = _dd_mul_d(seh, sel, sqmua)
+    yh, yl = _dd_mul(seh, sel, ddc[0], ddc[1])                      # b sin E
+    nh, nl = _dd_mul(seh, sel, ddc[2], ddc[3])                      # sqrt(mu a) sin E
     vxh, vxl = _dd_div(-nh, -nl, rh, rl)
-    mh, ml = _dd_mul_d(ceh, cel, hn)
+    mh, ml = _dd_mul(ceh, cel, ddc[4], ddc[5])                      # h cos E
     vyh, vyl = _dd_div(mh, ml, rh, rl)
     return xh, xl, yh, yl, vxh, vxl, vyh, vyl
 
 
+def _focal_dd_constants(a, ome, mu):
+    """``(n, 6)``: ``b = a sqrt(ome (2 - ome)), sqrt(mu a), h = sqrt(mu a ome (2 - ome))`` as hi, lo pairs."""
+    th, tl = _two_sum(2.0, -ome)
+    qh, ql = _dd_mul_d(th, tl, ome)                                   # ome (2 - ome) = 1 - e^2
+    bh, bl = _dd_sqrt(qh, ql)
+    bh, bl = _dd_mul_d(bh, bl, a)
+    mh, ml = _two_prod(mu, a)
+    sh, sl = _dd_sqrt(mh, ml)
+    hh, hl = _dd_mul(mh, ml, qh, ql)
+    hh, hl = _dd_sqrt(hh, hl)
+    return np.stack([bh, bl, sh, sl, hh, hl], axis=1)
+
+
 @_both
-def _dd_dot2(xh, xl, p, yh, yl, q):
-    """``x p + y q`` rounded once, ``x, y`` double-doubles, ``p, q`` doubles."""
+def _dd_dot2(xh, xl, p, p_lo, yh, yl, q, q_lo):
+    """``x p + y q`` rounded once, ``x, y, p, q`` double-doubles (``p_lo, q_lo``: the low parts)."""
     ph, pl = _two_prod(xh, p)
     qh, ql = _two_prod(yh, q)
     sh, sl = _two_sum(ph, qh)
-    return sh + (sl + pl + ql + xl * p + yl * q)
+    return sh + (sl + pl + ql + xl * p + yl * q + xh * p_lo + yh * q_lo)
 
 
 @kernel
@@ -168,7 +196,7 @@ def _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
 
 
 @kernel
-def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, dd_ome, out_r, out_v):
+def _focal1(i, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi, dd_ome, out_r, out_v):
     """Body ``i``'s state from its focal frame: ``kepler_universal._focal_state``, one body, same order."""
     if alpha < 0:
         _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v)
@@ -187,11 +215,10 @@ def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, dd_ome, out_r, out_v)
     vx = -(np.sqrt(mu * a[i]) / rn) * sin_e
     vy = (hn[i] / rn) * cos_e
     if ome[i] < dd_ome:
-        b = a[i] * np.sqrt(ome[i] * (2.0 - ome[i]))
-        xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], b, np.sqrt(mu * a[i]), hn[i], s, c)
+        xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i], s, c)
         for k in range(3):
-            out_r[i, k] = _dd_dot2(xh, xl, P[i, k], yh, yl, Q[i, k])
-            out_v[i, k] = _dd_dot2(uh, ul, P[i, k], wh, wl, Q[i, k])
+            out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
+            out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
         return
     for k in range(3):
         out_r[i, k] = x * P[i, k] + y * Q[i, k]
@@ -200,7 +227,7 @@ def _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, dd_ome, out_r, out_v)
 
 @kernel
 def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1,
-                 focal, a, ome, P, Q, sh0, ch0, hn, dd_ome, dt, guess, out_r, out_v, out_chi):
+                 focal, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, dd_ome, dt, guess, out_r, out_v, out_chi):
     """Returns the number of bodies that needed the numpy path (a guess outside the bracket)."""
     n = r0.shape[0]
     tol = 4.0 * 2.220446049250313e-16
@@ -267,7 +294,7 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
         if t == 0.0:
             f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
         if focal[i] and t != 0.0:                        # eccentric ellipses: from the focal frame
-            _focal1(i, a, ome, P, Q, sh0, ch0, hn, mu[i], al, chi, dd_ome, out_r, out_v)
+            _focal1(i, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu[i], al, chi, dd_ome, out_r, out_v)
         else:
             for k in range(3):
                 out_r[i, k] = f_ * r0[i, k] + g_ * v0[i, k]

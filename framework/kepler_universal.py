@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_dot2, _focal_dd,
-                                                 _next_chi_compiled)
+                                                 _focal_dd_constants, _next_chi_compiled, _two_prod,
+                                                 _two_sum)
 
 TWO_PI = 2.0 * np.pi
 _EPS = np.finfo(np.float64).eps
@@ -388,7 +389,8 @@ FOCAL_DD_OME = 0.05
 
 
 def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
-    """What :func:`_focal_state` needs of each epoch: ``(use, a, ome, P, Q, sin(E0/2), cos(E0/2), |h|)``.
+    """What :func:`_focal_state` needs of each epoch: ``(use, a, ome, P, Q, sin(E0/2), cos(E0/2), |h|, Pl, Ql,
+    ddc)`` (``ddc``: :func:`kepler_kernels._focal_dd_constants`).
 
     ``use``: ellipses with ``e >= FOCAL_MIN_E`` (below it the Lagrange coefficients lose nothing and
     ``P``, the unit eccentricity vector, is ill-defined). ``ome = 1 - e`` from
@@ -413,10 +415,31 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
         H0 = np.arcsinh(sigma0 * sq / e)                                  # e sinh H0 = sigma0 sqrt(-alpha)
         sh0 = np.where(hyp, np.sinh(0.5 * H0), np.sin(0.5 * E0))
         ch0 = np.where(hyp, np.cosh(0.5 * H0), np.cos(0.5 * E0))
-    return use, a, ome, P, Q, sh0, ch0, hn
+    Pl, Ql = _unit_frame_lo(P, Q)
+    with np.errstate(invalid="ignore", over="ignore"):
+        ddc = _focal_dd_constants(a, ome, mu)
+    return use, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc
 
 
-def _focal_state(a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi):
+def _unit_frame_lo(P, Q):
+    """Low parts ``Pl, Ql`` that make ``P + Pl`` and ``Q + Ql`` orthonormal to ~1e-32 (double-double):
+    a double unit vector is off by an ulp or two, and at periapsis ``|v| = vy |Q|``, each ulp of it
+    ``4/(1 - e)`` ulp of energy. First-order corrections: ``n^2 = 1 + d`` gives ``-x d/2``."""
+    def norm2_minus_1(x):                                 # |x|^2 - 1, x ~ unit, in double-double, rounded
+        h, lo = _two_prod(x[:, 0], x[:, 0])
+        for k in (1, 2):
+            ph, pl = _two_prod(x[:, k], x[:, k])
+            h, t = _two_sum(h, ph)
+            lo = lo + t + pl
+        return (h - 1.0) + lo                             # (h - 1 exact: h is within a factor 2 of 1)
+    Pl = -0.5 * norm2_minus_1(P)[:, None] * P
+    dot = np.einsum("ij,ij->i", P, Q)                     # ~1e-16: double is enough
+    Ql = -dot[:, None] * P
+    Ql = Ql - (0.5 * norm2_minus_1(Q) + np.einsum("ij,ij->i", Q, Ql))[:, None] * Q
+    return Pl, Ql
+
+
+def _focal_state(a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi):
     """The state of an ellipse at ``E = E0 + dE`` (``dE = sqrt(alpha) chi``) in its focal frame:
     ``r = a (cos E - e) P + b sin E Q``, ``v = (-sqrt(mu a) sin E P + h cos E Q) / |r|``, with
     ``cos E - e = ome - 2 s^2``, ``|r| = a (ome + 2 e s^2)``, ``s = sin(E/2)``, ``b = a sqrt(ome (2 - ome))``.
@@ -434,7 +457,7 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi):
         r = np.empty(P.shape)
         v = np.empty(P.shape)
         for k in (alpha > 0, alpha < 0):
-            r[k], v[k] = _focal_state(*(q[k] for q in (a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi)))
+            r[k], v[k] = _focal_state(*(q[k] for q in (a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi)))
         return r, v
     half = 0.5 * np.sqrt(alpha) * chi
     sd = np.sin(half)
@@ -454,11 +477,9 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi):
     dd = ome < FOCAL_DD_OME
     if dd.any():                      # very eccentric: the same scalars in double-double, rounded once
         k = np.flatnonzero(dd)
-        b = a[k] * np.sqrt(ome[k] * (2.0 - ome[k]))
-        xh, xl, yh, yl, uh, ul, wh, wl = (q[:, None] for q in _focal_dd(
-            a[k], ome[k], b, np.sqrt(mu[k] * a[k]), hn[k], s[k], c[k]))
-        r[k] = _dd_dot2(xh, xl, P[k], yh, yl, Q[k])
-        v[k] = _dd_dot2(uh, ul, P[k], wh, wl, Q[k])
+        xh, xl, yh, yl, uh, ul, wh, wl = (q[:, None] for q in _focal_dd(a[k], ome[k], ddc[k].T, s[k], c[k]))
+        r[k] = _dd_dot2(xh, xl, P[k], Pl[k], yh, yl, Q[k], Ql[k])
+        v[k] = _dd_dot2(uh, ul, P[k], Pl[k], wh, wl, Q[k], Ql[k])
     return r, v
 
 
