@@ -227,12 +227,10 @@ def _remove_parts(output, pid: int) -> None:
                     target.unlink(missing_ok=True)
 
 
-class _Gone(BaseException):
-    """In a worker: SIGTERM or SIGHUP (its parent died, or someone ended it): stop the run and exit."""
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    """Make this worker end within a second of its parent, however the parent ended (SIGKILL too)."""
+def _die_with_parent(parent_pid: int, die) -> None:
+    """Make this worker end within a second of its parent, however the parent ended (SIGKILL too):
+    SIGTERM at once where the kernel sends it, and a watch that calls ``die(1)`` 0.5 s after it sees the
+    parent gone, whatever the run is doing then."""
     if sys.platform.startswith("linux"):
         import ctypes
         try:
@@ -249,17 +247,37 @@ def _die_with_parent(parent_pid: int) -> None:
         with contextlib.suppress(OSError):
             os.kill(os.getpid(), signal.SIGTERM)               # where no PDEATHSIG: stop the run, clean up
         time.sleep(0.5)                                        # a run stops at its next step; a compile may not
-        os._exit(1)
+        die(1)
 
     threading.Thread(target=watch, name="driftframe-parent-watch", daemon=True).start()
 
 
 def _worker_main(conn, parent_pid: int, lp_threads) -> None:
-    """A pool worker: runs each (index, spec) it is sent and sends back (index, Result | Failure | None)."""
-    _die_with_parent(parent_pid)
+    """A pool worker: runs each (index, spec) it is sent and sends back (index, Result | Failure | None).
+
+    SIGTERM or SIGHUP (its parent died, or someone ended it) stops its run at the next step (the run
+    deletes its temporary file) and ends the worker without an answer, so that a living parent gives the
+    run again. The handler raises nothing: an exception raised by a signal handler inside an import
+    lock's callback or numba's compiler (called back from C) is printed and dropped, and the run went on.
+    """
+    current: list = [None]                  # the spec being run: its part files go if the worker must die
+
+    def die(code: int) -> None:
+        spec = current[0]
+        if spec is not None and spec.output is not None:
+            _remove_parts(spec.output, os.getpid())
+        os._exit(code)
+
+    _die_with_parent(parent_pid, die)
+    ended: list[int] = []
 
     def gone(signum, frame):
-        raise _Gone
+        if current[0] is None:
+            die(128 + signum)                                   # idle: nothing to stop
+        if not ended:
+            ended.append(signum)
+            # a run deep in a compile never reaches its next step: it is cut after 0.5 s
+            threading.Timer(0.5, die, args=(128 + signum,)).start()
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)                # Ctrl-C is the parent's to handle
     for s in STOP[1:]:
@@ -274,6 +292,8 @@ def _worker_main(conn, parent_pid: int, lp_threads) -> None:
     stopping = [False]
 
     def should_stop():
+        if ended:
+            return True
         if not stopping[0] and conn.poll():
             if conn.recv() == "stop":                           # EOFError: the parent is gone
                 stopping[0] = True
@@ -288,8 +308,13 @@ def _worker_main(conn, parent_pid: int, lp_threads) -> None:
                 continue
             i, spec = msg
             stopping[0] = False
-            conn.send((i, attempt(spec, should_stop)))
-    except (_Gone, EOFError, OSError, KeyboardInterrupt):
+            current[0] = spec
+            res = attempt(spec, should_stop)
+            if ended:
+                die(128 + ended[0])                             # not an answer: a living parent retries it
+            current[0] = None
+            conn.send((i, res))
+    except (EOFError, OSError, KeyboardInterrupt):
         pass
     finally:
         os._exit(0)                 # no interpreter teardown: nothing of ours is left to flush
