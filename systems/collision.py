@@ -40,7 +40,7 @@ Bodies the gravity system integrates (marked
 are conics, and the gravity system finds their contacts with each other on
 those conics (same :class:`CollisionEvent`, ``method="kepler"``).
 
-The articles' discrete method lives in :mod:`driftframe.systems.collision_baseline`
+The articles' discrete method lives in :mod:`driftframe.framework.articles`
 (``method="articles"``).
 """
 from __future__ import annotations
@@ -230,7 +230,7 @@ class CollisionSystem(esper.Processor):
 
     ``method``: ``"continuous"`` (default; swept, time-ordered, islands of
     simultaneous contacts) or ``"articles"`` (the articles' discrete method,
-    kept as a baseline, :mod:`~driftframe.systems.collision_baseline`).
+    kept as a baseline, :mod:`~driftframe.framework.articles`).
     ``broadphase``: ``"auto"``, ``"all"`` (every pair every step), or the method
     the neighbour list is built with (``"grid"``, ``"sweep"``, ``"kdtree"``).
     ``skin_steps``: how many steps the neighbour list should last.
@@ -399,7 +399,7 @@ class CollisionSystem(esper.Processor):
             return
         st.gather(lay, dt)
         if self.method == "articles":
-            from driftframe.systems.collision_baseline import articles_step
+            from driftframe.framework.articles import articles_step
             x, v, events = articles_step(st, lay, dt, self._now(), self.events, self.world.step_count)
             self._write(lay, x, v, dt)
             self.stats["pairs"] = lay.n * (lay.n - 1) // 2
