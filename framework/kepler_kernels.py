@@ -5,7 +5,8 @@ The same solution as the numpy path, one pass over the columns instead of ~170 n
 passes. Formulas and tolerances are those of the numpy path: Stumpff's series for
 ``|psi| <= 1`` (12 terms, Horner), the half-angle closed forms beyond; Laguerre
 (n = 5) from the guess, bracketed, Newton after 8 iterations; f, g from chi, or for
-ellipses from e = 0.1 on the focal frame (``_focal1``). The
+conics from e = 0.1 (ellipses) and 1.01 (hyperbolas) on the focal frame (``_focal1``,
+``_focal_hyp1``, ``_focal_dd``). The
 series' coefficients live here (the kernels read them at compile time; the numpy
 path imports them from here).
 """
@@ -120,9 +121,9 @@ def _dd_sqrt(xh, xl):
 
 
 @_both
-def _focal_dd(a, ome, ddc, s, c):
+def _focal_dd(a, ome, b_h, b_l, sq_h, sq_l, h_h, h_l, s, c):
     """The focal state's scalars ``a (cos E - e), b sin E, -sqrt(mu a) sin E / |r|, h cos E / |r|`` as
-    double-doubles from ``s = sin(E/2), c = cos(E/2)``; ``ddc``: ``b, sqrt(mu a), h`` as double-doubles
+    double-doubles from ``s = sin(E/2), c = cos(E/2)``; ``b, sqrt(mu a), h`` as double-doubles
     (hi, lo pairs) *of the double a and ome* (:func:`_focal_dd_constants`), so that ``v^2/2 - mu/|r|``
     is ``-mu/(2a)`` of that ``a`` to ~1e-32, whatever ``ome``'s rounding: their roundings are what is left of the energy
     error near periapsis (each ulp of ``|v|`` there is ``4/(1 - e)`` ulp of energy), so they are kept
@@ -142,10 +143,10 @@ def _focal_dd(a, ome, ddc, s, c):
     wh, wl = _two_sum(ome, uh)
     wh, wl = _fast_two_sum(wh, wl + ul)                              # ome + 2 e s^2 (> 0)
     rh, rl = _dd_mul_d(wh, wl, a)                                    # |r|
-    yh, yl = _dd_mul(seh, sel, ddc[0], ddc[1])                      # b sin E
-    nh, nl = _dd_mul(seh, sel, ddc[2], ddc[3])                      # sqrt(mu a) sin E
+    yh, yl = _dd_mul(seh, sel, b_h, b_l)                            # b sin E
+    nh, nl = _dd_mul(seh, sel, sq_h, sq_l)                          # sqrt(mu a) sin E
     vxh, vxl = _dd_div(-nh, -nl, rh, rl)
-    mh, ml = _dd_mul(ceh, cel, ddc[4], ddc[5])                      # h cos E
+    mh, ml = _dd_mul(ceh, cel, h_h, h_l)                            # h cos E
     vyh, vyl = _dd_div(mh, ml, rh, rl)
     return xh, xl, yh, yl, vxh, vxl, vyh, vyl
 
@@ -172,15 +173,17 @@ def _dd_dot2(xh, xl, p, p_lo, yh, yl, q, q_lo):
     return sh + (sl + pl + ql + xl * p + yl * q + xh * p_lo + yh * q_lo)
 
 
-@kernel
-def _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
-    """``kepler_universal._focal_state_hyp`` for body ``i`` (``A = -a``, ``em1 = -ome``), same order."""
-    A = -a[i]
-    em1 = -ome[i]
+@_both
+def _focal_hyp1(a, ome, sh0, ch0, hn, mu, alpha, chi):
+    """``kepler_universal._focal_state_hyp``'s scalars ``x, y, vx, vy`` for one body (``A = -a``,
+    ``em1 = -ome``), same order. Scalars in and out: a compiled call that takes arrays pays numba's
+    reference counting on each (measured: ~100 ns a body for ten arrays)."""
+    A = -a
+    em1 = -ome
     half = 0.5 * np.sqrt(-alpha) * chi
     sd = np.sinh(half)
     cd = np.cosh(half)
-    s = sh0[i] * cd + ch0[i] * sd
+    s = sh0 * cd + ch0 * sd
     s2 = s * s
     c = np.sqrt(1.0 + s2)
     sinh_h = 2.0 * s * c
@@ -189,40 +192,27 @@ def _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v):
     y = A * np.sqrt(em1 * (2.0 + em1)) * sinh_h
     rn = A * (em1 + 2.0 * s2 + 2.0 * em1 * s2)
     vx = -(np.sqrt(mu * A) / rn) * sinh_h
-    vy = (hn[i] / rn) * cosh_h
-    for k in range(3):
-        out_r[i, k] = x * P[i, k] + y * Q[i, k]
-        out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
+    vy = (hn / rn) * cosh_h
+    return x, y, vx, vy
 
 
-@kernel
-def _focal1(i, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi, dd_ome, out_r, out_v):
-    """Body ``i``'s state from its focal frame: ``kepler_universal._focal_state``, one body, same order."""
-    if alpha < 0:
-        _focal1_hyp(i, a, ome, P, Q, sh0, ch0, hn, mu, alpha, chi, out_r, out_v)
-        return
+@_both
+def _focal1(a, ome, sh0, ch0, hn, mu, alpha, chi):
+    """``kepler_universal._focal_state``'s scalars ``x, y, vx, vy`` and ``s, c`` for one ellipse, same order."""
     half = 0.5 * np.sqrt(alpha) * chi
     sd = np.sin(half)
     cd = np.cos(half)
-    s = sh0[i] * cd + ch0[i] * sd
-    c = ch0[i] * cd - sh0[i] * sd
+    s = sh0 * cd + ch0 * sd
+    c = ch0 * cd - sh0 * sd
     s2 = s * s
     sin_e = 2.0 * s * c
     cos_e = 1.0 - 2.0 * s2
-    x = a[i] * (ome[i] - 2.0 * s2)
-    y = a[i] * np.sqrt(ome[i] * (2.0 - ome[i])) * sin_e
-    rn = a[i] * (ome[i] + 2.0 * s2 - 2.0 * ome[i] * s2)
-    vx = -(np.sqrt(mu * a[i]) / rn) * sin_e
-    vy = (hn[i] / rn) * cos_e
-    if ome[i] < dd_ome:
-        xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i], s, c)
-        for k in range(3):
-            out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
-            out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
-        return
-    for k in range(3):
-        out_r[i, k] = x * P[i, k] + y * Q[i, k]
-        out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
+    x = a * (ome - 2.0 * s2)
+    y = a * np.sqrt(ome * (2.0 - ome)) * sin_e
+    rn = a * (ome + 2.0 * s2 - 2.0 * ome * s2)
+    vx = -(np.sqrt(mu * a) / rn) * sin_e
+    vy = (hn / rn) * cos_e
+    return x, y, vx, vy, s, c
 
 
 @kernel
@@ -293,8 +283,22 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
         gd = 1.0 - chi2 * c2 / fp
         if t == 0.0:
             f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
-        if focal[i] and t != 0.0:                        # eccentric ellipses: from the focal frame
-            _focal1(i, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu[i], al, chi, dd_ome, out_r, out_v)
+        if focal[i] and t != 0.0:                        # eccentric conics: from the focal frame
+            if al < 0:
+                x, y, vx, vy = _focal_hyp1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
+                s = c = 0.0
+            else:
+                x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
+            if al > 0 and ome[i] < dd_ome:
+                xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
+                                                           ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
+                for k in range(3):
+                    out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
+                    out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
+            else:
+                for k in range(3):
+                    out_r[i, k] = x * P[i, k] + y * Q[i, k]
+                    out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
         else:
             for k in range(3):
                 out_r[i, k] = f_ * r0[i, k] + g_ * v0[i, k]

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_dot2, _focal_dd,
-                                                 _focal_dd_constants, _next_chi_compiled, _two_prod,
+                                                 _focal1, _focal_dd_constants, _focal_hyp1,
+                                                 _next_chi_compiled, _two_prod,
                                                  _two_sum)
 
 TWO_PI = 2.0 * np.pi
@@ -450,7 +451,9 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi):
     E0 = 1 rad, 3.8e-9 from apoapsis. Here every factor is a product or a sum of same-sign terms
     (``ome`` and ``2 s^2``), and the energy ``v^2/2 - mu/|r| = -mu/(2a)`` holds for *any* ``ome``, so
     the error stays a few roundings of the output (about 3x the floor): the energy depends on ``a``
-    alone, ``e``'s rounding goes into ``h`` only. The compiled twin is ``kepler_kernels._focal1``."""
+    alone, ``e``'s rounding goes into ``h`` only. From ``1 - e < FOCAL_DD_OME`` the scalars and the sums
+    are double-doubles, rounded once (``kepler_kernels._focal_dd``): 0.8-1x the floor. The scalar
+    formulas are ``kepler_kernels._focal1``, one source for numpy and the compiled loop."""
     if (alpha < 0).all():
         return _focal_state_hyp(-a, -ome, P, Q, sh0, ch0, hn, mu, alpha, chi)
     if (alpha < 0).any():
@@ -459,25 +462,13 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi):
         for k in (alpha > 0, alpha < 0):
             r[k], v[k] = _focal_state(*(q[k] for q in (a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi)))
         return r, v
-    half = 0.5 * np.sqrt(alpha) * chi
-    sd = np.sin(half)
-    cd = np.cos(half)
-    s = sh0 * cd + ch0 * sd                                   # sin(E/2)
-    c = ch0 * cd - sh0 * sd                                   # cos(E/2)
-    s2 = s * s
-    sin_e = 2.0 * s * c
-    cos_e = 1.0 - 2.0 * s2
-    x = a * (ome - 2.0 * s2)                                  # a (cos E - e)
-    y = a * np.sqrt(ome * (2.0 - ome)) * sin_e                # b sin E
-    rn = a * (ome + 2.0 * s2 - 2.0 * ome * s2)                # a (1 - e cos E)
-    vx = -(np.sqrt(mu * a) / rn) * sin_e
-    vy = (hn / rn) * cos_e
+    x, y, vx, vy, s, c = _focal1(a, ome, sh0, ch0, hn, mu, alpha, chi)
     r = x[:, None] * P + y[:, None] * Q
     v = vx[:, None] * P + vy[:, None] * Q
     dd = ome < FOCAL_DD_OME
     if dd.any():                      # very eccentric: the same scalars in double-double, rounded once
         k = np.flatnonzero(dd)
-        xh, xl, yh, yl, uh, ul, wh, wl = (q[:, None] for q in _focal_dd(a[k], ome[k], ddc[k].T, s[k], c[k]))
+        xh, xl, yh, yl, uh, ul, wh, wl = (q[:, None] for q in _focal_dd(a[k], ome[k], *ddc[k].T, s[k], c[k]))
         r[k] = _dd_dot2(xh, xl, P[k], Pl[k], yh, yl, Q[k], Ql[k])
         v[k] = _dd_dot2(uh, ul, P[k], Pl[k], wh, wl, Q[k], Ql[k])
     return r, v
@@ -489,19 +480,7 @@ def _focal_state_hyp(A, em1, P, Q, sh0, ch0, hn, mu, alpha, chi):
     ``sh = sinh(H/2)``, ``cosh(H/2) = sqrt(1 + sh^2)`` (so ``cosh^2 - sinh^2 = 1`` to rounding),
     ``b = A sqrt(em1 (2 + em1))``. Why: ``f r0 + g v0`` lets ``h`` drift as ``|chi|`` grows (1e-9 of
     h after 1e10 s); here ``h`` is a few roundings at any time."""
-    half = 0.5 * np.sqrt(-alpha) * chi
-    sd = np.sinh(half)
-    cd = np.cosh(half)
-    s = sh0 * cd + ch0 * sd                                   # sinh(H/2)
-    s2 = s * s
-    c = np.sqrt(1.0 + s2)                                     # cosh(H/2)
-    sinh_h = 2.0 * s * c
-    cosh_h = 1.0 + 2.0 * s2
-    x = A * (em1 - 2.0 * s2)
-    y = A * np.sqrt(em1 * (2.0 + em1)) * sinh_h
-    rn = A * (em1 + 2.0 * s2 + 2.0 * em1 * s2)
-    vx = -(np.sqrt(mu * A) / rn) * sinh_h
-    vy = (hn / rn) * cosh_h
+    x, y, vx, vy = _focal_hyp1(-A, -em1, sh0, ch0, hn, mu, alpha, chi)
     r = x[:, None] * P + y[:, None] * Q
     v = vx[:, None] * P + vy[:, None] * Q
     return r, v
