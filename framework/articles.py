@@ -22,11 +22,12 @@ import math
 
 import numpy as np
 
-from driftframe.components.collision import CollisionEvent
 
 
-def articles_step(st, lay, dt: float, t0: float, events: bool, step: int = -1):
-    """The end-of-step ``(x, v)`` (n, 3) of the colliders in ``st`` and the events (a list)."""
+def articles_step(st, lay, dt: float, t0: float, events: bool):
+    """The end-of-step ``(x, v)`` (n, 3) of the colliders in ``st`` and its contacts, a list of
+    ``(a, b, time, step_time, point, normal, impulse)`` (a ``CollisionEvent``'s fields, made by the
+    collision system: this layer knows no component)."""
     x1, v1 = st.end_of_step(dt)
     x = x1.tolist()
     v = v1.tolist()
@@ -77,7 +78,6 @@ def articles_step(st, lay, dt: float, t0: float, events: bool, step: int = -1):
                 a_, b_, sign = (i, j, 1.0) if ents[i] < ents[j] else (j, i, -1.0)
                 nn = (sign * nx, sign * ny, sign * nz)
                 pa = x[a_]
-                out.append(CollisionEvent(ents[a_], ents[b_], t0 + dt - s, dt - s,
-                                          (pa[0] + r[a_] * nn[0], pa[1] + r[a_] * nn[1], pa[2] + r[a_] * nn[2]),
-                                          nn, impulse, "articles", step=step))
+                out.append((ents[a_], ents[b_], t0 + dt - s, dt - s,
+                            (pa[0] + r[a_] * nn[0], pa[1] + r[a_] * nn[1], pa[2] + r[a_] * nn[2]), nn, impulse))
     return np.array(x).reshape(n, 3), np.array(v).reshape(n, 3), out

@@ -400,12 +400,13 @@ class CollisionSystem(esper.Processor):
         st.gather(lay, dt)
         if self.method == "articles":
             from driftframe.framework.articles import articles_step
-            x, v, events = articles_step(st, lay, dt, self._now(), self.events, self.world.step_count)
+            x, v, contacts = articles_step(st, lay, dt, self._now(), self.events)
             self._write(lay, x, v, dt)
             self.stats["pairs"] = lay.n * (lay.n - 1) // 2
-            self.stats["contacts"] = len(events)
-            for ev in events:
-                self.world.emit(ev)
+            self.stats["contacts"] = len(contacts)
+            step = self.world.step_count
+            for c in contacts:
+                self.world.emit(CollisionEvent(*c, "articles", step=step))
             return
         self._continuous(lay, st, dt)
 

@@ -20,12 +20,29 @@ def _run(cmd, **kw):
     return res
 
 
+def _source(tmp: Path) -> Path:
+    """The files git tracks, copied as a fresh clone has them: setuptools builds in the tree's build/, and a
+    build/lib left there by an earlier build (of modules since moved or deleted) would go into the wheel."""
+    listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=ROOT,
+                            capture_output=True, timeout=60)
+    if listed.returncode != 0:
+        return ROOT                                     # not a git checkout (an unpacked sdist): as it is
+    src = tmp / "src"
+    for name in listed.stdout.decode().split("\0"):
+        if name and (ROOT / name).is_file():
+            dest = src / name
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, dest)
+    return src
+
+
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory):
     out = tmp_path_factory.mktemp("wheel")
+    src = _source(tmp_path_factory.mktemp("tree"))
     # no build isolation: setuptools from the test extra, so the build needs no network
     _run([PY, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "--disable-pip-version-check",
-          "-w", str(out), str(ROOT)], cwd=out)
+          "-w", str(out), str(src)], cwd=out)
     (whl,) = out.glob("driftframe-*.whl")
     return whl
 
