@@ -39,6 +39,19 @@ def _stumpff1(psi):
     return (np.cosh(x) - 1.0) / (-psi), (np.sinh(x) - x) / (-psi * x)
 
 
+@kernel(inline="always")
+def _stumpff_half(psi):
+    """:func:`_stumpff1` for the on-rails loop, with ``sin(x/2), cos(x/2)`` (``x = sqrt(psi)``, ``psi > 1``;
+    NaN otherwise) for the focal frame, which then needs no sine of its own; ``sin x = 2 sin(x/2) cos(x/2)``."""
+    if psi > 1.0:
+        x = np.sqrt(psi)
+        s = np.sin(0.5 * x)
+        c = np.cos(0.5 * x)
+        return 2.0 * s * s / psi, (x - 2.0 * s * c) / (psi * x), s, c
+    c2, c3 = _stumpff1(psi)
+    return c2, c3, np.nan, np.nan
+
+
 _C2_NB = _C2_SERIES.copy()
 _C3_NB = _C3_SERIES.copy()
 
@@ -200,8 +213,12 @@ def _focal_hyp1(a, ome, sh0, ch0, hn, mu, alpha, chi):
 def _focal1(a, ome, sh0, ch0, hn, mu, alpha, chi):
     """``kepler_universal._focal_state``'s scalars ``x, y, vx, vy`` and ``s, c`` for one ellipse, same order."""
     half = 0.5 * np.sqrt(alpha) * chi
-    sd = np.sin(half)
-    cd = np.cos(half)
+    return _focal1_sc(a, ome, sh0, ch0, hn, mu, np.sin(half), np.cos(half))
+
+
+@_both
+def _focal1_sc(a, ome, sh0, ch0, hn, mu, sd, cd):
+    """:func:`_focal1` from ``sin(dE/2), cos(dE/2)`` already known (the solver's, on rails)."""
     s = sh0 * cd + ch0 * sd
     c = ch0 * cd - sh0 * sd
     s2 = s * s
@@ -245,10 +262,14 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
         c2 = 0.5
         c3 = 1.0 / 6.0
         fp = rn
+        s_half = np.nan
+        c_half = np.nan
+        chi_half = np.nan                                # the chi of s_half, c_half
         for it in range(60):
             chi2 = chi * chi
             psi = al * chi2
-            c2, c3 = _stumpff1(psi)
+            c2, c3, s_half, c_half = _stumpff_half(psi)
+            chi_half = chi
             one_c3 = 1.0 - psi * c3
             one_c2 = 1.0 - psi * c2
             ta = chi2 * chi * c3
@@ -288,7 +309,11 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
                 x, y, vx, vy = _focal_hyp1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
                 s = c = 0.0
             else:
-                x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
+                if chi_half == chi and s_half == s_half:    # the solver's sin(x/2), cos(x/2) at this chi
+                    x, y, vx, vy, s, c = _focal1_sc(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i],
+                                                    np.copysign(s_half, chi), c_half)
+                else:
+                    x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
             if al > 0 and ome[i] < dd_ome:
                 xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
                                                            ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
