@@ -65,3 +65,31 @@ def ellipse_states(r0, v0, times, mu=1.0):
     k = np.sqrt(mu * a) / r
     return (x[:, None] * P + y[:, None] * Q,
             (-k * np.sin(E))[:, None] * P + (k * om * np.cos(E))[:, None] * Q)
+
+
+def hyperbola_states(r0, v0, times, mu):
+    """Long-double states at ``times`` (s) on the hyperbola through ``(r0, v0)`` (3-vectors, about ``mu``):
+    Kepler's hyperbolic equation ``e sinh H - H = M`` (Newton from asinh(M/e)) and the focal frame."""
+    r0 = np.asarray(r0, dtype=LD)
+    v0 = np.asarray(v0, dtype=LD)
+    mu = LD(mu)
+    rn = np.sqrt(r0 @ r0)
+    vv = v0 @ v0
+    rv = r0 @ v0
+    A = -LD(1) / (LD(2) / rn - vv / mu)                   # -a > 0
+    evec = ((vv - mu / rn) * r0 - rv * v0) / mu
+    e = np.sqrt(evec @ evec)
+    P = evec / e
+    hv = np.cross(r0, v0)
+    Q = np.cross(hv / np.sqrt(hv @ hv), P)
+    H0 = np.arcsinh(rv / np.sqrt(mu * A) / e)
+    M = e * np.sinh(H0) - H0 + np.sqrt(mu / A ** 3) * np.asarray(times, dtype=LD)
+    H = np.arcsinh(M / e)
+    for _ in range(100):
+        H = H - (e * np.sinh(H) - H - M) / (e * np.cosh(H) - 1)
+    om = np.sqrt((e - 1) * (e + 1))
+    r = A * (e * np.cosh(H) - 1)
+    k = np.sqrt(mu * A) / r
+    x, y = A * (e - np.cosh(H)), A * om * np.sinh(H)
+    return (x[:, None] * P + y[:, None] * Q,
+            (-k * np.sinh(H))[:, None] * P + (k * om * np.cosh(H))[:, None] * Q)

@@ -296,7 +296,14 @@ class Epoch:
     for bodies propagated from one epoch step after step (on rails), only ``dt`` changes."""
 
     __slots__ = ("r0", "v0", "mu", "sqmu", "r0n", "alpha", "sigma0", "period", "chi_turn", "span_rate", "_compiled",
-                 "focal")
+                 "_focal")
+
+    @property
+    def focal(self):
+        """The focal frames (:func:`_focal_frame`), derived at the first evaluation that needs them."""
+        if self._focal is None:
+            self._focal = _focal_frame(self.r0, self.v0, self.mu, self.r0n, self.alpha, self.sigma0)
+        return self._focal
 
     def __init__(self, r0, v0, mu):
         r0 = np.atleast_2d(np.asarray(r0, dtype=np.float64))
@@ -315,7 +322,7 @@ class Epoch:
             # the solver's bracket for ellipses: |chi| <= (n |dt| + 2) sqrt(a)
             self.span_rate = (np.where(self.alpha > 0, np.sqrt(self.mu * np.abs(self.alpha) ** 3), np.inf),
                               np.sqrt(1.0 / np.abs(self.alpha)))
-            self.focal = _focal_frame(r0, v0, self.mu, self.r0n, self.alpha, self.sigma0)
+        self._focal = None
 
     def at(self, dt, chi=None):
         """``r, v, chi`` after ``dt`` s (scalar or ``(n,)``); ``chi``: a first guess (:func:`next_chi`).
@@ -389,6 +396,15 @@ FOCAL_MIN_HYP_E = 1.01
 FOCAL_DD_OME = 0.05
 
 
+def _cross(a, b):
+    """Row-wise ``a x b`` of ``(n, 3)`` arrays (np.cross costs ~15 us a call on a few rows)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
     """What :func:`_focal_state` needs of each epoch: ``(use, a, ome, P, Q, sin(E0/2), cos(E0/2), |h|, Pl, Ql,
     ddc)`` (``ddc``: :func:`kepler_kernels._focal_dd_constants`).
@@ -397,7 +413,7 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
     ``P``, the unit eccentricity vector, is ill-defined). ``ome = 1 - e`` from
     ``1 - e^2 = h^2 alpha / mu`` (no cancellation near e = 1); ``Q = h_hat x P``; ``E0``, the epoch's
     eccentric anomaly, from ``e cos E0 = 1 - |r0| alpha`` and ``e sin E0 = sigma0 sqrt(alpha)``."""
-    h = np.cross(r0, v0)
+    h = _cross(r0, v0)
     h2 = _dot(h, h)
     hn = np.sqrt(h2)
     vv = _dot(v0, v0)
@@ -410,15 +426,18 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
         a = 1.0 / alpha
         ome = h2 * alpha / (mu * (1.0 + e))                            # 1 - e (< 0 for a hyperbola)
         P = evec / e[:, None]
-        Q = np.cross(h / np.where(hn > 0, hn, 1.0)[:, None], P)
+        Q = _cross(h / np.where(hn > 0, hn, 1.0)[:, None], P)
         sq = np.sqrt(np.abs(alpha))
         E0 = np.arctan2(sigma0 * sq, 1.0 - r0n * alpha)
         H0 = np.arcsinh(sigma0 * sq / e)                                  # e sinh H0 = sigma0 sqrt(-alpha)
         sh0 = np.where(hyp, np.sinh(0.5 * H0), np.sin(0.5 * E0))
         ch0 = np.where(hyp, np.cosh(0.5 * H0), np.cos(0.5 * E0))
-    Pl, Ql = _unit_frame_lo(P, Q)
-    with np.errstate(invalid="ignore", over="ignore"):
-        ddc = _focal_dd_constants(a, ome, mu)
+    # the double-double parts only where the state is formed in double-double (zeros elsewhere)
+    Pl, Ql, ddc = np.zeros_like(P), np.zeros_like(Q), np.zeros((len(a), 6))
+    k = np.flatnonzero(use & (alpha > 0) & (ome < FOCAL_DD_OME))
+    if k.size:
+        Pl[k], Ql[k] = _unit_frame_lo(P[k], Q[k])
+        ddc[k] = _focal_dd_constants(a[k], ome[k], mu[k])
     return use, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc
 
 
