@@ -237,14 +237,14 @@ def test_attach_keeps_the_line_cube_as_the_default_sky_and_makes_the_starfield_f
         systems(skybox="nebula")
 
 
-def test_record_sky_starfield_is_repeatable_and_the_line_cube_stays_the_default(tmp_path, ctx):
+def test_record_sky_starfield_is_repeatable_and_the_default_except_in_the_rotation_demo(tmp_path, ctx):
     from PIL import Image
 
     from driftframe.cli import main
 
-    def first_frame(*args):
+    def first_frame(*args, demo="rotation"):
         out = tmp_path / f"run{len(list(tmp_path.iterdir()))}"
-        assert main(["record", "rotation", "--seconds", "0.05", "--size", "160x90", "--quiet",
+        assert main(["record", demo, "--seconds", "0.05", "--size", "160x90", "--quiet",
                      "-o", f"{out}/", *args]) == 0
         return np.asarray(Image.open(sorted(out.glob("*.png"))[0]).convert("RGB")).astype(int)
 
@@ -258,6 +258,8 @@ def test_record_sky_starfield_is_repeatable_and_the_line_cube_stays_the_default(
                                      & (stars_a[..., 1] > 2 * stars_a[..., 2] + 40)).any()
     # the rotation demo has no random parts: only the sky changes with the seed
     assert (stars_a != other_seed).any(axis=-1).sum() > 20
+    # every other demo: the starfield unless --sky lines
+    np.testing.assert_array_equal(first_frame(demo="cradle"), first_frame("--sky", "starfield", demo="cradle"))
 
 
 def test_starfield_uses_mipmaps_only_where_the_view_shrinks_the_texture(ctx):
