@@ -32,12 +32,11 @@ def cmd_batch(args) -> int:
     client = None
     try:
         # every check before any run: the file, each entry, the output folder, the scheduler
-        specs = batch_file.load(spec_path, out_dir.resolve(), check=False)
+        specs = batch_file.load(spec_path, out_dir.resolve(), check=False, overwrite=args.overwrite)
         if journal_path.exists() and not (args.resume or args.overwrite):
             raise batch.SpecError(f"{journal_path} exists: a batch ran into {str(out_dir)!r} before; pass "
                                   "--resume to continue it or --overwrite to start again")
-        batch.check_all(batch_file.without_outputs(specs))
-        batch.check_output_names(specs)
+        specs = batch.check_all(specs, outputs=False)      # each entry; the outputs' names, not their folders
         skip = batch_report.resumed(specs, batch_report.read_journal(journal_path)) if args.resume else {}
         if scheduler is not None or args.scheduler_file is not None:
             client = batch.connect(scheduler, scheduler_file=args.scheduler_file)
@@ -45,7 +44,7 @@ def cmd_batch(args) -> int:
             link = batch.dashboard(client)
             if link:
                 print(f"driftframe: dashboard: {link}", file=sys.stderr)
-        specs = batch_file.prepare(specs, out_dir, overwrite=args.overwrite, done=skip.keys())
+        specs = batch_file.prepare(specs, out_dir, overwrite=args.overwrite, done=skip.keys(), checked=True)
     except batch.SpecError as e:
         if client is not None:
             client.close()

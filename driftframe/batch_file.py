@@ -35,7 +35,8 @@ import string
 import tomllib
 from pathlib import Path
 
-from driftframe.batch import STATS, Spec, SpecError, check_all, check_output_names
+from driftframe.batch import STATS, Spec, SpecError, check_all
+from driftframe.batch_spec import _check_output
 
 #: Keys a batch file may have, and what each is.
 KEYS = {
@@ -116,11 +117,12 @@ def _size_axis(value, where: str) -> list:
     return out
 
 
-def load(path, out_dir, *, check: bool = True) -> list[Spec]:
+def load(path, out_dir, *, check: bool = True, overwrite: bool = False) -> list[Spec]:
     """The runs of batch file ``path``, outputs placed in ``out_dir``; a SpecError otherwise.
 
     ``check``: check every run (:func:`~driftframe.batch.check_all`; the
     output folder must exist then); False only parses the grid.
+    ``overwrite``: the runs may replace existing outputs.
     """
     from driftframe.framework.inputfile import InputFileError, read_text_capped
 
@@ -134,10 +136,10 @@ def load(path, out_dir, *, check: bool = True) -> list[Spec]:
         raise SpecError(str(e)) from None
     except tomllib.TOMLDecodeError as e:
         raise SpecError(f"{name}: not valid TOML: {e}") from None
-    return grid(data, out_dir, name=name, check=check)
+    return grid(data, out_dir, name=name, check=check, overwrite=overwrite)
 
 
-def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> list[Spec]:
+def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True, overwrite: bool = False) -> list[Spec]:
     """The runs of a parsed batch table (see the module docstring), checked unless ``check`` is False."""
     if "seed" in data and "seeds" not in data:
         data = {**data, "seeds": data["seed"]}
@@ -193,6 +195,7 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
     keys = list(axes)
     ov_keys = [k.split(".", 1)[1] for k in keys[7:]]
     ov_memo: dict = {}
+    fill_memo: dict = {}
     stats = tuple(stats)
     specs = []
     for index, combo in enumerate(itertools.product(*axes.values())):
@@ -212,10 +215,10 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True) -> lis
             ("".join(f", {k}={v!r}" for k, v in ov.items()) if ov else "") + ")"
         output = None
         if template is not None:
-            point = dict(zip(keys[:7], combo[:7]))
-            output = inside(_fill(template, point, kind, ov, index, where), where)
+            output = inside(_fill(template, combo, kind, ov, index, where, fill_memo), where)
         specs.append(Spec(**{kind: what}, seed=seed, seconds=seconds, fps=fps, size=size, camera=camera, sky=sky,
-                          overrides=ov, output=output, stats=stats, scripted=scripted, where=where))
+                          overrides=ov, output=output, stats=stats, scripted=scripted, where=where,
+                          overwrite=overwrite and output is not None))
     return check_all(specs) if check else specs
 
 
@@ -236,8 +239,12 @@ class _Inside:
         except (OSError, ValueError):
             self.name_max = 255
         self.folders: dict[str, bool] = {}
+        self.base = os.path.join(out_dir, "")
 
     def __call__(self, filled: str, where: str) -> str:
+        if "/" not in filled and os.sep not in filled and "\0" not in filled and filled not in (".", "..") \
+                and filled.strip() and (len(filled) if filled.isascii() else len(os.fsencode(filled))) <= self.name_max:
+            return self.base + filled           # a plain name in the output folder (10^6 runs: the usual case)
         if "\0" in filled or not filled.strip():
             raise SpecError(f"{where}: output name {filled!r} is not a usable file name")
         parts = filled.replace(os.sep, "/").split("/")
@@ -260,16 +267,11 @@ class _Inside:
         return full
 
 
-def without_outputs(specs) -> list[Spec]:
-    """The same runs, headless: to check everything but the outputs before any folder exists."""
-    import dataclasses
-    return [s if s.output is None else dataclasses.replace(s, output=None) for s in specs]
-
-
-def prepare(specs, out_dir, *, overwrite: bool = False, done=frozenset()) -> list[Spec]:
+def prepare(specs, out_dir, *, overwrite: bool = False, done=frozenset(), checked: bool = False) -> list[Spec]:
     """Check the runs, then the output folder, then the outputs in it: errors before anything runs.
 
-    Everything but the outputs is checked first, so a bad entry creates no
+    Everything but the outputs is checked first (``checked``: the caller did,
+    with ``check_all(specs, outputs=False)``), so a bad entry creates no
     folder; then ``out_dir`` (created if needed, proven writable) and any
     sub-folder an output template names. Outputs that exist already are an
     error naming the first (and how many) unless ``overwrite``; with it the
@@ -281,8 +283,20 @@ def prepare(specs, out_dir, *, overwrite: bool = False, done=frozenset()) -> lis
 
     real = os.path.realpath(out_dir)
     existing = []
+    listed: dict[str, set] = {}             # each folder listed once: 10^6 outputs, not 10^6 stat calls
     for i, s in enumerate(specs):
-        if s.output is None or i in done or not (os.path.lexists(s.output)):
+        if s.output is None or i in done:
+            continue
+        folder, name = os.path.split(os.fspath(s.output))
+        names = listed.get(folder)
+        if names is None:
+            try:
+                names = listed[folder] = set(os.listdir(folder or "."))
+            except OSError:
+                names = listed[folder] = set()  # (no folder yet: nothing in it exists)
+        if name and name not in names:
+            continue
+        if not os.path.lexists(s.output):
             continue
         target = os.path.realpath(s.output)
         if not target.startswith(real.rstrip(os.sep) + os.sep):
@@ -292,26 +306,26 @@ def prepare(specs, out_dir, *, overwrite: bool = False, done=frozenset()) -> lis
         more = f" and {len(existing) - 1} more" if len(existing) > 1 else ""
         raise SpecError(f"output {existing[0]!r}{more} exists already; pass --overwrite to replace it "
                         "(or --resume to continue the batch that wrote it)")
-    if overwrite:
-        specs = [s if s.output is None else dataclasses.replace(s, overwrite=True) for s in specs]
-    checked = check_all(without_outputs(specs))
-    check_output_names(specs)
+    if overwrite:                           # (load(overwrite=True) made them so: no copy of 10^6 runs)
+        specs = [s if s.output is None or s.overwrite else dataclasses.replace(s, overwrite=True) for s in specs]
+    if not checked:
+        specs = check_all(specs, outputs=False)
     out_dir = check_out_dir(out_dir)
-    made: set = set()
+    made: dict[str, Spec] = {}
     for s in specs:
         if s.output is not None:
             parent = os.path.dirname(s.output)
             if parent in made:
                 continue
-            made.add(parent)
+            made[parent] = s
             if not os.path.isdir(parent):
                 try:
                     os.makedirs(parent, exist_ok=True)
                 except OSError as e:
                     raise SpecError(f"{s.where}: cannot create folder {parent!r}: {e.strerror or e}") from None
-    if not any(s.output is not None for s in specs):
-        return checked                          # headless: checked above, nothing more to look at
-    return check_all(specs)
+    for s in made.values():                 # each output folder: exists, is writable (once a folder)
+        _check_output(os.fspath(s.output), s._err)
+    return specs
 
 
 def _fields(overrides) -> set[str]:
@@ -335,16 +349,23 @@ def _check_template(template: str, overrides, name: str) -> None:
         raise SpecError(f"{name}: output {template!r} must be a relative name inside the output folder")
 
 
-def _fill(template, point, kind, ov, index, where) -> str:
-    size = point["size"]
-    w, h = (size.lower().split("x") + ["", ""])[:2] if isinstance(size, str) else (list(size) + ["", ""])[:2]
-    value = point[kind]
-    label = value.split(":")[-1] if kind == "scene" and isinstance(value, str) else value
-    fields = {"demo": label, "scene": label, "seed": point["seed"], "seconds": point["seconds"],
-              "fps": point["fps"], "size": size if isinstance(size, str) else f"{w}x{h}", "width": w,
-              "height": h, "camera": point["camera"] or "default", "sky": point["sky"], "index": index, **ov}
+def _fill(template, combo, kind, ov, index, where, memo: dict) -> str:
+    """The output name of the run at grid point ``combo`` (what, seed, seconds, fps, size, camera, sky,
+    overrides...). The fields but the seed and the index are made once per distinct rest (``memo``)."""
+    what, seed, seconds, fps, size, camera, sky = combo[:7]
+    key = combo[:1] + combo[2:]
     try:
-        return template.format(**fields)
+        fields = memo[key]
+    except (KeyError, TypeError):               # TypeError: an unhashable override value (a list)
+        w, h = (size.lower().split("x") + ["", ""])[:2] if isinstance(size, str) else (list(size) + ["", ""])[:2]
+        label = what.split(":")[-1] if kind == "scene" and isinstance(what, str) else what
+        fields = {"demo": label, "scene": label, "seconds": seconds, "fps": fps,
+                  "size": size if isinstance(size, str) else f"{w}x{h}", "width": w, "height": h,
+                  "camera": camera or "default", "sky": sky, **ov}
+        with contextlib.suppress(TypeError):
+            memo[key] = fields
+    try:
+        return template.format_map({**fields, "seed": seed, "index": index})
     except (ValueError, TypeError, KeyError, IndexError) as e:
         raise SpecError(f"{where}: output {template!r}: {e}") from None
 

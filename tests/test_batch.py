@@ -527,7 +527,7 @@ def test_size_as_a_toml_pair_is_one_size(tmp_path):
 @pytest.mark.parametrize("text,message", [
     ('demo = "cradle"\nseconds = 1e300\n', "seconds 1e+300 is 6e+301 fixed steps"),
     ('demo = "cradle"\nseconds = 200000\n', "a run may have at most 10,000,000 steps"),
-    ('demo = "cradle"\nseconds = 1e300\noutput = "{seed}.gif"\n', "a run may have at most 10,000,000 steps"),
+    ('demo = "cradle"\nseconds = 1e300\noutput = "{seed}.gif"\n', "is 6e+301 frames; a recording may have at most"),
     ('demo = "cradle"\nseconds = 20000\noutput = "{seed}.gif"\n', "is 1.2e+06 frames"),
 ])
 def test_batch_lengths_have_the_limits_of_record(tmp_path, text, message, capsys):
@@ -539,13 +539,17 @@ def test_batch_lengths_have_the_limits_of_record(tmp_path, text, message, capsys
 
 
 def test_a_million_runs_are_checked_in_linear_time(tmp_path):
+    # recordings: the heavier grid (every output named, checked inside -o, unique, its folder once), checked
+    # as the command does (the entries, then the scheduler, then the folders); the bar: 10 s
     spec = tmp_path / "big.toml"
-    spec.write_text('demo = "cradle"\nseeds = "0..999999"\nseconds = 0.1\n')
+    spec.write_text('demo = "cradle"\nseeds = "0..999999"\nseconds = 0.1\nsize = "64x64"\noutput = "c-{seed}.mp4"\n')
     out = tmp_path / "o"
     t0 = time.process_time()
-    specs = batch_file.prepare(batch_file.load(spec, out, check=False), out)
+    specs = batch.check_all(batch_file.load(spec, out, check=False, overwrite=True), outputs=False)
+    specs = batch_file.prepare(specs, out, overwrite=True, checked=True)
     took = time.process_time() - t0
     assert len(specs) == 1_000_000 and specs[-1].seed == 999_999 and specs[-1].seconds == 0.1
+    assert specs[-1].output == str(out / "c-999999.mp4") and specs[-1].overwrite
     assert took < 10.0, f"{took:.1f} s of CPU to check 10^6 runs"
 
 
