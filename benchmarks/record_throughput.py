@@ -52,7 +52,7 @@ from driftframe.framework.gl import create_context, renderer
 from driftframe.framework.recorder import record
 from driftframe.framework.world import World
 from driftframe.systems.movement import MovementSystem
-from driftframe.systems.render import attach
+from driftframe.rendering import attach
 from driftframe.systems.spin import SpinSystem
 
 NAME = "record_throughput"

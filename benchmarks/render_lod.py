@@ -35,7 +35,8 @@ from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
 from driftframe.framework.gl import create_context, renderer
 from driftframe.framework.world import World
-from driftframe.systems.render import RenderSystem, attach
+from driftframe.rendering import attach
+from driftframe.systems.render import RenderSystem
 
 NAME = "render_lod"
 SIZE = (1280, 720)

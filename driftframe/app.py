@@ -194,7 +194,7 @@ def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tu
     :class:`~systems.render.RenderSystem`.
     """
     from driftframe.systems import camera as camera_sys
-    from driftframe.systems.render import attach, default_sky
+    from driftframe.rendering import attach, default_sky
 
     if sky is None:
         sky = default_sky(world.resources.get("demo"))

@@ -58,7 +58,7 @@ def _load_demo(name, seed=None, sky: str = "starfield"):
         raise UsageError(str(e)) from None
     if seed is not None and seed is not DEFAULT_SEED and not getattr(demo, "SEEDED", True):
         if sky is DEFAULT_SKY:
-            from driftframe.systems.render import default_sky
+            from driftframe.rendering import default_sky
             sky = default_sky(demo)
         what = "only the starfield sky" if sky == "starfield" else "nothing"
         print(f"driftframe: note: the {name} demo takes no seed (it is the same every run); "
@@ -165,7 +165,7 @@ def cmd_record(args) -> int:
     _output_names(**{"-o": out, "--hash-log": args.hash_log})
     track = _apply_track(args, demo)
     if args.sky is DEFAULT_SKY:
-        from driftframe.systems.render import default_sky
+        from driftframe.rendering import default_sky
         args.sky = default_sky(demo)
     saved = _open_save(args)
     _output_file("--hash-log", args.hash_log, args.overwrite)
@@ -242,7 +242,7 @@ def cmd_play(args) -> int:
     from driftframe.window import PlayError, check_display, play
     demo = _load_demo(args.demo, args.seed, args.sky)
     if args.sky is DEFAULT_SKY:
-        from driftframe.systems.render import default_sky
+        from driftframe.rendering import default_sky
         args.sky = default_sky(demo)
     if not os.path.isdir(args.screenshots):
         raise UsageError(f"--screenshots: no such directory: {args.screenshots!r}")

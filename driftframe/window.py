@@ -244,7 +244,7 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
 
     from driftframe.app import load_scene
     from driftframe.framework.world import World
-    from driftframe.systems.render import default_sky
+    from driftframe.rendering import default_sky
 
     bindings = bindings or Bindings()
     if isinstance(name, World):

@@ -17,7 +17,7 @@ Several off-screen contexts may live in one process (a world each): GL calls go
 to the context that is *current*, so whatever draws, reads or frees GL objects
 makes its own current first (:func:`current`: ``with current(ctx):``). The
 world does it for its frame (``World.render`` enters its resources'
-``frame_scope``, which :class:`ContextHandle` gives), :func:`systems.render.attach`
+``frame_scope``, which :class:`ContextHandle` gives), :func:`driftframe.rendering.attach`
 for the objects it makes, :class:`RenderTarget` for a read-back, and
 :class:`ContextHandle` for the release. A window's context is the window's:
 it is current already and is left alone. (Each stays current after the block:
@@ -31,7 +31,7 @@ method for worker processes. Starting a program that ``exec``s is fine.
 (RGBA8 colour + 24-bit depth renderbuffers) or a window's default
 framebuffer. :meth:`RenderTarget.read_rgba` returns the frame as an
 ``(H, W, 4)`` uint8 array, top row first (GL reads bottom-up; it is flipped
-here). :class:`ContextHandle` is what :func:`systems.render.attach` stores in
+here). :class:`ContextHandle` is what :func:`driftframe.rendering.attach` stores in
 ``world.resources["gl"]``: it releases the context with the world only when
 the world owns it.
 """

@@ -6,7 +6,7 @@
     result = record(world, "out/asteroids.mp4", frames=600)     # 10 s at dt = 1/60
     result.frames, result.interrupted, result.path
 
-The world must have rendering attached (:func:`systems.render.attach`). Each
+The world must have rendering attached (:func:`driftframe.rendering.attach`). Each
 frame: ``before_step(world, step)`` (scripted input) and ``world.step()``,
 ``steps_per_frame`` times; then ``world.render()`` (every render- and
 record-stage system: models, skybox, a HUD...) and the frame is read back.

@@ -12,7 +12,7 @@ from driftframe.framework.input import CHANNELS, PRESSED, SIM_PRESSED, Track, Tr
 
 
 def _switch_camera(world) -> None:
-    from driftframe.systems.camera import switch_camera
+    from driftframe.systems.camera_rig import switch_camera
     switch_camera(world)
 
 

@@ -587,7 +587,7 @@ def test_a_gif_frame_longer_than_655_s_is_split_and_a_vanishing_fps_is_refused(c
     from driftframe.framework.recorder import record
     from driftframe.framework.world import World
     from driftframe.systems.movement import MovementSystem
-    from driftframe.systems.render import attach
+    from driftframe.rendering import attach
 
     w = World()
     try:

@@ -87,7 +87,7 @@ def test_entities_born_in_the_step_are_drawn_where_they_are_and_a_change_outside
 @pytest.mark.gl
 def test_the_frame_drawn_at_alpha_is_the_frame_of_the_blended_scene(ctx):
     """Render hook end to end: interpolating eye and body by 0.5 draws the picture of the midpoint scene."""
-    from driftframe.systems.render import attach
+    from driftframe.rendering import attach
 
     def scene(eye_at, ball_at, eye_v, ball_v):
         w = World(dt=1 / 60)

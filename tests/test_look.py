@@ -50,7 +50,7 @@ def test_fifty_rock_variants_share_one_vertex_buffer_per_shape_and_level(ctx):
 def test_the_asteroids_are_rocks_and_the_rotation_demo_keeps_the_green_lines():
     from driftframe import demos
     from driftframe.app import make_world
-    from driftframe.systems.render import default_sky
+    from driftframe.rendering import default_sky
 
     world, demo = make_world("asteroids", seed=0)
     try:

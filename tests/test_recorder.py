@@ -14,7 +14,8 @@ from driftframe.components.render import ModelRef
 from driftframe.framework.recorder import output_format, record
 from driftframe.framework.world import World
 from driftframe.systems.movement import MovementSystem
-from driftframe.systems.render import RenderSystem, attach
+from driftframe.rendering import attach
+from driftframe.systems.render import RenderSystem
 
 pytestmark = pytest.mark.gl
 

@@ -13,7 +13,8 @@ from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
 from driftframe.framework.world import World
 from driftframe.systems import camera as cs
-from driftframe.systems.render import RenderSystem, attach
+from driftframe.rendering import attach
+from driftframe.systems.render import RenderSystem
 
 pytestmark = pytest.mark.gl
 

@@ -12,7 +12,7 @@ from driftframe.framework import frame as fr
 from driftframe.framework import meshes
 from driftframe.framework.world import World
 from driftframe.systems import camera as cs
-from driftframe.systems.render import attach
+from driftframe.rendering import attach
 
 pytestmark = pytest.mark.gl
 
