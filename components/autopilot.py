@@ -71,12 +71,9 @@ class Autopilot:
     status: str = field(default="", compare=False)
 
     def __post_init__(self):
-        if self.mode not in MODES:
-            raise ValueError(f"Autopilot.mode must be one of {MODES}, got {validate.shown(self.mode)}")
-        if self.along not in DIRECTIONS:
-            raise ValueError(f"Autopilot.along must be one of {DIRECTIONS}, got {validate.shown(self.along)}")
-        if self.target is not None and (isinstance(self.target, bool) or not isinstance(self.target, int)):
-            raise TypeError(f"Autopilot.target must be an entity id (int) or None, got {validate.shown(self.target)}")
+        validate.choice("Autopilot.mode", self.mode, MODES)
+        validate.choice("Autopilot.along", self.along, DIRECTIONS)
+        self.target = validate.entity_id("Autopilot.target", self.target, optional=True)
         if self.point is not None:
             self.point = tuple(validate.vector("Autopilot.point", self.point).tolist())
         needs_target = self.mode in ("target", "anti_target", "match_velocity") or \

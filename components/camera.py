@@ -83,9 +83,7 @@ class Camera:
         if self.target is None:
             raise ValueError("Camera.target is None: a camera without a target; give the entity id of the "
                              "body to follow (it needs a Transform)")
-        if isinstance(self.target, bool) or not isinstance(self.target, (int, np.integer)) or self.target < 0:
-            raise TypeError(f"Camera.target must be an entity id (int >= 0), got {validate.shown(self.target)}")
-        self.target = int(self.target)
+        self.target = validate.entity_id("Camera.target", self.target)
         check_mode(self.mode)
         self.fov = validate.scalar("Camera.fov", self.fov, lo=1e-3, hi=179.0)
         self.near = validate.scalar("Camera.near", self.near, positive=True)
@@ -122,6 +120,4 @@ class Camera:
 
 
 def check_mode(mode) -> str:
-    if mode not in MODES:
-        raise ValueError(f"Camera.mode must be one of {MODES}, got {validate.shown(mode)}")
-    return mode
+    return validate.choice("Camera.mode", mode, MODES)

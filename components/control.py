@@ -57,8 +57,7 @@ class FlightControl:
     angular_accel: float = 2.0
 
     def __post_init__(self):
-        if self.mode not in MODES:
-            raise ValueError(f"FlightControl.mode must be one of {MODES}, got {validate.shown(self.mode)}")
+        validate.choice("FlightControl.mode", self.mode, MODES)
         self.thrust = validate.scalar("FlightControl.thrust", self.thrust, nonnegative=True)
         self.turn_rate = validate.scalar("FlightControl.turn_rate", self.turn_rate, nonnegative=True)
         self.angular_accel = validate.scalar("FlightControl.angular_accel", self.angular_accel, nonnegative=True)
@@ -82,5 +81,4 @@ class RotationAssist:
 
     def __post_init__(self):
         self.max_decel = validate.scalar("RotationAssist.max_decel", self.max_decel, positive=True)
-        if self.axes not in ASSIST_AXES:
-            raise ValueError(f"RotationAssist.axes must be one of {ASSIST_AXES}, got {validate.shown(self.axes)}")
+        validate.choice("RotationAssist.axes", self.axes, ASSIST_AXES)

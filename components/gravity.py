@@ -60,8 +60,7 @@ class GravityWell:
             self.mu = validate.scalar("GravityWell.mu", self.mu, positive=True)
             self.mass = self.mu / G
         self.radius = validate.scalar("GravityWell.radius", self.radius, positive=True)
-        if self.parent is not None and (isinstance(self.parent, bool) or not isinstance(self.parent, int)):
-            raise TypeError(f"GravityWell.parent must be an entity id (int) or None, got {validate.shown(self.parent)}")
+        self.parent = validate.entity_id("GravityWell.parent", self.parent, optional=True)
         if self.soi is not None:
             self.soi = validate.scalar("GravityWell.soi", self.soi, positive=True, allow_inf=True)
             if not self.soi > self.radius:

@@ -110,3 +110,20 @@ def array(name: str, value, shape_tail=(3,), n: int | None = None, *, allow_inf:
             need += f" and in [{lo}, {hi}]"
         raise ValueError(f"{name}[{i}] must be {need}, got {_show(arr[i])}")
     return arr
+
+
+def choice(name: str, value, options: tuple):
+    """``value`` when it is one of ``options``; else a ValueError naming ``name``, the options and the value."""
+    if value not in options:
+        raise ValueError(f"{name} must be one of {options}, got {shown(value)}")
+    return value
+
+
+def entity_id(name: str, value, *, optional: bool = False) -> int | None:
+    """``value`` as an entity id (a Python or numpy integer >= 0, not a bool), or None when ``optional``;
+    else a TypeError naming ``name`` and the value."""
+    if value is None and optional:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise TypeError(f"{name} must be an entity id (int >= 0){' or None' if optional else ''}, got {shown(value)}")
+    return int(value)
