@@ -274,6 +274,7 @@ class CollisionSystem(esper.Processor):
         self._list = bp.NeighbourList(skin_steps, "grid" if broadphase in ("auto", "all") else broadphase)
         self._list_layout = None
         self._list_dirty = True
+        self._lst = None
         self._pairs_n = -1
         self._pairs = None
         self._warned: set[str] = set()
@@ -373,6 +374,7 @@ class CollisionSystem(esper.Processor):
         self._tosweep = np.empty(n, np.int64)               # the kernel's scratch for bodies swept mid-step
         self._newlo = np.empty((n, 3))
         self._newhi = np.empty((n, 3))
+        self._lst = None                                    # ListedArrays of this build (made at its first step)
 
     def _now(self) -> float:
         return self.world.time if self.world is not None else 0.0
@@ -535,10 +537,13 @@ class CollisionSystem(esper.Processor):
             if rebuild:
                 self._build_list(lay, st, dt, x, u, r)
                 self.stats["builds"] = 1
-            centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
             pi, pj = self._pi, self._pj
-            lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width),
-                                       int(nl.budget), self._tosweep, self._newlo, self._newhi)
+            lst = self._lst
+            if lst is None:                                  # the list's arrays: the same until its next build
+                centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
+                lst = self._lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order,
+                                                       lo_x, float(width), int(nl.budget), self._tosweep,
+                                                       self._newlo, self._newhi)
         res = contact.solve_step(contact.StepInputs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c,
                                                     self.max_contacts, lst), stick=self._stick)
         self._stick = res.stick                              # after a jam, the variant with the jam path
