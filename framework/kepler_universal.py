@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_dot2, _focal_dd,
-                                                 _focal1, _focal_dd_constants, _focal_hyp1,
-                                                 _next_chi_compiled, _two_prod,
+                                                 _dd_div, _dd_sqrt, _fast_two_sum, _focal1,
+                                                 _focal_dd_constants, _focal_hyp1, _next_chi_compiled, _two_prod,
                                                  _two_sum)
 
 TWO_PI = 2.0 * np.pi
@@ -405,6 +405,31 @@ def _cross(a, b):
     return out
 
 
+def _semi_major_axis(r0, v0, mu, alpha):
+    """``a = 1 / alpha`` with ``alpha = 2/|r0| - |v0|^2/mu`` in double-double, rounded once: the focal
+    state's energy is ``-mu/(2a)`` of this ``a``, and ``alpha`` in doubles carries the rounding of
+    ``2/|r0|`` and ``|v0|^2/mu`` (a few ulp, more where they cancel near periapsis)."""
+    def sum_sq(x):
+        h, lo = _two_prod(x[:, 0], x[:, 0])
+        for k in (1, 2):
+            ph, pl = _two_prod(x[:, k], x[:, k])
+            h, t = _two_sum(h, ph)
+            lo = lo + t + pl
+        return _fast_two_sum(h, lo)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        rh, rl = _dd_sqrt(*sum_sq(r0))
+        th, tl = _dd_div(2.0, 0.0, rh, rl)
+        vh, vl = sum_sq(v0)
+        uh, ul = _dd_div(vh, vl, mu, 0.0)
+        ah, al = _two_sum(th, -uh)
+        ah, al = _fast_two_sum(ah, al + (tl - ul))
+        a = _dd_div(1.0, 0.0, ah, al)[0]
+        # where the two alphas differ by more than rounding (near a parabola, 2/|r0| and |v0|^2/mu cancel
+        # to a few digits) the solver's chi is tied to the double alpha: keep 1/alpha there
+        close = np.abs(a * alpha - 1.0) < 1e-13
+    return np.where(np.isfinite(a) & close, a, 1.0 / alpha)
+
+
 def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
     """What :func:`_focal_state` needs of each epoch: ``(use, a, ome, P, Q, sin(E0/2), cos(E0/2), |h|, Pl, Ql,
     ddc)`` (``ddc``: :func:`kepler_kernels._focal_dd_constants`).
@@ -423,7 +448,7 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
         e = _norm(evec)
         hyp = (alpha < 0) & (e >= FOCAL_MIN_HYP_E)
         use = ((alpha > 0) & (e >= FOCAL_MIN_E) | hyp) & np.isfinite(e) & (r0n > 0) & (hn > 0)
-        a = 1.0 / alpha
+        a = _semi_major_axis(r0, v0, mu, alpha)
         ome = h2 * alpha / (mu * (1.0 + e))                            # 1 - e (< 0 for a hyperbola)
         P = evec / e[:, None]
         Q = _cross(h / np.where(hn > 0, hn, 1.0)[:, None], P)
