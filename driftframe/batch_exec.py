@@ -485,10 +485,28 @@ def connect(scheduler: str | None = None, *, scheduler_file=None, timeout: float
     quiet = logging.getLogger("distributed")
     level = quiet.level
     quiet.setLevel(logging.CRITICAL)            # its own warnings about a bad peer: our one line says it
+    made: list = []
+
+    def make():
+        try:
+            made.append(Client(scheduler_file=scheduler_file, timeout=timeout) if scheduler_file is not None
+                        else Client(scheduler, timeout=timeout))
+        except BaseException as e:  # noqa: BLE001 - handed to the caller's thread
+            made.append(e)
     try:
-        if scheduler_file is not None:
-            return Client(scheduler_file=scheduler_file, timeout=timeout)
-        return Client(scheduler, timeout=timeout)
+        # Client's timeout does not bound its handshake: a server that accepts and then says nothing Dask
+        # understands (an HTTP server) held it for ever; here it is a thread, waited for a bounded time
+        helper = threading.Thread(target=make, name="driftframe-dask-connect", daemon=True)
+        helper.start()
+        helper.join(timeout + min(timeout, 5.0))
+        if not made:
+            raise SpecError(f"{what} accepted a connection but did not answer as a Dask scheduler within "
+                            f"{timeout + min(timeout, 5.0):.0f} s; is it one?")
+        if isinstance(made[0], BaseException):
+            raise made[0]
+        return made[0]
+    except SpecError:
+        raise
     except (OSError, TimeoutError) as e:
         raise SpecError(f"{what} cannot be reached, or is not a Dask scheduler: {_one_line(e)}") from None
     except Exception as e:   # noqa: BLE001 - garbage from a non-Dask server, an unsupported protocol, ...

@@ -690,6 +690,33 @@ def test_a_non_dask_address_is_one_line(tmp_path, capsys, monkeypatch):
         server.close()
 
 
+def test_a_server_that_accepts_and_says_nothing_is_one_line_in_bounded_time(tmp_path, capsys, monkeypatch):
+    # as an HTTP server does (it waits for a request line Dask never sends): Client(timeout=) held for ever
+    import socket
+    import threading
+
+    need_distributed()
+    monkeypatch.setattr(batch_exec, "CONNECT_TIMEOUT", 1.0)
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    held = []
+    threading.Thread(target=lambda: held.append(server.accept()), daemon=True).start()
+    spec = tmp_path / "s.toml"
+    spec.write_text('demo = "cradle"\nseconds = 0.1\n')
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    t0 = time.monotonic()
+    try:
+        rc = cli.main(["batch", str(spec), "--scheduler", address, "-o", str(tmp_path / "o"), "--quiet"])
+    finally:
+        server.close()
+    err = capsys.readouterr().err
+    assert rc == 2 and time.monotonic() - t0 < 10, err
+    assert err == f"driftframe: error: scheduler {address!r} accepted a connection but did not answer as a " \
+                  "Dask scheduler within 2 s; is it one?\n"
+    assert not (tmp_path / "o").exists()
+
+
 def test_the_cluster_is_found_from_the_environment_or_a_scheduler_file(tmp_path, cluster, monkeypatch, capsys):
     spec = tmp_path / "s.toml"
     spec.write_text('scene = "batch_scenes:box"\nseeds = "0..1"\nseconds = 0.1\n')
