@@ -41,6 +41,27 @@ def workload() -> None:
         contact.solve_step(contact.StepInputs(x.copy(), u.copy(), np.full(2, 0.5), np.ones(2), np.ones(2),
                                               np.ones(2, np.bool_), np.full(2, -np.inf), 0.0, pi, pj, 1.0 / 60.0,
                                               contact.TC / 60.0, contact.CAP, None), stick=stick)
+    # and the neighbour list's solvers, in a world: a row of 40 balls (more than the all-pairs path takes)
+    # in touch and closing, so the first step is not quiet
+    from driftframe.components.body import Transform, Velocity
+    from driftframe.components.collision import SphereCollider
+    from driftframe.framework.world import World
+    from driftframe.systems.collision import CollisionSystem
+    from driftframe.systems.movement import MovementSystem
+    for stick in (False, True):
+        world = World(dt=1.0 / 60.0)
+        try:
+            world.add_system(MovementSystem())
+            collision = world.add_system(CollisionSystem())
+            collision._stick = stick
+            row = np.zeros((40, 3))
+            row[:, 0] = np.arange(40.0)
+            world.create_entities(Transform.bulk(40, position=row),
+                                  Velocity.bulk(40, linear=np.where(np.arange(40)[:, None] % 2, -1.0, 1.0) * [1, 0, 0]),
+                                  SphereCollider.bulk(40, radius=np.full(40, 0.5)))
+            world.step()
+        finally:
+            world.close()
     n = kepler.COMPILED_MIN
     angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1
