@@ -436,7 +436,8 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
 
     ``use``: ellipses with ``e >= FOCAL_MIN_E`` (below it the Lagrange coefficients lose nothing and
     ``P``, the unit eccentricity vector, is ill-defined). ``ome = 1 - e`` from
-    ``1 - e^2 = h^2 alpha / mu`` (no cancellation near e = 1); ``Q = h_hat x P``; ``E0``, the epoch's
+    ``1 - e^2 = h^2 / (mu a)`` (no cancellation near e = 1; the same ``a`` as the state's, so that
+    ``mu a ome (2 - ome)`` is ``h^2``); ``Q = h_hat x P``; ``E0``, the epoch's
     eccentric anomaly, from ``e cos E0 = 1 - |r0| alpha`` and ``e sin E0 = sigma0 sqrt(alpha)``."""
     h = _cross(r0, v0)
     h2 = _dot(h, h)
@@ -449,7 +450,7 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
         hyp = (alpha < 0) & (e >= FOCAL_MIN_HYP_E)
         use = ((alpha > 0) & (e >= FOCAL_MIN_E) | hyp) & np.isfinite(e) & (r0n > 0) & (hn > 0)
         a = _semi_major_axis(r0, v0, mu, alpha)
-        ome = h2 * alpha / (mu * (1.0 + e))                            # 1 - e (< 0 for a hyperbola)
+        ome = h2 / (mu * a * (1.0 + e))                                # 1 - e (< 0 for a hyperbola)
         P = evec / e[:, None]
         Q = _cross(h / np.where(hn > 0, hn, 1.0)[:, None], P)
         sq = np.sqrt(np.abs(alpha))
