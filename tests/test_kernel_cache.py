@@ -225,6 +225,16 @@ def uncalled_kernels() -> list[str]:
 @pytest.mark.slow
 def test_ctrl_c_during_warm_leaves_a_cache_the_next_warm_completes_and_uses(tmp_path):
     env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+    # a cache that lacks only the solver's kernels (the largest: seconds each to compile), copied from this
+    # run's warm one, so that the Ctrl-C lands in a compile without compiling every kernel twice (CPU time
+    # the whole suite pays); an empty cache when this run has none warm
+    warm = kernels.cache_dir()
+    if warm.is_dir() and (warm / kernels.WARM_MARK).exists():
+        seeded = tmp_path / "nc" / "driftframe" / warm.name
+        shutil.copytree(warm, seeded)
+        for f in list(seeded.iterdir()):
+            if f.name.startswith("contact_solve.") or f.name == kernels.WARM_MARK:
+                f.unlink()
     proc = subprocess.Popen(EXE + ["warm"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     first = proc.stderr.readline()
     assert first.startswith("driftframe: compiling the physics kernels"), first
