@@ -124,6 +124,31 @@ def matrix_to_quat(m: np.ndarray) -> np.ndarray:
     return out.reshape(m.shape[:-2] + (4,))
 
 
+def slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
+    """Spherical interpolation of unit quaternions (scalar last) from ``q0`` (t = 0) to ``q1`` (t = 1), row
+    by row for ``(n, 4)`` arrays or for one ``(4,)`` pair; the one slerp of the project.
+
+    Takes the shorter arc (``q`` and ``-q`` are the same rotation). Where the two are within 1e-6 rad
+    (``sin`` of half the angle between them below 1e-6) it falls back to a normalised lerp, which is
+    exact to rounding there (a wider fallback, a dot product above 0.9995, is off by up to ~1e-6 rad).
+    """
+    one = np.ndim(q0) == 1
+    q0 = np.atleast_2d(np.asarray(q0, np.float64))
+    q1 = np.atleast_2d(np.asarray(q1, np.float64))
+    d = np.einsum("ij,ij->i", q0, q1)
+    q1 = np.where((d < 0)[:, None], -q1, q1)
+    d = np.abs(d)
+    theta = np.arccos(np.minimum(d, 1.0))               # half the rotation angle between them
+    s = np.sin(theta)
+    small = s < 1e-6
+    safe = np.where(small, 1.0, s)
+    w0 = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
+    w1 = np.where(small, t, np.sin(t * theta) / safe)
+    q = w0[:, None] * q0 + w1[:, None] * q1
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q[0] if one else q
+
+
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors ``v (..., 3)`` by unit quaternions ``q (..., 4)``: ``v + 2 u x (u x v + w v)``."""
     u = q[..., :3]

@@ -31,6 +31,7 @@ import numpy as np
 from driftframe.components.body import Transform, Velocity
 from driftframe.components.camera import Camera, check_mode
 from driftframe.framework import frame as fr
+from driftframe.framework.frame import slerp  # the one slerp (and systems.camera_rig.slerp, as before)
 from driftframe.framework import validate
 
 _FLIP_Z = np.diag([1.0, 1.0, -1.0])
@@ -81,20 +82,6 @@ def world_to_pixels(points, view_projection, size) -> tuple[np.ndarray, np.ndarr
     width, height = size
     px = np.column_stack([(ndc[:, 0] + 1.0) * 0.5 * width, (1.0 - ndc[:, 1]) * 0.5 * height])
     return px, in_front
-
-
-def slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
-    """Spherical interpolation from unit quaternion ``q0`` (t = 0) to ``q1`` (t = 1), shortest way."""
-    d = float(np.dot(q0, q1))
-    if d < 0.0:                      # q and -q are the same rotation: go the short way round
-        q1, d = -q1, -d
-    if d > 0.9995:                   # nearly equal: linear interpolation is exact to rounding
-        q = q0 + t * (q1 - q0)
-    else:
-        theta = math.acos(min(d, 1.0))
-        s = math.sin(theta)
-        q = (math.sin((1.0 - t) * theta) / s) * q0 + (math.sin(t * theta) / s) * q1
-    return q / np.linalg.norm(q)
 
 
 # -- the system -----------------------------------------------------------------------

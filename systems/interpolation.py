@@ -26,28 +26,7 @@ import esper
 import numpy as np
 
 from driftframe.components.body import Transform
-
-
-def slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
-    """Spherical interpolation of unit quaternions ``(n, 4)`` (scalar last) by ``t`` in [0, 1].
-
-    Takes the shorter arc (``q`` and ``-q`` are the same rotation). For
-    nearly equal quaternions (angle below 1e-6 rad) it falls back to a
-    normalised lerp, which is exact to rounding there.
-    """
-    q0 = np.asarray(q0, np.float64)
-    q1 = np.asarray(q1, np.float64)
-    d = np.einsum("ij,ij->i", q0, q1)
-    q1 = np.where((d < 0)[:, None], -q1, q1)
-    d = np.abs(d)
-    theta = np.arccos(np.clip(d, -1.0, 1.0))          # half the rotation angle between them
-    s = np.sin(theta)
-    small = s < 1e-6
-    safe = np.where(small, 1.0, s)
-    w0 = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
-    w1 = np.where(small, t, np.sin(t * theta) / safe)
-    q = w0[:, None] * q0 + w1[:, None] * q1
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
+from driftframe.framework.frame import slerp  # noqa: F401  (the one slerp; systems.interpolation.slerp kept)
 
 
 class PoseSnapshotSystem(esper.Processor):

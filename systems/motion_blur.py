@@ -35,21 +35,6 @@ from driftframe.components.body import AngularVelocity, Transform
 from driftframe.framework import frame as fr
 
 
-def _slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
-    """Row-wise shortest-path slerp of unit quaternions ``(n, 4)``."""
-    d = np.einsum("ij,ij->i", q0, q1)
-    q1 = np.where((d < 0)[:, None], -q1, q1)
-    d = np.abs(d)
-    theta = np.arccos(np.minimum(d, 1.0))
-    s = np.sin(theta)
-    near = d > 0.9995                                  # nearly equal: lerp is exact to rounding
-    safe = np.where(near, 1.0, s)
-    k0 = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
-    k1 = np.where(near, t, np.sin(t * theta) / safe)
-    q = k0[:, None] * q0 + k1[:, None] * q1
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
-
-
 class SubframePoses:
     """What :func:`framework.recorder.record` calls to pose sub-frames: start, after_step, pose, restore.
 
@@ -101,7 +86,7 @@ class SubframePoses:
         p0, p1 = self._pos[i], self._pos[i + 1]
         q0, q1 = self._quat[i], self._quat[i + 1]
         pos = p0 + a * (p1 - p0)
-        quat = _slerp(q0, q1, a) if len(q0) else q0
+        quat = fr.slerp(q0, q1, a) if len(q0) else q0
         w = self._spin[i]
         spinning = ~np.isnan(w[:, 0])
         if spinning.any():

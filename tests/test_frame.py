@@ -66,3 +66,19 @@ def test_look_rotation_points_forward_and_keeps_up_near_the_hint():
 def test_bad_axis_is_rejected_naming_the_value(axis, match):
     with pytest.raises(ValueError, match=match):
         fr.quat_from_axis_angle(axis, 1.0)
+
+
+def test_the_one_slerp_halves_the_angle_takes_the_short_way_and_is_exact_near_equal():
+    from driftframe.framework.frame import quat_from_axis_angle, slerp
+
+    q0 = quat_from_axis_angle((0.0, 0.0, 1.0), 0.0)
+    q1 = quat_from_axis_angle((0.0, 0.0, 1.0), 1.2)
+    half = slerp(q0, q1, 0.5)                                     # one pair: (4,) in, (4,) out
+    assert half.shape == (4,)
+    np.testing.assert_allclose(half, quat_from_axis_angle((0.0, 0.0, 1.0), 0.6), atol=1e-15)
+    np.testing.assert_allclose(slerp(q0, -q1, 0.5), half, atol=1e-15)        # -q1 is q1: the short way
+    rows = slerp(np.stack([q0, q1]), np.stack([q1, q0]), 0.25)                # row by row
+    np.testing.assert_allclose(rows[0], quat_from_axis_angle((0.0, 0.0, 1.0), 0.3), atol=1e-15)
+    np.testing.assert_allclose(rows[1], quat_from_axis_angle((0.0, 0.0, 1.0), 0.9), atol=1e-15)
+    tiny = quat_from_axis_angle((1.0, 0.0, 0.0), 4e-7)                          # the lerp fallback
+    np.testing.assert_allclose(slerp(q0, tiny, 0.5), quat_from_axis_angle((1.0, 0.0, 0.0), 2e-7), atol=1e-16)
