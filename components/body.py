@@ -24,12 +24,7 @@ def _unit_quat(name, q):
 
 def _mass(name, m):
     m = np.asarray(m)
-    bad = ~(m > 0)
-    if bad.any():
-        i = int(np.flatnonzero(np.atleast_1d(bad))[0])
-        val = float(np.atleast_1d(m)[i])
-        where = f"[{i}]" if m.ndim else ""
-        raise ValueError(f"{name}{where} must be > 0 (use math.inf for an immovable body), got {val!r}")
+    validate.rows(name, m, ~(m > 0), "> 0 (use math.inf for an immovable body)")
     return m
 
 

@@ -17,26 +17,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from driftframe.framework import validate
 from driftframe.framework.store import Columnar, Field
 
 
 def _positive_radius(name, r):
     r = np.asarray(r)
-    bad = ~(r > 0)
-    if bad.any():
-        i = int(np.flatnonzero(np.atleast_1d(bad))[0])
-        where = f"[{i}]" if r.ndim else ""
-        raise ValueError(f"{name}{where} must be > 0, got {float(np.atleast_1d(r)[i])!r}")
+    validate.rows(name, r, ~(r > 0), "> 0")
     return r
 
 
 def _unit_interval(name, e):
     e = np.asarray(e)
-    bad = ~((e >= 0) & (e <= 1))
-    if bad.any():
-        i = int(np.flatnonzero(np.atleast_1d(bad))[0])
-        where = f"[{i}]" if e.ndim else ""
-        raise ValueError(f"{name}{where} must be in [0, 1], got {float(np.atleast_1d(e)[i])!r}")
+    validate.rows(name, e, ~((e >= 0) & (e <= 1)), "in [0, 1]")
     return e
 
 

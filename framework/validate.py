@@ -112,6 +112,16 @@ def array(name: str, value, shape_tail=(3,), n: int | None = None, *, allow_inf:
     return arr
 
 
+def rows(name: str, values, bad, need: str) -> None:
+    """The one "first bad row" check of a scalar or a column: a ValueError ``name[i] must be NEED, got V``
+    (``name must be ...`` for a scalar) for the first ``i`` where ``bad`` is true; nothing when none is."""
+    bad = np.atleast_1d(np.asarray(bad))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        where = f"[{i}]" if np.ndim(values) else ""
+        raise ValueError(f"{name}{where} must be {need}, got {float(np.atleast_1d(values)[i])!r}")
+
+
 def choice(name: str, value, options: tuple):
     """``value`` when it is one of ``options``; else a ValueError naming ``name``, the options and the value."""
     if value not in options:

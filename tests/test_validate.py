@@ -43,3 +43,16 @@ def test_the_components_use_them():
     assert Camera(target=np.int64(4)).target == 4
     with pytest.raises(TypeError, match="GravityWell.parent must be an entity id"):
         GravityWell(mu=1.0, radius=1.0, parent=1.5)
+
+
+def test_rows_names_the_first_bad_row_of_a_column_and_a_bad_scalar():
+    import numpy as np
+    import pytest
+
+    from driftframe.framework import validate
+
+    validate.rows("Mass.kg", np.array([1.0, 2.0]), np.array([False, False]), "> 0")     # none bad: nothing
+    with pytest.raises(ValueError, match=r"^Mass\.kg\[2\] must be > 0, got -1\.0$"):
+        validate.rows("Mass.kg", np.array([1.0, 2.0, -1.0, -3.0]), np.array([False, False, True, True]), "> 0")
+    with pytest.raises(ValueError, match=r"^radius must be > 0, got 0\.0$"):
+        validate.rows("radius", np.float64(0.0), True, "> 0")
