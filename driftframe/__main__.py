@@ -1,7 +1,32 @@
-"""``python -m driftframe``: the command line (see :mod:`driftframe.cli`)."""
+"""``python -m driftframe`` and the ``driftframe`` command: the command line (see :mod:`driftframe.cli`).
+
+:func:`run` is the entry point. It loads the command line with Ctrl-C noted, so a Ctrl-C while those
+modules load (the first tens of ms) is one line and 130 whatever it interrupted (numpy turns an
+interrupted import of its own into an ImportError), not a traceback; :func:`driftframe.cli.main` then
+takes the stop signals for the command itself."""
+import signal
 import sys
 
-from driftframe.cli import main
+
+def run() -> int:
+    got: list[int] = []
+
+    def stop(signum, frame):
+        got.append(signum)
+        raise KeyboardInterrupt
+
+    before = signal.signal(signal.SIGINT, stop)
+    try:
+        from driftframe.cli import main
+    except BaseException:
+        if got:
+            print("driftframe: interrupted (SIGINT)", file=sys.stderr)
+            return 128 + signal.SIGINT
+        raise
+    finally:
+        signal.signal(signal.SIGINT, before)
+    return main()
+
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run())

@@ -20,9 +20,15 @@ from __future__ import annotations
 import signal
 import sys
 
-from driftframe.cli_compile import _compile, cmd_warm
-from driftframe.cli_parser import UsageError, build_parser
-from driftframe.cli_scene import MAX_FRAMES, MAX_STEPS, cmd_play, cmd_record, demo_dt, frame_count, steps_per_frame
+try:
+    from driftframe.cli_compile import _compile, cmd_warm
+    from driftframe.cli_parser import UsageError, build_parser
+    from driftframe.cli_scene import MAX_FRAMES, MAX_STEPS, cmd_play, cmd_record, demo_dt, frame_count, steps_per_frame
+except KeyboardInterrupt:
+    # Ctrl-C while the command line's modules load (its first tens of ms, before main() takes the stop
+    # signals): nothing is touched yet; one line and 130, not a traceback out of the entry point's import
+    print("driftframe: interrupted (SIGINT)", file=sys.stderr)
+    raise SystemExit(128 + signal.SIGINT) from None
 
 # the names other modules and tests take from here (the parser, the compile, the record/play checks)
 __all__ = ["MAX_FRAMES", "MAX_STEPS", "UsageError", "build_parser", "demo_dt", "frame_count", "main",

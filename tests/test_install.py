@@ -66,7 +66,7 @@ def test_the_wheel_is_pure_python_and_holds_the_package_and_nothing_else(wheel):
     assert not [n for n in names if "__pycache__" in n or n.endswith((".pyc", ".so"))
                 or n.split("/")[0] in ("tests", "benchmarks", "docs")]
     assert "Requires-Dist: numba" in metadata and "Requires-Python: >=3.11" in metadata
-    assert "driftframe = driftframe.cli:main" in entry
+    assert "driftframe = driftframe.__main__:run" in entry
 
 
 @pytest.mark.gl
