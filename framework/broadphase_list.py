@@ -258,18 +258,6 @@ def _cell_index(v, base, h):
     return int((v - base) / h) + 1
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
-def _cell_range(q, dense, start, ukey, ustart, nu):
-    """The bodies filed under cell ``q``: ``body[b0:b1]``, from the dense table of all cells (``start``) or
-    by a binary search of the occupied cells' sorted keys (``ukey``, ``ustart``, ``nu`` of them)."""
-    if dense:
-        return start[q], start[q + 1]
-    kk = sorting.bisect(ukey, q, np.bool_(False))      # np.bool_: see contact_params' _NOT_LITERAL
-    if kk < nu and ukey[kk] == q:
-        return ustart[kk], ustart[kk + 1]
-    return np.int64(0), np.int64(0)
-
-
 @kernel(no_cfunc_wrapper=True)
 def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
@@ -280,6 +268,10 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
     ordinary body tests the later ordinary bodies of its own cell and those of the 13 cells of a half
     stencil. A large body (reach > ``hh``) tests every body in the block of cells its reach plus the
     largest can span (large-large pairs once, from the lower index).
+
+    The lookup of a cell's bodies (``start``, or a binary search of ``ukey``) is written out at its three
+    places: as a helper taking those arrays, inlined or not, numba counted a reference to each array at
+    every call, and the build of a field of 500 took 285 us instead of 31 (measured at 747099f).
 
     Writes the pairs into ``oi``, ``oj`` as far as they hold and returns how many there are (the
     caller gives larger arrays and calls again when they did not hold them all: growing arrays
@@ -366,7 +358,17 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
         a = body[s]
         q = cell[a]
         if s >= a1:                                       # the first body of its cell: where the cell ends
-            b0, b1 = _cell_range(q, dense, start, ukey, ustart, nu)
+            qq = q
+            if dense:
+                b0 = start[qq]
+                b1 = start[qq + 1]
+            else:
+                b0 = 0
+                b1 = 0
+                kk = sorting.bisect(ukey, qq, np.bool_(False))
+                if kk < nu and ukey[kk] == qq:
+                    b0 = ustart[kk]
+                    b1 = ustart[kk + 1]
             a1 = b1
         ax = sx[s]
         ay = sy[s]
@@ -379,7 +381,17 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                 b0 = s + 1
                 b1 = a1
             else:
-                b0, b1 = _cell_range(q + offs[t], dense, start, ukey, ustart, nu)
+                qq = q + offs[t]
+                if dense:
+                    b0 = start[qq]
+                    b1 = start[qq + 1]
+                else:
+                    b0 = 0
+                    b1 = 0
+                    kk = sorting.bisect(ukey, qq, np.bool_(False))
+                    if kk < nu and ukey[kk] == qq:
+                        b0 = ustart[kk]
+                        b1 = ustart[kk + 1]
             for u in range(b0, b1):
                 if sr[u] > hh:
                     continue                              # found from the large body's side
@@ -428,7 +440,17 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
         for gx in range(max(ix - w, 0), min(ix + w, nx - 1) + 1):
             for gy in range(max(iy - w, 0), min(iy + w, ny - 1) + 1):
                 for gz in range(max(iz - w, 0), min(iz + w, nz - 1) + 1):
-                    b0, b1 = _cell_range((gx * ny + gy) * nz + gz, dense, start, ukey, ustart, nu)
+                    qq = (gx * ny + gy) * nz + gz
+                    if dense:
+                        b0 = start[qq]
+                        b1 = start[qq + 1]
+                    else:
+                        b0 = 0
+                        b1 = 0
+                        kk = sorting.bisect(ukey, qq, np.bool_(False))
+                        if kk < nu and ukey[kk] == qq:
+                            b0 = ustart[kk]
+                            b1 = ustart[kk + 1]
                     for u in range(b0, b1):
                         b = body[u]
                         if b == a or (sr[u] > hh and b < a):
