@@ -420,28 +420,20 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
         span = 1.0                                         # the block's cells (a float: no overflow)
         for i0, nd in ((ix, nx), (iy, ny), (iz, nz)):
             span *= min(i0 + w, nd - 1) - max(i0 - w, 0) + 1
-        if span > m:
-            # a body far larger than the rest (a radius ratio of hundreds) spans more cells than there
-            # are bodies: test every body once instead of visiting the cells (O(n), not O(cells))
-            for u in range(m):
-                b = body[u]
-                if b == a or (sr[u] > hh and b < a):
-                    continue
-                dx_ = sx[u] - ax
-                dy_ = sy[u] - ay
-                dz_ = sz[u] - az
-                R = ar + sr[u]
-                if dx_ * dx_ + dy_ * dy_ + dz_ * dz_ <= R * R:
-                    if p < cap:
-                        oi[p] = min(a, b)
-                        oj[p] = max(a, b)
-                    p += 1
-            continue
-        for gx in range(max(ix - w, 0), min(ix + w, nx - 1) + 1):
-            for gy in range(max(iy - w, 0), min(iy + w, ny - 1) + 1):
-                for gz in range(max(iz - w, 0), min(iz + w, nz - 1) + 1):
+        # a body far larger than the rest (a radius ratio of hundreds) can span more cells than there are
+        # bodies: then it tests every body once, as one block (O(n), not O(cells))
+        flat = span > m
+        gx0, gx1 = (0, 0) if flat else (max(ix - w, 0), min(ix + w, nx - 1))
+        gy0, gy1 = (0, 0) if flat else (max(iy - w, 0), min(iy + w, ny - 1))
+        gz0, gz1 = (0, 0) if flat else (max(iz - w, 0), min(iz + w, nz - 1))
+        for gx in range(gx0, gx1 + 1):
+            for gy in range(gy0, gy1 + 1):
+                for gz in range(gz0, gz1 + 1):
                     qq = (gx * ny + gy) * nz + gz
-                    if dense:
+                    if flat:
+                        b0 = 0
+                        b1 = m
+                    elif dense:
                         b0 = start[qq]
                         b1 = start[qq + 1]
                     else:

@@ -200,3 +200,19 @@ def test_compiled_grid_build_on_a_sparse_scene_uses_sorted_cells_and_finds_the_s
     assert nx * ny * nz > 8 * len(c) + 4096                           # the sparse path
     want = _brute(nl.centre, nl.reach, nl.swept)
     assert len(want) > 100 and set(zip(nl.i.tolist(), nl.j.tolist())) == want
+
+
+def test_compiled_grid_build_with_one_sphere_a_thousand_times_larger_tests_every_body_once():
+    # its block of cells would be far more cells than there are bodies: it tests every body instead (the
+    # large body's pairs, and every other pair, exactly those of testing every pair)
+    rng = np.random.default_rng(11)
+    n = 800
+    c = rng.uniform(0, 40, (n, 3))
+    r = np.full(n, 0.1)
+    r[0] = 100.0                                                        # reaches past the whole field
+    c[0] = (20.0, 20.0, 20.0)
+    nl = bp.NeighbourList()
+    nl.build(c.T, r, np.full(n, 0.01))
+    got = set(zip(nl.i.tolist(), nl.j.tolist()))
+    assert sum(1 for a, b in got if a == 0) == n - 1                   # the large one meets every body
+    assert got == _brute(nl.centre, nl.reach, nl.swept)
