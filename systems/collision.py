@@ -397,7 +397,7 @@ class CollisionSystem(esper.Processor):
                     self._bad.clear()
                 self._finish(lay, st, self._unchanged(lay.n), dt)
                 return
-            self._continuous(lay, st, dt, tested=True)
+            self._continuous(lay, st, dt)
             return
         st.gather(lay, dt)
         if self.method == "articles":
@@ -493,9 +493,8 @@ class CollisionSystem(esper.Processor):
             self._pairs_n = n
         return self._pairs
 
-    def _continuous(self, lay: _Layout, st: State, dt: float, tested: bool = False) -> None:
-        """The continuous solver's step (``tested``: the quiet-step test was made on this state and
-        said no)."""
+    def _continuous(self, lay: _Layout, st: State, dt: float) -> None:
+        """The continuous solver's step (on the all-pairs path, :meth:`process` has found it not quiet)."""
         n = lay.n
         bad = st.bad(lay)
         live = st.live
@@ -520,11 +519,7 @@ class CollisionSystem(esper.Processor):
         t_last = self._t_last_of(lay)                      # absolute: the kernel makes it relative to now
 
         if not self._uses_list(n):
-            pi, pj = self._all_pairs(n)
-            if not tested and quiet_all_pairs(x, u, r, inv, live, pi, pj, dt):
-                self.stats["pairs"] = len(pi)             # what the solver would say of a quiet step
-                self._finish(lay, st, self._unchanged(n), dt)
-                return
+            pi, pj = self._all_pairs(n)                   # (process made the quiet-step test: not quiet)
             lst = None
         else:
             nl = self._list
