@@ -5,7 +5,6 @@ import os
 import shutil
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import driftframe
@@ -89,10 +88,8 @@ def test_a_new_game_and_the_public_api_pass_mypy_strict(tmp_path):
     # strict in the game and in driftframe/__init__.py; driftframe's other modules are read for their types,
     # their bodies not checked (follow_imports = silent): what a user of an installed copy gets
     env = dict(os.environ, MYPYPATH=str(site))
-    t0 = time.perf_counter()
     res = subprocess.run([sys.executable, "-m", "mypy", "--strict", "--follow-imports", "silent", "--cache-dir",
                           str(tmp_path / "cache"), str(site / "driftframe" / "__init__.py"),
                           str(game / "mygame" / "mygame"), str(game / "mygame" / "tests")],
                          cwd=game / "mygame", capture_output=True, text=True, timeout=240, env=env)
     assert res.returncode == 0, (res.stdout + res.stderr)[-4000:]
-    assert time.perf_counter() - t0 < 120
