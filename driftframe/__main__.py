@@ -3,7 +3,8 @@
 :func:`run` is the entry point. It loads the command line with Ctrl-C noted, so a Ctrl-C while those
 modules load (the first tens of ms) is one line and 130 whatever it interrupted (numpy turns an
 interrupted import of its own into an ImportError), not a traceback; :func:`driftframe.cli.main` then
-takes the stop signals for the command itself."""
+takes the stop signals for the command itself, and a compile a signal stopped ends the process at once
+(:func:`driftframe.cli_compile.exit_if_compiling`)."""
 import signal
 import sys
 
@@ -25,7 +26,8 @@ def run() -> int:
         raise
     finally:
         signal.signal(signal.SIGINT, before)
-    return main()
+    from driftframe.cli_compile import exit_if_compiling
+    return exit_if_compiling(main())
 
 
 if __name__ == "__main__":

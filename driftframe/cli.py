@@ -155,4 +155,5 @@ def _main(argv: list[str] | None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from driftframe.cli_compile import exit_if_compiling
+    sys.exit(exit_if_compiling(main()))

@@ -8,6 +8,9 @@ from __future__ import annotations
 import sys
 import time
 
+#: The name of the thread that compiles: :func:`exit_if_compiling` looks for it.
+HELPER = "driftframe-kernels"
+
 def _compile(task, quiet: bool = False) -> None:
     """``task(watch)`` on a helper thread while this, the main thread, shows the compile and waits.
 
@@ -34,7 +37,7 @@ def _compile(task, quiet: bool = False) -> None:
         except BaseException as e:   # noqa: BLE001 - handed to the main thread
             failed.append(e)
 
-    helper = threading.Thread(target=run, name="driftframe-kernels", daemon=True)
+    helper = threading.Thread(target=run, name=HELPER, daemon=True)
     shown = _CompileProgress(watch, enabled=not quiet)
     with StopSignals(True) as stop:
         helper.start()
@@ -47,6 +50,29 @@ def _compile(task, quiet: bool = False) -> None:
     shown.end(stopped=bool(failed))
     if failed:
         raise failed[0]
+
+
+def exit_if_compiling(code: int) -> int:
+    """``code``, or, while a compile stopped by a signal still runs on its helper thread, end the process
+    now with ``code`` (after flushing the output).
+
+    numba cannot be stopped inside a compile, and the interpreter's shutdown
+    with LLVM still working on the helper thread aborts the process (an
+    LLVM assertion, exit -6) instead of ending with the signal's status.
+    Skipping the shutdown loses nothing: numba writes each cache file under a
+    temporary name and renames it when whole, and the outputs are checked or
+    written before the costly part starts, after the kernels are loaded.
+    """
+    import os
+    import threading
+    if any(t.name == HELPER and t.is_alive() for t in threading.enumerate()):
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):     # a closed pipe: nothing more to show
+                pass
+        os._exit(code)
+    return code
 
 
 def _load_kernels(name: str, seed: int, quiet: bool = False, nv12: bool = False) -> None:
