@@ -64,6 +64,7 @@ class NeighbourList:
         self.budget = 2
         self.builds = 0
         self.scale = 1.0                                  # the skin's factor for the next build
+        self._scratch = (np.empty(0, np.int64), np.empty(0))   # the grid build's, kept (see _grid_build)
 
     def build(self, centres: np.ndarray, radii: np.ndarray, step_disp: np.ndarray) -> None:
         """(Re)build from centres (3, n), radii (n,) and each body's displacement per step (n,), m."""
@@ -78,9 +79,9 @@ class NeighbourList:
         if self.method in ("auto", "grid") and n_slow > ALL_PAIRS_MAX:
             # one compiled pass: counting sort into a dense grid, then the exact sphere test over the
             # half stencil (the same pairs as sphere_pairs; their order does not matter to the solver)
-            got = _grid_build(c, reach, swept, n_slow)
+            got = _grid_build(c, reach, swept, n_slow, self._scratch)
         if got is not None:
-            self.i, self.j = got
+            self.i, self.j, self._scratch = got
         else:
             slow = np.flatnonzero(~swept)
             i, j = sphere_pairs(c[:, slow], reach[slow], self.method, soa=True)
@@ -189,21 +190,33 @@ def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     return new, total
 
 
-def _grid_build(c, reach, swept, n_slow):
-    """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`; None when the scene spans
-    too many cells for int64 keys (the caller falls back on sort and sweep)."""
+def _grid_build(c, reach, swept, n_slow, scratch):
+    """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`, and the scratch arrays it
+    used; None when the scene spans too many cells for int64 keys (the caller falls back on sort and
+    sweep). ``scratch``: ``(int64, float64)`` arrays from the last build, grown here when too small."""
     h, hh, bx, by, bz, nx, ny, nz = _grid_setup(c, reach, swept)
     if not h > 0 or max(nx, ny, nz) > _KEY_SPAN:
         return None
-    # a dense table of cells when they are few; sorted keys and binary searches when the scene is sparse
+    # a dense table of cells when they are few; a hash table of the occupied cells when the scene is
+    # sparse, 2^bits >= 8 m buckets (measured: at 2 m, a radius ratio of 1,000's build took 1.9x as long,
+    # at 4 m 1.15x; the table's side scans mostly empty buckets)
     dense = float(nx) * float(ny) * float(nz) <= 8.0 * n_slow + 4096
+    bits = max(4, (8 * n_slow - 1).bit_length())
+    nt = nx * ny * nz if dense else 1 << bits
+    n = reach.shape[0]
+    wi, wf = scratch
+    # kept from build to build: fresh memory each build cost its page faults (~100 a build at 4,000 bodies)
+    if wi.shape[0] < 2 * n + nt + 1 + 2 * n_slow:
+        wi = np.empty(2 * n + nt + 1 + 2 * n_slow + n // 4, np.int64)
+    if wf.shape[0] < 4 * n_slow:
+        wf = np.empty(4 * n_slow + n, np.float64)
     cap = 8 * n_slow + 64
     while True:
         oi = np.empty(cap, np.int64)
         oj = np.empty(cap, np.int64)
-        p = _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj)
+        p = _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, 64 - bits, oi, oj, wi, wf)
         if p <= cap:
-            return oi[:p], oj[:p]
+            return oi[:p], oj[:p], (wi, wf)
         cap = p
 
 
@@ -258,90 +271,87 @@ def _cell_index(v, base, h):
     return int((v - base) / h) + 1
 
 
+#: Fibonacci hashing's multiplier (2^64 / golden ratio, odd), as a signed int64: a sparse scene's cell key
+#: times it, top bits, picks the cell's bucket (Knuth, TAOCP 3, 6.4).
+_HASH = -7046029254386353131
+
+
 @kernel(no_cfunc_wrapper=True)
-def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
+def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift, oi, oj, wi, wf):
     """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
 
     Cells of side ``h > 2 hh`` by centre, so a pair of ordinary bodies (reach <= ``hh``) lies in the
-    same or neighbouring cells. The bodies are filed by cell (``dense``: a counting sort into a table of
-    all cells, O(n + cells); else a sort of the occupied cells' keys, found by binary search), and each
-    ordinary body tests the later ordinary bodies of its own cell and those of the 13 cells of a half
-    stencil. A large body (reach > ``hh``) tests every body in the block of cells its reach plus the
-    largest can span (large-large pairs once, from the lower index).
+    same or neighbouring cells. The bodies are filed by a counting sort, O(n + table): ``dense``, into a
+    table of every cell; else (a sparse scene: far more cells than bodies) into a hash table of ``nt``
+    buckets (the caller's power of two >= 8 m; m the bodies filed), a bucket holding the bodies of the cells that hash to it
+    (no sort, no binary search: a radius ratio of 1,000 has a million cells for 4,000 bodies, and
+    sorting their keys then searching 14 cells per body cost 7x a step). Each ordinary body tests the
+    later ordinary bodies of its own cell and those of the 13 cells of a half stencil; a body read from
+    a bucket counts only when it is in the cell looked for, so each pair is found once. A large body
+    (reach > ``hh``) tests every body in the block of cells its reach plus the largest can span
+    (large-large pairs once, from the lower index).
 
-    The lookup of a cell's bodies (``start``, or a binary search of ``ukey``) is written out at its three
-    places: as a helper taking those arrays, inlined or not, numba counted a reference to each array at
-    every call, and the build of a field of 500 took 285 us instead of 31 (measured at 747099f).
+    ``nt``: the table's size (the cells, dense; else a power of two), ``shift``: 64 minus its
+    bits. ``wi``, ``wf``: int64 and float64 scratch, at least ``2 n + nt + 1 + 2 m`` and ``4 m`` long.
+
+    The lookup of a cell's bodies (``start``, dense or hashed) is written out at its two places: as
+    a helper taking those arrays, inlined or not, numba counted a reference to each array at every
+    call, and the build of a field of 500 took 285 us instead of 31 (measured at 747099f).
 
     Writes the pairs into ``oi``, ``oj`` as far as they hold and returns how many there are (the
     caller gives larger arrays and calls again when they did not hold them all: growing arrays
     inside the loop would cost reference counting on every iteration)."""
     n = reach.shape[0]
-    cell = np.full(n, -1, np.int64)
-    big = 0.0
     m = 0
     for k in range(n):
+        if not swept[k]:
+            m += 1
+    # the scratch (the caller's, kept from build to build): each body's cell and slot of the table, the
+    # table's runs (``nt`` cells, dense, or 2^(64 - shift) buckets: bucket = top bits of key * _HASH), the
+    # bodies in table order and their cells; their coordinates and reaches
+    cell = wi[:n]
+    slot = wi[n:2 * n]
+    start = wi[2 * n:2 * n + nt + 1]
+    body = wi[2 * n + nt + 1:2 * n + nt + 1 + m]
+    sc = wi[2 * n + nt + 1 + m:2 * n + nt + 1 + 2 * m]
+    sx = wf[:m]
+    sy = wf[m:2 * m]
+    sz = wf[2 * m:3 * m]
+    sr = wf[3 * m:4 * m]
+    mask = nt - 1
+    big = 0.0
+    for k in range(n):
+        cell[k] = -1
         if swept[k]:
             continue
         big = max(big, reach[k])
         cell[k] = (_cell_index(c[0, k], bx, h) * ny + _cell_index(c[1, k], by, h)) * nz + _cell_index(c[2, k], bz, h)
-        m += 1
-    body = np.empty(m, np.int64)
-    if dense:
-        ncell = nx * ny * nz
-        start = np.zeros(ncell + 1, np.int64)
-        for k in range(n):
-            if cell[k] >= 0:
-                start[cell[k] + 1] += 1
-        for q in range(ncell):
-            start[q + 1] += start[q]
-        fill = np.empty(ncell, np.int64)
-        for q in range(ncell):
-            fill[q] = start[q]
-        for k in range(n):
-            q = cell[k]
-            if q >= 0:
-                body[fill[q]] = k
-                fill[q] += 1
-        ukey = np.empty(0, np.int64)
-        ustart = np.empty(0, np.int64)
-        nu = 0
-    else:
-        start = np.empty(0, np.int64)
-        keys = np.empty(m, np.int64)
-        idx = np.empty(m, np.int64)
-        j = 0
-        for k in range(n):
-            if cell[k] >= 0:
-                keys[j] = cell[k]
-                idx[j] = k
-                j += 1
-        order = sorting.argsort_stable(keys, keys.shape[0])     # (not m: see contact_params' _NOT_LITERAL)
-        nu = 0
-        for s in range(m):
-            body[s] = idx[order[s]]
-            if s == 0 or keys[order[s]] != keys[order[s - 1]]:
-                nu += 1
-        ukey = np.empty(nu, np.int64)
-        ustart = np.empty(nu + 1, np.int64)
-        nu = 0
-        for s in range(m):
-            if s == 0 or keys[order[s]] != keys[order[s - 1]]:
-                ukey[nu] = keys[order[s]]
-                ustart[nu] = s
-                nu += 1
-        ustart[nu] = m
-    # coordinates and reaches in cell order: the stencil reads them contiguously
-    sx = np.empty(m)
-    sy = np.empty(m)
-    sz = np.empty(m)
-    sr = np.empty(m)
+    # counting sort: counts, their running sum (the end of each run), then each body placed from the
+    # last, so that every run ends up at its start and holds its bodies in index order
+    for q in range(nt + 1):
+        start[q] = 0
+    for k in range(n):
+        q = cell[k]
+        if q >= 0:
+            if not dense:
+                q = ((q * _HASH) >> shift) & mask
+            slot[k] = q
+            start[q] += 1
+    for q in range(nt):
+        start[q + 1] += start[q]
+    for k in range(n - 1, -1, -1):
+        if cell[k] >= 0:
+            q = slot[k]
+            start[q] -= 1
+            body[start[q]] = k
+    # coordinates, reaches and cells in table order: the stencil reads them contiguously
     for s in range(m):
         k = body[s]
         sx[s] = c[0, k]
         sy[s] = c[1, k]
         sz[s] = c[2, k]
         sr[s] = reach[k]
+        sc[s] = cell[k]
     # the 13 neighbour cells after this one in (x, y, z) order
     offs = np.empty(13, np.int64)
     o = 0
@@ -353,48 +363,23 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                     o += 1
     cap = oi.shape[0]
     p = 0
-    a1 = 0
     for s in range(m):
-        a = body[s]
-        q = cell[a]
-        if s >= a1:                                       # the first body of its cell: where the cell ends
-            qq = q
-            if dense:
-                b0 = start[qq]
-                b1 = start[qq + 1]
-            else:
-                b0 = 0
-                b1 = 0
-                kk = sorting.bisect(ukey, qq, np.bool_(False))
-                if kk < nu and ukey[kk] == qq:
-                    b0 = ustart[kk]
-                    b1 = ustart[kk + 1]
-            a1 = b1
-        ax = sx[s]
-        ay = sy[s]
-        az = sz[s]
         ar = sr[s]
         if ar > hh:
             continue                                      # a large body: its own search below
+        a = body[s]
+        q = sc[s]
+        ax = sx[s]
+        ay = sy[s]
+        az = sz[s]
         for t in range(-1, 13):
-            if t < 0:
-                b0 = s + 1
-                b1 = a1
-            else:
-                qq = q + offs[t]
-                if dense:
-                    b0 = start[qq]
-                    b1 = start[qq + 1]
-                else:
-                    b0 = 0
-                    b1 = 0
-                    kk = sorting.bisect(ukey, qq, np.bool_(False))
-                    if kk < nu and ukey[kk] == qq:
-                        b0 = ustart[kk]
-                        b1 = ustart[kk + 1]
+            qq = q if t < 0 else q + offs[t]
+            w0 = qq if dense else ((qq * _HASH) >> shift) & mask
+            b0 = s + 1 if t < 0 else start[w0]            # own cell: the later bodies of its run
+            b1 = start[w0 + 1]
             for u in range(b0, b1):
-                if sr[u] > hh:
-                    continue                              # found from the large body's side
+                if sr[u] > hh or sc[u] != qq:
+                    continue                              # found from the large body's side; another cell
                 dx_ = sx[u] - ax
                 dy_ = sy[u] - ay
                 dz_ = sz[u] - az
@@ -433,19 +418,13 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, oi, oj):
                     if flat:
                         b0 = 0
                         b1 = m
-                    elif dense:
-                        b0 = start[qq]
-                        b1 = start[qq + 1]
                     else:
-                        b0 = 0
-                        b1 = 0
-                        kk = sorting.bisect(ukey, qq, np.bool_(False))
-                        if kk < nu and ukey[kk] == qq:
-                            b0 = ustart[kk]
-                            b1 = ustart[kk + 1]
+                        w0 = qq if dense else ((qq * _HASH) >> shift) & mask
+                        b0 = start[w0]
+                        b1 = start[w0 + 1]
                     for u in range(b0, b1):
                         b = body[u]
-                        if b == a or (sr[u] > hh and b < a):
+                        if b == a or (sr[u] > hh and b < a) or not (flat or sc[u] == qq):
                             continue
                         dx_ = sx[u] - ax
                         dy_ = sy[u] - ay
@@ -497,7 +476,7 @@ def _x_order(c, reach, swept):
     lo_x = np.empty(n)
     for k in range(n):
         lo_x[k] = c[0, k] - reach[k]
-    order = sorting.argsort_stable(lo_x, lo_x.shape[0])
+    order = sorting.argsort_spread(lo_x, lo_x.shape[0])    # (in O(n): the bodies fill a region)
     width = 0.0
     for k in range(reach.shape[0]):
         if not swept[k]:

@@ -1,4 +1,5 @@
-"""Compiled search and order statistics: binary search, a stable argsort, the median.
+"""Compiled search and order statistics: binary search, a stable argsort (and one in O(n) for values
+spread evenly), the median.
 
 numba's own ``searchsorted``, ``argsort`` and ``median`` compile comparisons or partitions for every
 dtype, complex included; these compile a fraction of that (docs/bench/compile.md). Used by the
@@ -77,6 +78,59 @@ def argsort_stable(a, m):
                 k += 1
         idx, tmp = tmp, idx
         width *= 2
+    return idx
+
+
+@kernel(no_cfunc_wrapper=True)
+def argsort_spread(a, m):
+    """The order :func:`argsort_stable` gives for ``a[:m]`` (floats), in O(m) when the values are spread
+    about evenly (the neighbour list's territories along x, rebuilt every few steps): a counting sort
+    into ``m`` buckets of equal width from the least value to the largest, then an insertion sort, which
+    moves each value only within its bucket (a strict comparison: ties stay in index order). Values
+    bunched into a few buckets would make that O(m^2): past ``8 m + 64`` moves, or with a value that
+    is not finite, it returns :func:`argsort_stable`'s merge sort instead. The same order either way."""
+    idx = np.empty(m, np.int64)
+    if m < 2:
+        for k in range(m):
+            idx[k] = k
+        return idx
+    lo = a[0]
+    hi = a[0]
+    for k in range(m):
+        v = a[k]
+        if not abs(v) < np.inf:
+            return argsort_stable(a, m)
+        lo = min(lo, v)
+        hi = max(hi, v)
+    scale = m / (hi - lo) if hi > lo else 0.0          # buckets per unit of value (0: all equal)
+    if not scale < 1e18:
+        return argsort_stable(a, m)                   # a spread too small to divide (no int overflows)
+    # bucket b = floor((v - lo) m / (hi - lo)), monotone in v; the largest value into the last bucket
+    end = np.zeros(m, np.int64)
+    bucket = np.empty(m, np.int64)
+    for k in range(m):
+        b = min(int((a[k] - lo) * scale), m - 1)
+        bucket[k] = b
+        end[b] += 1
+    for b in range(1, m):
+        end[b] += end[b - 1]
+    for k in range(m - 1, -1, -1):                    # from the last: each bucket in index order
+        b = bucket[k]
+        end[b] -= 1
+        idx[end[b]] = k
+    moves = 0
+    budget = 8 * m + 64
+    for k in range(1, m):
+        v = idx[k]
+        key = a[v]
+        q = k - 1
+        while q >= 0 and key < a[idx[q]]:
+            idx[q + 1] = idx[q]
+            q -= 1
+        moves += k - 1 - q
+        idx[q + 1] = v
+        if moves > budget:
+            return argsort_stable(a, m)
     return idx
 
 

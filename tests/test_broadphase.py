@@ -190,7 +190,7 @@ def test_compiled_grid_build_grows_its_output_for_a_crowd():
 
 
 def test_compiled_grid_build_on_a_sparse_scene_uses_sorted_cells_and_finds_the_same_pairs():
-    # clusters a kilometre apart: far more cells than bodies, so the cells are found by binary search
+    # clusters a kilometre apart: far more cells than bodies, so the cells are found in a hash table
     rng = np.random.default_rng(7)
     c = np.concatenate([rng.uniform(0, 6, (100, 3)) + off for off in ((0, 0, 0), (1000, 0, 0), (0, 900, 700))])
     r = rng.uniform(0.25, 0.75, len(c))

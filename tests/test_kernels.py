@@ -162,7 +162,7 @@ def test_a_step_that_needs_the_jam_path_is_run_again_with_it_and_gives_the_same_
         assert pos.tobytes() == pos2.tobytes() and vel.tobytes() == vel2.tobytes()
 
 
-def test_argsort_stable_and_median_match_numpy():
+def test_argsort_stable_argsort_spread_and_median_match_numpy():
     import numpy as np
 
     from driftframe.framework import sorting
@@ -176,3 +176,9 @@ def test_argsort_stable_and_median_match_numpy():
                 assert sorting.median(a) == np.median(a)
     a = np.array([3.0, np.nan, 1.0, 2.0, np.nan, 0.5])
     assert np.array_equal(sorting.argsort_stable(a, 6), np.argsort(a, kind="stable"))
+    # the bucket sort: the same order, spread or bunched (its merge-sort fallback), ties, -0.0, inf, NaN
+    bunched = np.concatenate([rng.random(2000) * 1e-9, [1e9]])
+    for a in (rng.random(3000), np.round(rng.random(3000), 2), bunched, np.array([0.0, -0.0, 1.0, -0.0]),
+              np.array([1.0, np.inf, 0.0, -np.inf]), np.array([3.0, np.nan, 1.0]), np.full(5, 2.0), np.ones(1)):
+        for m in sorted({0, 1, len(a) // 2, len(a)}):
+            assert np.array_equal(sorting.argsort_spread(a, m), np.argsort(a[:m], kind="stable"))
