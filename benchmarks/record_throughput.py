@@ -48,7 +48,8 @@ from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
 from driftframe.framework import record_sinks, recorder
-from driftframe.framework.gl import create_context, renderer
+from driftframe.framework.gl import RenderTarget, create_context, renderer
+from driftframe.framework.model_cache import ModelCache
 from driftframe.framework.recorder import record
 from driftframe.framework.world import World
 from driftframe.systems.movement import MovementSystem
@@ -83,7 +84,7 @@ def _fallback(ctx, seed: int) -> World:
     ship = w.create_entity(Transform((0.0, 0.0, -20.0)), Velocity((0.5, 0.2, 4.0)), ModelRef("ship"))
     w.create_entity(Camera(target=ship, mode="chase"))
     attach(w, ctx, SIZE)
-    cache = w.resources["model_cache"]
+    cache = w.resources[ModelCache]
     rng = np.random.default_rng(seed)
     n = 50
     for k, r in enumerate(rng.uniform(0.6, 3.5, n)):
@@ -106,7 +107,7 @@ def _cpu_seconds() -> float:
 def bare(ctx, frames: int) -> float:
     """Frames per second of step + render + read-back, no writer."""
     w = build(ctx)
-    target = w.resources["render_target"]
+    target = w.resources[RenderTarget]
     w.step()
     w.render()
     target.read_raw()                               # warm-up: shaders, buffers
@@ -352,7 +353,7 @@ def _nv12_frames(ctx, demo: str, frames: int) -> list[np.ndarray]:
 
     w, _ = make_world(demo, seed=1)
     attach_rendering(w, ctx, size=SIZE, own_context=False)
-    target = w.resources["render_target"]
+    target = w.resources[RenderTarget]
     out = []
     try:
         for _ in range(frames):

@@ -34,6 +34,7 @@ from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
 from driftframe.framework.gl import create_context, renderer
+from driftframe.framework.model_cache import ModelCache
 from driftframe.framework.world import World
 from driftframe.rendering import attach
 from driftframe.systems.render import RenderSystem
@@ -62,7 +63,7 @@ def build(ctx, n: int, seed: int = 42) -> tuple[World, RenderSystem]:
     eye = w.create_entity(Transform(orientation=fr.look_rotation((0.2, 0.1, 1.0))))
     w.create_entity(Camera(target=eye, mode="cockpit", fov=60.0, near=0.5, far=5000.0))
     render = attach(w, ctx, SIZE)
-    cache = w.resources["model_cache"]
+    cache = w.resources[ModelCache]
     rng = np.random.default_rng(seed)
     half = 200.0 * (n / 1000.0) ** (1.0 / 3.0)
     pos = np.empty((0, 3))

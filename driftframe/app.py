@@ -18,7 +18,8 @@ import numpy as np
 
 from driftframe.framework import validate
 from driftframe.framework.model_cache import declare_model_file as declare_model_file  # re-exported (PEP 484 form)
-from driftframe.framework.model_cache import ModelFiles, ModelVariants
+from driftframe.framework.model_cache import ModelCache, ModelFiles, ModelVariants
+from driftframe.framework.scene import SceneRecipe, Seed
 from driftframe.framework.model_cache import declare_variant as declare_variant
 from driftframe.framework.world import World
 
@@ -153,12 +154,10 @@ def make_world(name: str, *, seed: int = 0, scripted: bool = True, collision: st
     except BaseException:
         world.close()
         raise
-    world.resources["demo"] = demo
-    world.resources["seed"] = int(seed)        # later generation steps (the starfield's texture) derive from it
+    world.resources[Seed] = Seed(int(seed))     # later generation steps (the starfield's texture) derive from it
     # how to build it again: a save names it, and World.load calls the builder (framework/save.py)
-    world.resources["make_world"] = {"name": name, "seed": int(seed), "scripted": bool(scripted),
-                                     "collision": collision, "track": track is not None,
-                                     "builder": f"{__name__}:make_world"}
+    world.resources[SceneRecipe] = SceneRecipe(name, int(seed), bool(scripted), collision, track is not None,
+                                               f"{__name__}:make_world", demo)
     return world, demo
 
 
@@ -194,16 +193,17 @@ def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tu
     :class:`~systems.render.RenderSystem`.
     """
     from driftframe.systems import camera as camera_sys
-    from driftframe.rendering import attach, default_sky
+    from driftframe.rendering import attach, default_sky, drawn_before
 
     if sky is None:
-        sky = default_sky(world.resources.get("demo"))
+        recipe = world.resources.get(SceneRecipe)
+        sky = default_sky(recipe.scene if recipe is not None else None)
 
     size = parse_size(size) if isinstance(size, str) else size
     from driftframe.framework.gl import current
 
     render = attach(world, ctx, size, skybox=sky, **options)
-    cache = world.resources["model_cache"]
+    cache = world.resource(ModelCache)
     with current(render.ctx):                      # (the meshes and the HUD's objects are this context's)
         for mname, (path, colour, shading) in world.resources.get(ModelFiles, {}).items():
             if mname not in cache:          # before the variants, which may scale them
@@ -213,10 +213,10 @@ def attach_rendering(world: World, ctx: moderngl.Context | None = None, size: tu
                 cache.variant(vname, base, scale=scale, colour=colour)
         if effects:
             from driftframe.systems.effects import EffectsSystem
-            world.add_system(EffectsSystem(render))
+            world.add_system(EffectsSystem(render), after=drawn_before(world))    # over the models and sky
         if hud:
             from driftframe.systems.hud import HudSystem
-            world.add_system(HudSystem(render))
+            world.add_system(HudSystem(render), after=drawn_before(world))        # over everything
     if sound:
         from driftframe.systems.sound import attach as attach_sound
         attach_sound(world)

@@ -9,6 +9,8 @@ import esper
 from driftframe.components.camera import Camera
 from driftframe.framework.gl import ContextHandle, RenderTarget, create_context, current
 from driftframe.framework.model_cache import ModelCache
+from driftframe.framework.schedule import access
+from driftframe.framework.scene import seed_of
 from driftframe.systems import camera_rig
 from driftframe.systems.camera import CameraSystem
 from driftframe.systems.render import RenderSystem
@@ -27,32 +29,40 @@ def default_sky(scene) -> str:
     return sky
 
 
+def drawn_before(world) -> tuple[type, ...]:
+    """The classes of the world's render-stage systems that draw into the frame now (``RenderTarget`` in
+    their ``writes``), in running order. A system that draws over all of them (effects, a HUD) is added
+    with ``after=drawn_before(world)``: the order is said, not left to the adding order, and the schedule
+    warns about two drawers nothing orders (their pixels overlap)."""
+    return tuple(dict.fromkeys(type(s) for s in world.systems["render"] if RenderTarget in access(s, "writes")))
+
+
 def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = None, skybox=True,
            own_context: bool | None = None, **options) -> RenderSystem:
     """Set up rendering for ``world`` in one call; returns the :class:`RenderSystem`.
 
-    ``ctx``: a ``moderngl.Context`` (None: reuse ``world.resources["gl"]`` or
+    ``ctx``: a ``moderngl.Context`` (None: reuse the world's ``ContextHandle`` or
     create an off-screen one with :func:`framework.gl.create_context`).
     ``size``: (width, height) of a new off-screen target; ``target``: an
     existing :class:`RenderTarget` instead (a window: ``RenderTarget.screen``).
     ``skybox``: ``True`` or ``"lines"`` adds the green line-cube skybox,
     ``"starfield"`` the procedural starfield (its texture made from
-    ``world.resources["seed"]``, 0 if unset), ``False`` none. ``own_context``: release the
+    ``world.resources[Seed]``, 0 if unset), ``False`` none. ``own_context``: release the
     context with the world (default: only if created here). Other keyword
     arguments go to :class:`RenderSystem` (``lod``, ``cull``, ``instanced``,
     ``light_direction``, ...).
 
     Adds :class:`~systems.camera.CameraSystem` (if the world has none),
     :class:`RenderSystem` and :class:`~systems.skybox.SkyboxSystem`, places
-    the cameras, and sets ``world.resources["model_cache"]``,
-    ``["render_target"]`` and ``["gl"]``.
+    the cameras, and sets the typed resources ``world.resources[ModelCache]``,
+    ``[RenderTarget]`` and ``[ContextHandle]``.
     """
     sky = "lines" if skybox is True else skybox
     if sky not in (False, None) + SKIES:
         raise ValueError(f"skybox must be one of {SKIES}, True or False, got {skybox!r}")
-    if "render_target" in world.resources:
+    if RenderTarget in world.resources:
         raise ValueError("rendering is attached to this world already")
-    handle = world.resources.pop("gl", None)
+    handle = world.resources.pop(ContextHandle, None)
     if ctx is None:
         if handle is not None:
             ctx = handle.ctx
@@ -62,15 +72,15 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
     if handle is None or handle.ctx is not ctx:
         handle = ContextHandle(ctx, owned=bool(own_context))
     with current(ctx):                           # (the objects are this context's, whichever was current)
-        cache = world.resources.get("model_cache")
+        cache = world.resources.get(ModelCache)
         if cache is None:
             cache = ModelCache(ctx)
         if target is None:
             target = RenderTarget(ctx, size)
         # release order on world.close(): cache, target, then systems and (if owned) the context
-        world.resources["model_cache"] = cache
-        world.resources["render_target"] = target
-        world.resources["gl"] = handle
+        world.resources[ModelCache] = cache
+        world.resources[RenderTarget] = target
+        world.resources[ContextHandle] = handle
         if world.get_system(CameraSystem) is None:
             world.add_system(CameraSystem())
         # world.close() calls release() on every system (this one, the skybox, the HUD) before the resources
@@ -78,7 +88,7 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
         if sky == "lines":
             world.add_system(SkyboxSystem(ctx, cache, render))
         elif sky == "starfield":
-            world.add_system(StarfieldSystem(ctx, render, seed=world.resources.get("seed", 0)))
+            world.add_system(StarfieldSystem(ctx, render, seed=seed_of(world)))
         world.activate()
         if any(True for _ in esper.get_component(Camera)):
             camera_rig.update_cameras(world, snap=True)

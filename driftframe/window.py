@@ -37,6 +37,7 @@ import numpy as np
 from driftframe.framework import validate
 from driftframe.framework.gl import RenderTarget
 from driftframe.framework.input import HELD
+from driftframe.framework.scene import seed_of
 from driftframe.framework.stop_signals import StopSignals
 from driftframe.framework.stop_signals import signal_name as _signal_name
 
@@ -250,12 +251,12 @@ def play(name: str | World, *, size: tuple[int, int] = (1280, 720), seed: int = 
     if isinstance(name, World):
         if name.closed:
             raise ValueError("play: the world is closed")
-        if "render_target" in name.resources:
+        if RenderTarget in name.resources:
             raise ValueError("play: the world has rendering attached already; play attaches its own "
                              "(call play(world) on a world without attach_rendering)")
         demo = _OwnWorld(name)
         sky = default_sky(None) if sky is None else sky
-        info = dict(seed=int(name.resources.get("seed", seed)), camera=camera, sky=str(sky))
+        info = dict(seed=seed_of(name, seed), camera=camera, sky=str(sky))
     else:
         if not isinstance(name, str):
             raise TypeError(f"play: give a demo name, 'module:function' or a World, got {type(name).__name__}")

@@ -31,9 +31,10 @@ method for worker processes. Starting a program that ``exec``s is fine.
 (RGBA8 colour + 24-bit depth renderbuffers) or a window's default
 framebuffer. :meth:`RenderTarget.read_rgba` returns the frame as an
 ``(H, W, 4)`` uint8 array, top row first (GL reads bottom-up; it is flipped
-here). :class:`ContextHandle` is what :func:`driftframe.rendering.attach` stores in
-``world.resources["gl"]``: it releases the context with the world only when
-the world owns it.
+here). Both are typed resources of a world with rendering
+(``world.resources[RenderTarget]``, ``world.resources[ContextHandle]``), as
+:func:`driftframe.rendering.attach` stores them; the handle releases the
+context with the world only when the world owns it.
 """
 from __future__ import annotations
 
@@ -174,6 +175,11 @@ class ContextHandle:
     by several worlds (tests) or owned by a window must survive that.
     """
 
+    #: Who makes it (named when a world has none: :meth:`World.resource`).
+    published_by = "made by attach_rendering(world) (driftframe.rendering.attach)"
+    #: Not in a save: a handle, made again when rendering is attached.
+    saved = False
+
     def __init__(self, ctx, *, owned: bool):
         self.ctx = ctx
         self.owned = bool(owned)
@@ -214,7 +220,13 @@ class RenderTarget:
     ``fbo`` is the ``moderngl.Framebuffer``; ``size`` is ``(width, height)``
     in pixels; ``use()`` binds it and sets the viewport. A later system (a
     HUD) draws into the same frame by calling ``target.use()`` and drawing.
+    A system that draws into it declares ``RenderTarget`` in its ``writes``.
     """
+
+    #: Who makes it (named when a world has none: :meth:`World.resource`).
+    published_by = "made by attach_rendering(world) (driftframe.rendering.attach)"
+    #: Not in a save: GPU objects, made again when rendering is attached.
+    saved = False
 
     def __init__(self, ctx, size=(1280, 720)):
         self.ctx = ctx

@@ -98,6 +98,7 @@ from driftframe.framework.record_sinks import (GIF_MAX_DELAY, X264_CRF, X264_DEF
                                                X264_PRESETS, X264_THREADS, X264_TUNING, _BT709, _GifSink, _H264Sink,
                                                _PngSink, _Sink, open_sink)
 from driftframe.framework.audio import Soundtrack, frame_samples
+from driftframe.framework.gl import RenderTarget
 from driftframe.framework.record_writer import _Writer
 
 if TYPE_CHECKING:
@@ -261,7 +262,7 @@ def _checked(world, path, *, frames, fps, steps_per_frame, before_step, gif_scal
         raise ValueError(f"crf must be an int in [0, 51], got {crf!r}")
     if yuv not in YUV_PATHS:
         raise ValueError(f"yuv must be one of {', '.join(map(repr, YUV_PATHS))}, got {yuv!r}")
-    target = world.resources.get("render_target")
+    target = world.resources.get(RenderTarget)
     if target is None:
         raise LookupError("record: the world has no rendering; call driftframe.attach_rendering(world) first")
     if not isinstance(path, (str, os.PathLike)):

@@ -14,8 +14,13 @@ A resource type may say, as class attributes, who makes it
 (``saved = False``: a handle or what the scene's build makes again, as the
 model cache; see :mod:`.save`).
 
-String keys still work (``world.resources["seed"]``); they are the old way,
-kept for the values a scene sets by name.
+The framework's own resources are all typed: ``TimeWarp``, ``OrbitState``,
+``Soundtrack``, ``ModelCache``, ``RenderTarget``, ``ContextHandle``,
+``ModelFiles``, ``ModelVariants``, ``Seed`` and ``SceneRecipe``. The names
+they had before (``"seed"``, ``"model_cache"``, ``"render_target"``,
+``"gl"``, ``"demo"``, ``"make_world"``) are an error that names the type
+(:data:`RENAMED`), read or written, rather than a silent miss. A string key
+of your own still works, unchecked: a type is better.
 """
 from __future__ import annotations
 
@@ -37,6 +42,21 @@ def publisher(key: Any, writers: Iterable[str] = ()) -> str:
     return "no system of this world declares it in its writes"
 
 
+#: The string keys the framework's resources had, and the type that keys each now (for the error).
+RENAMED = {"seed": "Seed (driftframe.framework.scene.Seed; .value is the int)",
+           "demo": "SceneRecipe (driftframe.framework.scene.SceneRecipe; .scene is the demo)",
+           "make_world": "SceneRecipe (driftframe.framework.scene.SceneRecipe; .manifest() is the dict)",
+           "model_cache": "ModelCache (driftframe.framework.model_cache.ModelCache)",
+           "render_target": "RenderTarget (driftframe.framework.gl.RenderTarget)",
+           "gl": "ContextHandle (driftframe.framework.gl.ContextHandle)"}
+
+
+def renamed(key: Any) -> None:
+    """Raise a KeyError when ``key`` is one of the framework's old string keys (:data:`RENAMED`)."""
+    if isinstance(key, str) and key in RENAMED:
+        raise KeyError(f"world.resources[{key!r}] is keyed by its type now: world.resources[{RENAMED[key]}]")
+
+
 def key_name(key: Any) -> str:
     return key.__name__ if isinstance(key, type) else repr(key)
 
@@ -51,9 +71,25 @@ class Resources(dict):
         self._writers = writers          # a function: key -> names of the systems that declare it in writes
 
     def __missing__(self, key: Any) -> Any:
+        renamed(key)
         writers = self._writers(key) if self._writers is not None else ()
         where = f"world {self._world_name!r}" if self._world_name else "this world"
         raise KeyError(f"{where} has no {key_name(key)} resource: {publisher(key, writers)}")
+
+    def get(self, key: Any, default: Any = None) -> Any:
+        if type(key) is str:
+            renamed(key)
+        return super().get(key, default)
+
+    def __setitem__(self, key: Any, value: Any) -> None:
+        if type(key) is str:
+            renamed(key)
+        super().__setitem__(key, value)
+
+    def __contains__(self, key: object) -> bool:
+        if type(key) is str:
+            renamed(key)
+        return super().__contains__(key)
 
 
 class CheckedResources(Resources):

@@ -74,6 +74,7 @@ from driftframe.framework import esper_adapter as ea
 from driftframe.framework import validate
 from driftframe.framework.inputfile import read_bytes_capped
 from driftframe.framework.output import PartFile
+from driftframe.framework.scene import SceneRecipe, Seed
 from driftframe.framework.store import Columnar
 
 #: The save format's version: bumped when a reader of the old format would misread the new. A save of
@@ -85,7 +86,7 @@ SAVE_CAP = 256 << 20
 MANIFEST = "manifest.json"
 #: Resources a world's rebuild makes again, never taken from a save: the scene's module and how it was made,
 #: rendering handles. A system adds the names of those it makes in its ``rebuilt_resources``.
-REBUILT_RESOURCES = ("demo", "gl", "model_cache", "render_target", "make_world")
+REBUILT_RESOURCES = ("demo", "gl", "model_cache", "render_target", "make_world")   # (names of older saves)
 
 
 class SaveError(ValueError):
@@ -240,6 +241,12 @@ def _systems(world):
             yield e.name, e.system
 
 
+def _recipe(world) -> dict | None:
+    """How ``world`` was made (its :class:`~framework.scene.SceneRecipe`, the save's ``scene`` field), or None."""
+    recipe = world.resources.get(SceneRecipe)
+    return recipe.manifest() if recipe is not None else None
+
+
 def snapshot(world) -> tuple[dict, dict]:
     """``(manifest, arrays)`` of ``world`` now: what :func:`save` writes."""
     world._check_whole("save")
@@ -248,7 +255,7 @@ def snapshot(world) -> tuple[dict, dict]:
     ents = ea.live_entities()
     manifest = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "driftframe_version": __version__,
-        "scene": world.resources.get("make_world"),
+        "scene": _recipe(world),
         "dt": encode(world.dt), "step_count": int(world.step_count), "time": encode(world.time),
         "next_entity": ea.next_entity(), "entities": ents,
         "columnar": {}, "plain": {}, "resources": {}, "typed_resources": {}, "rebuilt_resources": [],
@@ -446,7 +453,7 @@ def restore(world, save) -> None:
     if dt != world.dt:
         raise SaveError(f"{where}: field 'dt' is {validate.shown(dt)} s;"
                         f" the rebuilt world steps {validate.shown(world.dt)} s")
-    mine, theirs = world.resources.get("make_world"), m.get("scene")
+    mine, theirs = _recipe(world), m.get("scene")
     if isinstance(mine, dict) and isinstance(theirs, dict) and mine.get("name") != theirs.get("name"):
         raise SaveError(f"{where}: field 'scene' is {theirs.get('name')!r}; this world is {mine.get('name')!r}")
     subs = _subscriptions(world)
@@ -513,6 +520,8 @@ def restore(world, save) -> None:
                 raise SaveError(f"{where}: field 'plain/{path}' of entity {row[0]} holds a {_class_path(type(comp))}")
             _owner(row[0], f"plain/{path}").append(comp)
     resources = {k: decode(v, f"{where}: field 'resources/{k}'") for k, v in m["resources"].items()}
+    if isinstance(resources.get("seed"), int):      # a save from before Seed was a type: its "seed" is a Seed
+        resources[Seed] = Seed(resources.pop("seed"))
     typed = m.get("typed_resources", {})            # (absent in the saves written before type keys: none)
     if not isinstance(typed, dict):
         raise SaveError(f"{where}: field 'typed_resources' is a {type(typed).__name__}, not what a save holds")

@@ -37,6 +37,7 @@ from driftframe.components.collision import CollisionEvent, SphereCollider
 from driftframe.components.control import FlightInput, Player
 from driftframe.components.gravity import SurfaceContact
 from driftframe.framework import frame as fr
+from driftframe.framework.gl import RenderTarget
 
 _VS = """
 #version 330
@@ -75,11 +76,12 @@ _FLOATS = 8          # x y z, r g b intensity, size
 
 class EffectsSystem(esper.Processor):
     """Reads the frame's CollisionEvent, Mass, the player's Transform and FlightInput; writes points into
-    the render target (see the module docstring). ``render``: the render system it draws after."""
+    the RenderTarget (see the module docstring). ``render``: the render system it draws after (the world's
+    other drawers, a sky: :func:`driftframe.rendering.drawn_before`, which ``attach_rendering`` passes)."""
 
     stage = "render"
     reads = (CollisionEvent, SurfaceContact, Mass, SphereCollider, Transform, FlightInput, Player)
-    writes = ()
+    writes = (RenderTarget,)
 
     def __init__(self, render):
         self.render = render

@@ -14,6 +14,8 @@ from driftframe.components.autopilot import Autopilot
 from driftframe.components.control import FlightInput, Player, RotationAssist
 from driftframe.components.gravity import GravityWell
 from driftframe.components.render import ModelRef
+from driftframe.framework.gl import RenderTarget
+from driftframe.framework.model_cache import ModelCache
 from driftframe.framework.orbit_state import OrbitState
 from driftframe.framework.warp import TimeWarp
 
@@ -170,14 +172,15 @@ class HudSystem(esper.Processor):
     (rad/s), assist state; with a gravity well, the orbit readouts (apoapsis,
     periapsis, period and the time to each, an impact warning, the closest
     approach to the autopilot's target, the aid's status, the warp and why it
-    dropped) and the predicted orbit as a line. Runs in stage "render" after the scene (and
-    skybox) so it is in the window and in recordings alike.
+    dropped) and the predicted orbit as a line. Runs in stage "render" after every other drawer of the
+    frame (``attach_rendering`` adds it with ``after=drawn_before(world)``: the scene, sky and effects)
+    so it is on top, in the window and in recordings alike.
     """
 
     stage = "render"
     reads = (Player, Camera, Transform, Velocity, AngularVelocity, RotationAssist, FlightInput, GravityWell,
-             Autopilot, ModelRef, OrbitState, TimeWarp)     # (the orbit readouts: OrbitState, the warp)
-    writes = ()
+             Autopilot, ModelRef, OrbitState, TimeWarp, ModelCache)   # (the orbit readouts: OrbitState, the warp)
+    writes = (RenderTarget,)
 
     def __init__(self, render, *, font_px: int | None = None):
         self.render = render

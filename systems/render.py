@@ -11,13 +11,15 @@ Setting up rendering for a world is one call (:func:`driftframe.rendering.attach
 :func:`attach` adds the :class:`~systems.camera.CameraSystem` (stage
 ``"camera"``, every fixed step), this :class:`RenderSystem` and the
 :class:`~systems.skybox.SkyboxSystem` (stage ``"render"``, in that order),
-and fills ``world.resources``: ``"model_cache"`` (:class:`ModelCache`),
-``"render_target"`` (:class:`RenderTarget`) and ``"gl"``
-(:class:`ContextHandle`, ``.ctx`` is the ``moderngl.Context``;
-``world.close()`` releases the context only if attach created it).
+and fills the typed resources ``world.resources[ModelCache]``,
+``world.resources[RenderTarget]`` and ``world.resources[ContextHandle]``
+(``.ctx`` is the ``moderngl.Context``; ``world.close()`` releases the
+context only if attach created it).
 
-A later system in stage ``"render"`` (a HUD) draws on top of the same frame:
-it reads ``render.ctx``, ``render.target`` (``.fbo``, ``.size``,
+A later system in stage ``"render"`` (a HUD) draws on top of the same frame: it
+declares ``writes = (RenderTarget,)``, is added with
+``after=driftframe.rendering.drawn_before(world)`` (the schedule warns about two
+drawers nothing orders), and reads ``render.ctx``, ``render.target`` (``.fbo``, ``.size``,
 ``.use()``), ``render.view``, ``render.projection``,
 ``render.view_projection`` and ``render.viewport`` — all set for the frame
 being drawn — and sets the GL state it needs (this system leaves depth test
@@ -156,7 +158,7 @@ class _Group:
 
 
 class RenderSystem(esper.Processor):
-    """Reads Transform, ModelRef, the active Camera; writes the render target's pixels.
+    """Reads Transform, ModelRef, the active Camera and the ModelCache; writes the RenderTarget's pixels.
 
     ``ctx``: moderngl context; ``cache``: the :class:`ModelCache`; ``target``:
     the :class:`RenderTarget`. Options: ``lod`` / ``cull`` (level of detail
@@ -175,8 +177,8 @@ class RenderSystem(esper.Processor):
     """
 
     stage = "render"
-    reads = (Transform, ModelRef, Camera)
-    writes = ()         # pixels only: the camera stage alone places the eye
+    reads = (Transform, ModelRef, Camera, ModelCache)
+    writes = (RenderTarget,)        # pixels only: the camera stage alone places the eye
 
     def __init__(self, ctx, cache: ModelCache, target: RenderTarget, *, lod: bool = True, cull: bool = True,
                  instanced: bool = True, lod_tolerance_px: float = 0.5,
@@ -497,9 +499,9 @@ class RenderSystem(esper.Processor):
 
 
 def read_rgba(world) -> np.ndarray:
-    """The world's current frame (``world.resources["render_target"]``), (H, W, 4) uint8, top row first."""
+    """The world's current frame (``world.resources[RenderTarget]``), (H, W, 4) uint8, top row first."""
     try:
-        target = world.resources["render_target"]
+        target = world.resources[RenderTarget]
     except KeyError:
         raise LookupError("no rendering: call driftframe.attach_rendering(world) first") from None
     return target.read_rgba()

@@ -23,6 +23,7 @@ import moderngl
 import numpy as np
 
 from driftframe.framework import validate
+from driftframe.framework.gl import RenderTarget
 from driftframe.framework.model_cache import ModelCache, check_colour
 
 VERTEX_SHADER = """
@@ -57,7 +58,7 @@ class SkyboxSystem(esper.Processor):
 
     stage = "render"
     reads = ()          # the render system's view (no components)
-    writes = ()
+    writes = (RenderTarget,)
 
     def __init__(self, ctx, cache: ModelCache, render, *, model: str = "skybox", colour=None):
         self.ctx = ctx
@@ -238,7 +239,7 @@ class StarfieldSystem(esper.Processor):
 
     stage = "render"
     reads = ()          # the render system's view (no components)
-    writes = ()
+    writes = (RenderTarget,)
 
     def __init__(self, ctx, render, *, seed: int = 0, size: int = 512, stars: int = 9000, faces=None):
         self.ctx = ctx

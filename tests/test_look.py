@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from driftframe.framework import meshes
-from driftframe.framework.model_cache import ModelVariants
+from driftframe.framework.model_cache import ModelCache, ModelVariants
 
 
 def test_rocks_are_bounded_by_the_unit_sphere_centred_on_their_mass_and_not_round():
@@ -201,7 +201,7 @@ def _shot(ctx, world, model, colour=(1.0, 1.0, 1.0)):
     world.create_entity(Camera(target=eye, mode="cockpit", fov=60.0))
     render = attach_rendering(world, ctx, size=(64, 64), own_context=False, sky=False, hud=False, sound=False,
                               effects=False, ambient=1.0, fill=0.0, lod=False)      # unlit: colour = texel
-    model(world.resources["model_cache"])
+    model(world.resources[ModelCache])
     world.create_entity(Transform(), ModelRef("square", colour=colour))
     world.step(1)
     world.render()
@@ -219,7 +219,7 @@ def test_a_textured_procedural_mesh_shows_its_texels_the_right_way_up(ctx, world
     np.testing.assert_allclose(q["top-right"], [0, 255, 0], atol=12)
     np.testing.assert_allclose(q["bottom-left"], [0, 0, 255], atol=12)
     np.testing.assert_allclose(q["bottom-right"], [255, 255, 255], atol=12)
-    cache = world.resources["model_cache"]
+    cache = world.resources[ModelCache]
     with pytest.raises(ValueError, match="model 'bare': a texture needs uvs on every level"):
         cache.define("bare", meshes.box(), texture=CHECKER)
     with pytest.raises(ValueError, match=r"model 'flat' texture must be an \(H, W, 3 or 4\) uint8 image"):

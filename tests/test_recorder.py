@@ -11,6 +11,8 @@ from videos import mp4_frames
 from driftframe.components.body import Transform, Velocity
 from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
+from driftframe.framework.gl import RenderTarget
+from driftframe.framework.model_cache import ModelCache
 from driftframe.framework.recorder import output_format, record
 from driftframe.framework.world import World
 from driftframe.systems.movement import MovementSystem
@@ -42,7 +44,7 @@ def scene(ctx):
         w = build(size)
         attach(w, ctx, size)
         # a big white marker high in the sky: it must come out in the top rows of every format
-        w.resources["model_cache"].variant("marker", "sphere", scale=8.0, colour=(1.0, 1.0, 1.0))
+        w.resources[ModelCache].variant("marker", "sphere", scale=8.0, colour=(1.0, 1.0, 1.0))
         w.create_entity(Transform((0.0, 40.0, 90.0)), Velocity((0.0, 0.0, 3.0)), ModelRef("marker"))
         return w
 
@@ -566,7 +568,7 @@ def test_a_frame_read_in_bands_is_the_frame_read_whole(scene):
     from driftframe.framework.yuv import rgba_to_nv12
 
     w = scene()
-    target = w.resources["render_target"]
+    target = w.resources[RenderTarget]
     grab = recorder._banded_nv12(target, recorder._Writer.DEPTH, band_bytes=6 * W * 4)
     for _ in range(3):
         w.step()

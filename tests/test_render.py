@@ -11,6 +11,8 @@ from driftframe.components.body import Transform
 from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
+from driftframe.framework.gl import ContextHandle, RenderTarget
+from driftframe.framework.model_cache import ModelCache
 from driftframe.framework.world import World
 from driftframe.systems import camera as cs
 from driftframe.rendering import attach
@@ -202,7 +204,7 @@ def test_ship_nose_points_along_its_forward_vector(make):
 
 def test_entities_sharing_a_mesh_are_drawn_in_one_instanced_call(make):
     w, _, render = make(lod=False, cull=False)
-    cache = w.resources["model_cache"]
+    cache = w.resources[ModelCache]
     rng = np.random.default_rng(5)
     for i in range(50):
         cache.variant(f"asteroid_{i}", "sphere", scale=float(rng.uniform(0.3, 1.5)))
@@ -223,7 +225,7 @@ def scattered(w, n=300, seed=9, spread=60.0):
     pos = rng.uniform(-spread, spread, (n, 3))
     for i, (p, r) in enumerate(zip(pos, rng.uniform(0.3, 3.0, n))):
         name = f"rock_{i}"
-        w.resources["model_cache"].variant(name, "sphere", scale=float(r))
+        w.resources[ModelCache].variant(name, "sphere", scale=float(r))
         w.create_entity(Transform(p), ModelRef(name))
     return n
 
@@ -329,7 +331,7 @@ def test_unknown_model_and_missing_camera_are_clear_errors(ctx, make):
     bad = w.create_entity(Transform((0.0, 0.0, 5.0)), ModelRef("astroid"))
     with pytest.raises(ValueError, match=f"ModelRef on entity {bad}: unknown model 'astroid'; known models"):
         w.render()
-    w.resources["model_cache"].variant("astroid", "sphere", scale=2.0)   # fixed: drawn on the next frame
+    w.resources[ModelCache].variant("astroid", "sphere", scale=2.0)   # fixed: drawn on the next frame
     w.render()
     assert render.stats["instances"] == 1
     w2 = World()
@@ -347,13 +349,13 @@ def test_attach_fills_the_world_resources_and_close_releases_them(ctx):
     w = World()
     render = attach(w, ctx, (64, 48))
     res = dict(w.resources)
-    assert set(res) == {"gl", "model_cache", "render_target"}
-    assert res["gl"].ctx is ctx and not res["gl"].owned
-    assert res["render_target"].size == (64, 48) and render.target is res["render_target"]
+    assert list(res) == [ModelCache, RenderTarget, ContextHandle]           # (their release order on close)
+    assert res[ContextHandle].ctx is ctx and not res[ContextHandle].owned
+    assert res[RenderTarget].size == (64, 48) and render.target is res[RenderTarget]
     assert [type(s).__name__ for s in w.systems["render"]] == ["RenderSystem", "SkyboxSystem"]
     assert [type(s).__name__ for s in w.systems["camera"]] == ["CameraSystem"]
     w.close()
-    assert res["render_target"].fbo is None and res["model_cache"].buffers_alive == 0
+    assert res[RenderTarget].fbo is None and res[ModelCache].buffers_alive == 0
     assert ctx.version_code >= 330                          # the shared context lives on
 
 

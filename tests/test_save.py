@@ -18,6 +18,7 @@ from driftframe.framework import __version__, save, warp
 from driftframe.framework.warp import TimeWarp
 from driftframe.framework.inputfile import InputFileError
 from driftframe.framework.output import OutputExistsError
+from driftframe.framework.scene import Seed
 from driftframe.framework.world import World
 
 
@@ -130,7 +131,7 @@ def test_unsavable_resource_is_left_to_the_rebuild_and_a_component_is_an_error(t
     a.resources["rng"].random(5)
     a.save(tmp_path / "s.npz")
     m = save.SaveFile(tmp_path / "s.npz").manifest
-    assert "callback" in m["rebuilt_resources"] and "demo" in m["rebuilt_resources"]
+    assert "callback" in m["rebuilt_resources"] and "driftframe.framework.scene:SceneRecipe" in m["rebuilt_resources"]
     b = World.load(tmp_path / "s.npz")
     score = b.resources["score"]
     assert score == (3, 0.5, [float("inf"), 0.0]) and type(score[1]) is np.float64
@@ -169,10 +170,10 @@ def test_type_keyed_resources_are_saved_by_class_and_come_back_under_their_type(
     a.resources[Lens] = Lens()
     a.save(tmp_path / "s.npz")
     m = save.SaveFile(tmp_path / "s.npz").manifest
-    assert list(m["typed_resources"]) == [f"{__name__}:Score"]
+    assert list(m["typed_resources"]) == ["driftframe.framework.scene:Seed", f"{__name__}:Score"]   # Seed: data
     assert f"{__name__}:Lens" in m["rebuilt_resources"]
     b = World.load(tmp_path / "s.npz")
-    assert b.resource(Score).points == 7 and Lens not in b.resources
+    assert b.resource(Score).points == 7 and Lens not in b.resources and b.resource(Seed) == a.resource(Seed)
     b.close()
     # a save written before type keys (no typed_resources field) still loads
     member = tmp_path / "s.npz"
@@ -180,12 +181,14 @@ def test_type_keyed_resources_are_saved_by_class_and_come_back_under_their_type(
         files = {n: z.read(n) for n in z.namelist()}
     old = json.loads(files["manifest.json"])
     del old["typed_resources"]
+    old["resources"]["seed"] = 5                    # then the scene's seed was a named resource: now a Seed
     files["manifest.json"] = json.dumps(old).encode()
     with zipfile.ZipFile(tmp_path / "old.npz", "w") as z:
         for n, data in files.items():
             z.writestr(n, data)
     c = World.load(tmp_path / "old.npz")
     assert Score not in c.resources and c.state_hash() == a.state_hash()
+    assert c.resource(Seed) == Seed(5) and "seed" not in dict(c.resources)
     c.close()
     a.close()
 
@@ -341,7 +344,8 @@ def test_a_builder_outside_driftframe_is_never_called(tmp_path, good):
     def builder(name, raw):
         if name == save.MANIFEST:
             m = json.loads(raw)
-            assert m["scene"]["builder"] == "driftframe.app:make_world" and "make_world" in m["rebuilt_resources"]
+            assert m["scene"]["builder"] == "driftframe.app:make_world"
+            assert "driftframe.framework.scene:SceneRecipe" in m["rebuilt_resources"]
             m["scene"]["builder"] = "os:system"
             return name, json.dumps(m)
         return name, raw

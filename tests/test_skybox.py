@@ -10,6 +10,8 @@ from driftframe.components.camera import Camera
 from driftframe.components.render import ModelRef
 from driftframe.framework import frame as fr
 from driftframe.framework import meshes
+from driftframe.framework.model_cache import ModelCache
+from driftframe.framework.scene import Seed
 from driftframe.framework.world import World
 from driftframe.systems import camera as cs
 from driftframe.rendering import attach
@@ -79,7 +81,7 @@ def test_skybox_is_the_cube_whose_corners_project_where_expected(ctx):
         eye = w.create_entity(Transform(orientation=fr.look_rotation((1.0, 1.0, 1.0))))   # at a corner
         w.create_entity(Camera(target=eye, mode="cockpit", fov=70.0))
         render = attach(w, ctx, (W, H), skybox=False)
-        cache = w.resources["model_cache"]
+        cache = w.resources[ModelCache]
         cache.define("plain_cube", meshes.line_cube(1), colour=(0.0, 1.0, 0.0))
         from driftframe.systems.skybox import SkyboxSystem
         w.add_system(SkyboxSystem(ctx, cache, render, model="plain_cube"))
@@ -221,7 +223,7 @@ def test_starfield_is_fixed_in_world_orientation_and_drawn_behind_models(ctx):
 def test_attach_keeps_the_line_cube_as_the_default_sky_and_makes_the_starfield_from_the_seed(ctx):
     def systems(**kw):
         w = World()
-        w.resources["seed"] = 9
+        w.resources[Seed] = Seed(9)
         eye = w.create_entity(Transform())
         w.create_entity(Camera(target=eye, mode="cockpit"))
         attach(w, ctx, (64, 48), **kw)
@@ -284,7 +286,6 @@ def test_starfield_uses_mipmaps_only_where_the_view_shrinks_the_texture(ctx):
 @pytest.mark.parametrize("kind", ["lines", "starfield"])
 def test_a_sky_added_before_its_render_system_still_draws_behind_the_models(ctx, kind):
     from driftframe.framework.gl import RenderTarget
-    from driftframe.framework.model_cache import ModelCache
     from driftframe.systems.render import RenderSystem
     from driftframe.systems.skybox import SkyboxSystem, StarfieldSystem
 
@@ -294,7 +295,7 @@ def test_a_sky_added_before_its_render_system_still_draws_behind_the_models(ctx,
         w.create_entity(Camera(target=eye, mode="cockpit", fov=70.0))
         w.create_entity(Transform((0.0, 0.0, 4.0)), ModelRef("sphere", colour=(1.0, 0.0, 0.0)))
         cache, target = ModelCache(ctx), RenderTarget(ctx, (64, 48))
-        w.resources["model_cache"], w.resources["render_target"] = cache, target
+        w.resources[ModelCache], w.resources[RenderTarget] = cache, target
         render = RenderSystem(ctx, cache, target)
         sky = (SkyboxSystem(ctx, cache, render) if kind == "lines"
                else StarfieldSystem(ctx, render, size=16, stars=50))

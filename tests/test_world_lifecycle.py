@@ -122,4 +122,7 @@ def test_typed_resources_and_the_accessor_that_names_who_publishes_them(world):
     world.resources[Score] = 3
     with pytest.raises(TypeError, match=r"resources\[Score\] holds a int, not a Score"):
         world.resource(Score)
-    assert world.resources.get("seed", 0) == 0                  # names still work
+    assert world.resources.get("score", 0) == 0                 # a name of one's own still works
+    with pytest.raises(KeyError, match=r"world.resources\['seed'\] is keyed by its type now: "
+                                       r"world.resources\[Seed \(driftframe.framework.scene.Seed"):
+        world.resources.get("seed", 0)                          # a framework resource's old name: an error
