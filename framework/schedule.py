@@ -24,7 +24,7 @@ import io
 import itertools
 import re
 import warnings
-from typing import Any, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 from driftframe.framework.step import Commit
 
@@ -137,6 +137,8 @@ class Schedule:
                                                    "frame": dict.fromkeys(FRAME_STAGES, 0.0)}
         self._seq = itertools.count()
         self._warned: set[tuple[int, int]] = set()
+        #: Bumped whenever a system is added or removed: a world's plans (:meth:`plan`) made before are stale.
+        self.version = 0
 
     def add(self, system: Any, stage: str | None = None, *, after: Any = (), before: Any = (),
             name: str | None = None) -> Entry:
@@ -195,8 +197,28 @@ class Schedule:
                 return e.phase
         return None
 
+    def plan(self, phase: str, busy: Callable[[Entry], bool], after: Entry | None = None,
+             written: set[str] | None = None) -> tuple[tuple[Entry, Any, str, bool], ...]:
+        """The systems of ``phase`` that have work (``busy(entry)``), in running order, each as
+        ``(entry, system, profile key, first)``: what a step runs while no entity gains or loses a
+        component (the world makes one per structure epoch, so an idle system costs nothing a step).
+        ``first``: the first of the plan's systems to book its time under that key (it sets the
+        profile's line, the others add to it). ``after``: only the systems after that entry (a change of
+        entities mid-step); ``written``: the profile keys already booked this step (updated)."""
+        order = self.order[phase]
+        if after is not None:
+            order = order[order.index(after) + 1:]
+        seen = set() if written is None else written
+        out = []
+        for e in order:
+            if busy(e):
+                out.append((e, e.system, e.key, e.key not in seen))
+                seen.add(e.key)
+        return tuple(out)
+
     def _build(self) -> None:
         """Topological order of each phase: stage order, then after/before, ties by (stage, adding order)."""
+        self.version += 1
         names = {e.name for e in self.entries}
         for e in self.entries:
             for ref in e.after + e.before:
