@@ -47,7 +47,7 @@ KEYS = {
     "fps": "frames per second of a recording (must divide 60)",
     "size": "'WIDTHxHEIGHT' or [WIDTH, HEIGHT] of a recording (a list of those is an axis)",
     "camera": "'cockpit', 'chase' or 'overhead'",
-    "sky": "'lines' (the green line cube) or 'starfield'",
+    "sky": "'starfield' or 'lines' (the green line cube); default: the demo's own (the starfield; rotation: lines)",
     "output": "file name template, relative to the output folder; none: headless",
     "stats": f"which stats to collect: any of {', '.join(STATS)}",
     "scripted": "true: fly the demo's scripted input; false: none",
@@ -176,7 +176,7 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True, overwr
         "fps": _axis(data.get("fps", 60), f"{name}: fps"),
         "size": _size_axis(data.get("size", "640x360"), f"{name}: size"),
         "camera": _axis(data.get("camera"), f"{name}: camera"),
-        "sky": _axis(data.get("sky", "lines"), f"{name}: sky"),
+        "sky": _axis(data.get("sky"), f"{name}: sky"),
     }
     for key, value in overrides.items():
         axes[f"overrides.{key}"] = _axis(value, f"{name}: overrides.{key}")
@@ -361,13 +361,26 @@ def _fill(template, combo, kind, ov, index, where, memo: dict) -> str:
         label = what.split(":")[-1] if kind == "scene" and isinstance(what, str) else what
         fields = {"demo": label, "scene": label, "seconds": seconds, "fps": fps,
                   "size": size if isinstance(size, str) else f"{w}x{h}", "width": w, "height": h,
-                  "camera": camera or "default", "sky": sky, **ov}
+                  "camera": camera or "default", "sky": sky or _own_sky(kind, what), **ov}
         with contextlib.suppress(TypeError):
             memo[key] = fields
     try:
         return template.format_map({**fields, "seed": seed, "index": index})
     except (ValueError, TypeError, KeyError, IndexError) as e:
         raise SpecError(f"{where}: output {template!r}: {e}") from None
+
+
+def _own_sky(kind, what) -> str:
+    """The sky a run without one records (the scene's own: :func:`driftframe.rendering.default_sky`), for its
+    output name; "default" where the demo is unknown (the run's check then names it)."""
+    from driftframe import demos
+    from driftframe.rendering import default_sky
+    if kind != "demo":
+        return default_sky(None)
+    try:
+        return default_sky(demos.load(what))
+    except (LookupError, ValueError, TypeError):
+        return "default"
 
 
 def check_out_dir(out_dir) -> Path:

@@ -49,7 +49,8 @@ class Spec:
     headless run (physics only), else a ``.mp4``/``.gif`` path or a directory
     for PNG frames, rendered at ``size`` and ``fps`` (which must divide the
     simulation rate), with ``camera`` (one of ``components.camera.MODES``;
-    default: the scene's own) and ``sky`` (:data:`SKIES`). ``scripted``: fly the demo's scripted input (its thrust
+    default: the scene's own) and ``sky`` (:data:`SKIES`; default None: the scene's own, as for
+    ``driftframe record``: the starfield, the rotation demo's green lines). ``scripted``: fly the demo's scripted input (its thrust
     adds energy; False measures the solver alone). ``stats``: which of
     :data:`STATS` to collect. ``where``: how error messages name this run.
     """
@@ -61,7 +62,7 @@ class Spec:
     fps: float = 60.0
     size: tuple[int, int] = DEFAULT_SIZE
     camera: str | None = None
-    sky: str = "lines"
+    sky: str | None = None
     overrides: dict = field(default_factory=dict)
     output: str | None = None
     stats: tuple[str, ...] = STATS
@@ -119,15 +120,16 @@ class Spec:
                 _check_output(output, self._err)
                 if memo is not None:
                     memo[("folder", folder)] = True
-        seconds, fps, size, stats = filled
-        if (seconds, fps, size, stats, output) == (self.seconds, self.fps, self.size, self.stats, self.output) \
+        seconds, fps, size, stats, sky = filled
+        if (seconds, fps, size, stats, sky, output) == (self.seconds, self.fps, self.size, self.stats, self.sky,
+                                                        self.output) \
                 and type(self.seed) is int and type(seconds) is float and type(fps) is float:
             return self                         # already in its checked form (a grid's runs): no copy
-        return dataclasses.replace(self, seconds=seconds, fps=fps, size=size, stats=stats, output=output,
+        return dataclasses.replace(self, seconds=seconds, fps=fps, size=size, stats=stats, sky=sky, output=output,
                                    seed=int(self.seed))
 
     def _check_values(self) -> tuple:
-        """(seconds, fps, size, stats) checked and filled in: everything but the seed and the output."""
+        """(seconds, fps, size, stats, sky) checked and filled in: everything but the seed and the output."""
         if (self.demo is None) == (self.scene is None):
             raise self._err("give exactly one of demo or scene "
                             f"(got demo={self.demo!r}, scene={self.scene!r})")
@@ -138,6 +140,7 @@ class Spec:
             _check_demo_overrides(module, self.demo, self.overrides, self._err)
             dt = float(self.overrides.get("DT", getattr(module, "DT", 1.0 / 60.0)))
             default_seconds = self.overrides.get("SECONDS", module.SECONDS)
+            scene = module
         else:
             func = _scene_function(self.scene, self._err)
             try:
@@ -147,6 +150,7 @@ class Spec:
                                 f"(func(world, rng, **overrides)): {e}") from None
             dt = 1.0 / 60.0
             default_seconds = None
+            scene = None
         seconds = self.seconds if self.seconds is not None else default_seconds
         if seconds is None:
             raise self._err(f"seconds is required for scene {self.scene!r}")
@@ -163,15 +167,22 @@ class Spec:
         from driftframe.components.camera import MODES
         if self.camera is not None and self.camera not in MODES:
             raise self._err(f"camera must be one of {', '.join(MODES)} (or none), got {self.camera!r}")
-        if self.sky not in SKIES:
-            raise self._err(f"sky must be one of {', '.join(SKIES)}, got {self.sky!r}")
+        sky = self.sky
+        if sky is None:                         # the scene's own, as `driftframe record` takes it
+            from driftframe.rendering import default_sky
+            try:
+                sky = default_sky(scene)
+            except ValueError as e:
+                raise self._err(str(e)) from None
+        if sky not in SKIES:
+            raise self._err(f"sky must be one of {', '.join(SKIES)}, got {sky!r}")
         stats = (self.stats,) if isinstance(self.stats, str) else tuple(self.stats)
         bad = [s for s in stats if s not in STATS]
         if bad:
             raise self._err(f"unknown stat {bad[0]!r}; stats: {', '.join(STATS)}")
         if not isinstance(self.scripted, bool):
             raise self._err(f"scripted must be true or false, got {self.scripted!r}")
-        return seconds, fps, size, stats
+        return seconds, fps, size, stats, sky
 
     def content_hash(self) -> str:
         """A hash of what the run does (not of its name in error messages): a journal row matches a spec

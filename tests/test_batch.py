@@ -113,7 +113,7 @@ def test_a_recording_writes_its_output_and_reports_it(tmp_path):
 # -- reproducibility: serial, pool, cluster --------------------------------------------------------
 def _mixed(folder: Path):
     folder.mkdir()
-    return [headless(s) for s in range(3)] + [recording(0, folder / "box-0.mp4"),
+    return [headless(s) for s in range(3)] + [recording(0, folder / "box-0.mp4", sky="lines"),
                                               recording(1, folder / "box-1.mp4", sky="starfield")] + \
            [Spec(demo="billiards", seconds=0.2, overrides={"SPEED": 9.0})]
 
