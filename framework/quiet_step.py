@@ -46,14 +46,18 @@ def quiet_all_pairs(x, u, r, inv, live, pi, pj, dt):
 
 
 @kernel(error_model="numpy", no_cfunc_wrapper=True)
-def gather_quiet(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,
-                 x0, v0, a, inv, r, e, x, u, live, pi, pj):
+def gather_quiet(pos, vel, acc, kg, rad, rest, idx, dt, b3, a, b1, live, pairs):
     """:func:`contact_bodies.gather_bodies` and then, when every body is valid and one moves,
-    :func:`quiet_all_pairs` over the pairs ``pi, pj``, in one call (a small scene's step otherwise pays
-    the call twice). Returns ``(bad, moving, quiet)``; ``quiet`` is False when it was not tested."""
-    bad, moving = gather_bodies(pos, vel, acc, kg, rad, rest, t_idx, v_idx, a_idx, m_idx, c_idx, dt,
-                                x0, v0, a, inv, r, e, x, u, live)
+    :func:`quiet_all_pairs` over the pairs ``pairs[0], pairs[1]``, in one call (a small scene's step
+    otherwise pays the call twice). The arrays come packed, so that the call takes 13 arguments, not 23
+    (numba's dispatch costs about 45 ns an argument; this call is most of a quiet step of a few bodies):
+    ``idx`` rows ``t_idx, v_idx, a_idx, m_idx, c_idx``; ``b3`` rows ``x0, v0, x, u`` (each ``(n, 3)``);
+    ``b1`` rows ``inv, r, e``. Returns ``(bad, moving, quiet)``; ``quiet`` is False when it was not tested."""
+    x, u = b3[2], b3[3]
+    inv, r = b1[0], b1[1]
+    bad, moving = gather_bodies(pos, vel, acc, kg, rad, rest, idx[0], idx[1], idx[2], idx[3], idx[4], dt,
+                                b3[0], b3[1], a, inv, r, b1[2], x, u, live)
     quiet = False
     if bad == 0 and moving:
-        quiet = quiet_all_pairs(x, u, r, inv, live, pi, pj, dt)
+        quiet = quiet_all_pairs(x, u, r, inv, live, pairs[0], pairs[1], dt)
     return bad, moving, quiet

@@ -112,6 +112,9 @@ class _Layout:
         self.v_idx, self.v_sel, self.v_rows = optional(Velocity)
         self.m_idx, self.m_sel, self.m_rows = optional(Mass)
         self.a_idx, self.a_sel, self.a_rows = optional(Acceleration)
+        # the five index arrays as the rows of one (the quiet-step kernel takes them packed), each a view
+        self.idx = np.stack([self.t_idx, self.v_idx, self.a_idx, self.m_idx, self.c_idx]).astype(np.intp)
+        self.t_idx, self.v_idx, self.a_idx, self.m_idx, self.c_idx = self.idx
         self.all_v = len(self.v_sel) == n
         self.all_m = len(self.m_sel) == n
         # the Transform rows of the bodies that move (have a Velocity), for the write-back
@@ -149,18 +152,22 @@ class State:
     compiled pass (:func:`~driftframe.framework.contact.gather_bodies`), with the solver's copies
     ``x`` (= ``x0``) and ``u`` (the step's mean velocity ``v0 + a dt/2``).
 
-    One per layout (:meth:`of`): its arrays are made once and refilled by :meth:`gather` every step."""
+    One per layout (:meth:`of`): its arrays are made once and refilled by :meth:`gather` every step;
+    ``x0, v0, x, u`` are the rows of one ``(4, n, 3)`` array and ``inv, r, e`` of one ``(3, n)`` (each a
+    contiguous view), which the quiet-step kernel takes packed."""
 
     def __init__(self, world, lay: _Layout):
         n = lay.n
-        self.x0, self.v0, self.inv, self.r, self.e = np.empty((n, 3)), np.empty((n, 3)), np.empty(n), \
-            np.empty(n), np.empty(n)
+        self._b3, self._b1 = np.empty((4, n, 3)), np.empty((3, n))
+        self.x0, self.v0, self.x, self.u = self._b3
+        self.inv, self.r, self.e = self._b1
         self.a = np.empty((n, 3)) if len(lay.a_sel) else None
-        self.x, self.u, self.live = np.empty((n, 3)), np.empty((n, 3)), np.empty(n, np.bool_)
+        self.live = np.empty(n, np.bool_)
         self.n_bad, self.moving = 0, False
         self._world = world
         self._epoch = -1
         self._args = None
+        self._quiet: tuple | None = None             # the quiet-step kernel's arguments (see gather_quiet)
 
     @staticmethod
     def of(world, lay: _Layout) -> "State":
@@ -183,6 +190,7 @@ class State:
                           lay.t_idx, lay.v_idx, lay.a_idx, lay.m_idx, lay.c_idx)
             self._out = (self.x0, self.v0, self.a if self.a is not None else _NO_N3, self.inv, self.r, self.e,
                          self.x, self.u, self.live)
+            self._quiet = None
             self._epoch = world.epoch
         return self._args
 
@@ -192,11 +200,17 @@ class State:
         self.n_bad, self.moving = contact.gather_bodies(*args, float(dt), *self._out)
         return self
 
-    def gather_quiet(self, lay: _Layout, dt: float, pairs: tuple) -> bool:
-        """:meth:`gather`, and whether the step is quiet for the candidate ``pairs`` (``(pi, pj)``; see
-        :func:`~driftframe.framework.quiet_step.gather_quiet`: False when a body is not valid or none moves)."""
-        args = self.columns(lay)
-        self.n_bad, self.moving, quiet = gather_quiet(*args, float(dt), *self._out, *pairs)
+    def gather_quiet(self, lay: _Layout, dt: float, pairs: np.ndarray) -> bool:
+        """:meth:`gather`, and whether the step is quiet for the candidate pairs (``pairs``: ``(2, m)``, the
+        rows ``pi, pj``; see :func:`~driftframe.framework.quiet_step.gather_quiet`: False when a body is not
+        valid or none moves). The kernel's arguments are kept while the world's structure epoch, ``dt``
+        and the pairs are the same (a small scene's step is little more than this call)."""
+        call = self._quiet
+        if call is None or self._epoch != self._world.epoch or call[7] != dt or call[12] is not pairs:
+            args = self.columns(lay)
+            call = self._quiet = args[:6] + (lay.idx, float(dt), self._b3, self._out[2], self._b1, self.live,
+                                             pairs)
+        self.n_bad, self.moving, quiet = gather_quiet(*call)
         return quiet
 
     def end_of_step(self, dt: float):
@@ -284,6 +298,7 @@ class CollisionSystem(esper.Processor):
         self._none_changed = None
         self._stick = False                          # a step jammed: solve with the jam path's variant
         self.stats = dict(_ZERO_STATS)
+        self._quiet_stats = -1                       # n of the last quiet step, whose counts stats holds
 
     @property
     def world(self) -> World | None:
@@ -386,19 +401,30 @@ class CollisionSystem(esper.Processor):
 
     def process(self, dt: float) -> None:
         lay = self._refresh()
-        self.stats.update(_ZERO_STATS)
-        if lay.n == 0:
-            return
-        st = State.of(self.world, lay)
-        if self.method == "continuous" and lay.n >= 2 and not self._uses_list(lay.n):
-            if st.gather_quiet(lay, dt, self._all_pairs(lay.n)):
-                self.stats["pairs"] = len(self._pairs[0])    # what the solver would say of a quiet step
+        n = lay.n
+        if n >= 2 and self.method == "continuous" and not self._uses_list(n):
+            # the shortest path, a scene of a few bodies: one compiled call gathers them and finds the step
+            # quiet (no pair meets), and the movement stage's prediction stands
+            st = lay.state or State.of(self._world, lay)
+            if st.gather_quiet(lay, dt, self._pairs if self._pairs_n == n else self._all_pairs(n)):
+                if self._quiet_stats != n:                   # (the same counts as the last quiet step's)
+                    self.stats.update(_ZERO_STATS)
+                    self.stats["pairs"] = len(self._pairs[0])    # what the solver would say of a quiet step
+                    self._quiet_stats = n
                 if self._bad:
                     self._bad.clear()
-                self._finish(lay, st, self._unchanged(lay.n), dt)
+                world = self._world
+                ctx = world.step_context
+                if ctx.step != world.step_count or not ctx.predicted:
+                    self._finish(lay, st, self._unchanged(n), dt)   # (no movement stage: free flight here)
                 return
+            self._zero_stats()
             self._continuous(lay, st, dt)
             return
+        self._zero_stats()
+        if n == 0:
+            return
+        st = State.of(self.world, lay)
         st.gather(lay, dt)
         if self.method == "articles":
             from driftframe.framework.articles import articles_step
@@ -411,6 +437,10 @@ class CollisionSystem(esper.Processor):
                 self.world.emit(CollisionEvent(*c, "articles", step=step))
             return
         self._continuous(lay, st, dt)
+
+    def _zero_stats(self) -> None:
+        self.stats.update(_ZERO_STATS)
+        self._quiet_stats = -1
 
     def _context(self, dt: float) -> StepContext:
         """The step context, opened for this step (by the movement stage, or here in a world without one)."""
@@ -486,10 +516,10 @@ class CollisionSystem(esper.Processor):
         return z
 
     # -- continuous -----------------------------------------------------------
-    def _all_pairs(self, n: int) -> tuple:
-        """``(pi, pj)``: every pair of ``n`` bodies (kept for this n only)."""
+    def _all_pairs(self, n: int) -> np.ndarray:
+        """Every pair of ``n`` bodies, ``(2, m)``: the rows ``pi, pj`` (kept for this n only)."""
         if self._pairs_n != n:
-            self._pairs = contact.all_pairs(n)
+            self._pairs = np.stack(contact.all_pairs(n))
             self._pairs_n = n
         return self._pairs
 
