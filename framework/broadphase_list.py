@@ -6,6 +6,8 @@ bodies that do are *swept*: the contact solver tests their paths against the ter
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from driftframe.framework import sorting
@@ -456,6 +458,18 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
 
 
 @kernel(no_cfunc_wrapper=True)
+def step_lengths(u, dt):
+    """Each body's displacement in one step, ``|u_k| dt`` (m; ``u``: (n, 3) m/s), for
+    :meth:`NeighbourList.build`: ``np.sqrt((u * u).sum(axis=1)) * dt`` bit for bit (numpy sums the three
+    squares left to right), in one pass (numpy's four took 80-100 us at 4,000 bodies, a sixth of a build)."""
+    n = u.shape[0]
+    out = np.empty(n)
+    for k in range(n):
+        out[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2]) * dt
+    return out
+
+
+@kernel(no_cfunc_wrapper=True)
 def _territory(r, d, skin_steps):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
@@ -471,13 +485,18 @@ def _territory(r, d, skin_steps):
     reach = np.empty(n)
     if n == 0:
         return skin, swept, reach
-    floor_ = max(sorting.median(d), 0.02 * sorting.median(r))
+    # the skins' middle two are those of the displacements mapped (the map never decreases): one
+    # selection serves both medians, bit for bit
+    d_lo, d_hi = sorting.middle(d)
+    floor_ = max(d_hi if n & 1 else (d_lo + d_hi) / 2, 0.02 * sorting.median(r))
     for k in range(n):
         skin[k] = skin_steps * max(d[k], floor_)
     big = r[0]
     for k in range(n):
         big = max(big, r[k])
-    limit = 8.0 * sorting.median(skin) + 4.0 * big
+    s_lo = skin_steps * max(d_lo, floor_)
+    s_hi = skin_steps * max(d_hi, floor_)
+    limit = 8.0 * (s_hi if n & 1 else (s_lo + s_hi) / 2) + 4.0 * big
     for k in range(n):
         swept[k] = skin[k] > limit
     for k in range(n):

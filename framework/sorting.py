@@ -135,13 +135,12 @@ def argsort_spread(a, m):
 
 
 @kernel(no_cfunc_wrapper=True)
-def median(a):
-    """``np.median`` of a 1-d float array without NaN (the mean of the middle two for an even count; NaN
-    when empty) by Wirth's selection, O(n): numba's median compiles a partition for every dtype, complex
-    included (see docs/bench/compile.md). The order statistics are unique, so the bits are numpy's."""
+def middle(a):
+    """The two middle order statistics of a non-empty 1-d float array without NaN: ``(lower, upper)``,
+    the ``(n - 1) // 2``-th and the ``n // 2``-th smallest (the same value for an odd count), by Wirth's
+    selection, O(n). :func:`median` is ``upper`` for an odd count, else ``(lower + upper) / 2``; so is the
+    median of ``f(a)`` for any ``f`` that never decreases (the neighbour list's skins from displacements)."""
     n = a.shape[0]
-    if n == 0:
-        return np.nan
     w = a.copy()
     h = n >> 1
     lo = 0
@@ -164,9 +163,23 @@ def median(a):
         if h < i:
             hi = j
     if n & 1:
-        return w[h]
+        return w[h], w[h]
     below = w[0]
     for k in range(1, h):
         below = max(below, w[k])
-    return (below + w[h]) / 2
+    return below, w[h]
 
+
+@kernel(no_cfunc_wrapper=True)
+def median(a):
+    """``np.median`` of a 1-d float array without NaN (the mean of the middle two for an even count; NaN
+    when empty) by Wirth's selection (:func:`middle`), O(n): numba's median compiles a partition for every
+    dtype, complex included (see docs/bench/compile.md). The order statistics are unique, so the bits are
+    numpy's."""
+    n = a.shape[0]
+    if n == 0:
+        return np.nan
+    below, upper = middle(a)
+    if n & 1:
+        return upper
+    return (below + upper) / 2

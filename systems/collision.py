@@ -379,7 +379,7 @@ class CollisionSystem(esper.Processor):
         r = st.r if r is None else r
         n = lay.n
         nl = self._list
-        nl.build(x.T, r, np.sqrt((u * u).sum(axis=1)) * dt)
+        nl.build(x.T, r, bp.step_lengths(u, float(dt)))          # |u| dt (one compiled pass)
         self._list_layout = lay
         self._list_dirty = False
         self._pi = np.asarray(nl.i, np.int64)             # (no copy: the grid build gives int64)

@@ -216,3 +216,19 @@ def test_compiled_grid_build_with_one_sphere_a_thousand_times_larger_tests_every
     got = set(zip(nl.i.tolist(), nl.j.tolist()))
     assert sum(1 for a, b in got if a == 0) == n - 1                   # the large one meets every body
     assert got == _brute(nl.centre, nl.reach, nl.swept)
+
+
+def test_step_lengths_and_territories_are_numpys_formulas_bit_for_bit():
+    # |u| dt in one compiled pass, and the skins from one selection serving two medians (the skins'
+    # middle two are the displacements' mapped): the same bits as numpy's formulas, odd and even counts
+    rng = np.random.default_rng(12)
+    for n in (1, 2, 5, 400, 1001):
+        u = rng.normal(0, 3, (n, 3)) * rng.uniform(0, 10, (n, 1))
+        d = broadphase_list.step_lengths(u, 1.0 / 60.0)
+        assert d.tobytes() == (np.sqrt((u * u).sum(axis=1)) * (1.0 / 60.0)).tobytes()
+        d[: n // 3] = 0.0                                    # bodies at rest: the floor of 2 % of a radius
+        r = rng.uniform(0.1, 1.0, n)
+        skin, swept, reach = broadphase_list._territory(r, d, 8.0)
+        want = 8.0 * np.maximum(d, max(np.median(d), 0.02 * np.median(r)))
+        assert skin.tobytes() == want.tobytes() and reach.tobytes() == (r + want).tobytes()
+        assert np.array_equal(swept, want > 8.0 * np.median(want) + 4.0 * r.max())
