@@ -54,7 +54,7 @@ import numpy as np
 from driftframe.framework import access_check
 from driftframe.framework import esper_adapter as ea
 from driftframe.framework import validate
-from driftframe.framework.resources import CheckedResources, Resources
+from driftframe.framework.resources import CheckedResources, Resources, key_name
 from driftframe.framework.schedule import (DEFAULT_AFTER, DEFAULT_BEFORE, FRAME_STAGES, STEP_STAGES,  # noqa: F401
                                            Entry, Schedule, ScheduleAmbiguityWarning, ScheduleError, system_name)
 from driftframe.framework.schedule import requires as _requires
@@ -447,8 +447,10 @@ class World:
                 if name in e.written]
 
     def describe(self) -> str:
-        """The schedule as text: each system in running order with its stage, reads and writes."""
-        return self._schedule.describe(self.dt)
+        """The schedule as text: each system in running order with its stage, reads and writes; then the
+        resources the world holds now, by type."""
+        held = ", ".join(sorted(key_name(k) for k in self.resources)) or "-"
+        return self._schedule.describe(self.dt) + f"resources: {held}\n"
 
     def _idle(self, e: Entry) -> None:
         """Decide whether ``e``'s system has nothing to do now: it declares ``requires`` and no entity has

@@ -79,6 +79,8 @@ def test_attach_rendering_keys_its_resources_by_type_and_orders_every_drawer_wit
             text = world.describe()
             assert "RenderSystem" in text and "reads:  Transform, ModelRef, Camera, ModelCache\n" in text
             assert text.count("writes: RenderTarget\n") == 4               # render, starfield, effects, HUD
+            assert text.endswith("resources: ContextHandle, ModelCache, ModelVariants, OrbitState, RenderTarget, "
+                                 "SceneRecipe, Seed, Soundtrack\n")
             world.step()
             world.render()
         finally:
