@@ -86,9 +86,12 @@ class _Column:
             self._col, self._src = col, col[:n]
             self.buf = np.empty((n, 3))
 
-    def begin(self) -> None:
+    def begin(self, fill: bool = True) -> None:
+        """Open the column for a step: the table's values copied in (``fill``), or not, where the caller
+        writes every row before anyone reads one (the movement stage predicting every body)."""
         self.prepare()
-        np.copyto(self.buf, self._src)
+        if fill:
+            np.copyto(self.buf, self._src)
         self._version = self.table.version
 
     def commit(self) -> None:
@@ -160,16 +163,18 @@ class StepContext:
         if self.step < 0:
             self.position = x.buf
 
-    def begin(self, step: int, dt: float, t_table, v_table) -> bool:
+    def begin(self, step: int, dt: float, t_table, v_table, whole: bool = False) -> bool:
         """Open the context for ``step`` (idempotent within a step): the start state of every row of the
-        two tables (``Table`` of Transform and of Velocity). True when it was opened by this call."""
+        two tables (``Table`` of Transform and of Velocity). True when it was opened by this call.
+        ``whole``: the caller writes every row of :attr:`position` at once (the movement stage, when every
+        row of the Transform table is a body it predicts), so the positions are not copied in first."""
         if self.step == step:
             return False
         self.step, self.dt, self.predicted = step, dt, False
         x, v = self._x, self._v
         if x is None or x.table is not t_table or v.table is not v_table:
             x, v = self._x, self._v = _Column(t_table, "position"), _Column(v_table, "linear")
-        x.begin()
+        x.begin(not whole)
         v.prepare()
         self._v_open = False
         self.position = x.buf

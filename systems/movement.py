@@ -43,6 +43,11 @@ class MovementSystem(esper.Processor):
         self._plan = ()
         self._views_key = None
         self._views = ()
+        self._tables = (None, None)           # the Transform and Velocity tables (a world's, kept)
+        self._whole = False                   # the plan writes every row of the step context's positions
+        # dt as a 0-d array (numpy's multiply takes it ~0.1 us sooner than a float, which it converts at
+        # every call; the same bits), and the float it was made from
+        self._dt, self._dt_f = np.array(0.0), 0.0
 
     def _moves(self) -> tuple:
         """What a step does, as packed rows: ``((t_rows, v_rows), (t_rows, v_rows, a_rows))``, the bodies
@@ -70,8 +75,14 @@ class MovementSystem(esper.Processor):
         self._plan = self._moves()
         self._plan_epoch = world.epoch
         ctx = world.step_context
-        ctx.prepare(world.table(Transform), world.table(Velocity))
+        t_table, v_table = self._tables = world.table(Transform), world.table(Velocity)
+        ctx.prepare(t_table, v_table)
         self._views = self._views_of(ctx)
+        # one group without an Acceleration over rows 0..size of the Transform table: its prediction is
+        # every row of the context's positions, so the step need not copy them in first
+        rows = self._plan[0][0] if len(self._plan) == 1 and len(self._plan[0]) == 2 else None
+        self._whole = isinstance(rows, slice) and not rows.start and rows.stop == t_table.size \
+            and rows.step in (None, 1)
 
     def _views_of(self, ctx) -> tuple:
         """Per group of the plan: ``(x0, v0, a, x1, v1)``, views into the tables and the context where the
@@ -97,16 +108,19 @@ class MovementSystem(esper.Processor):
         if self._plan_epoch != world.epoch:
             self.prepare()
         ctx = world.step_context
-        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        ctx.begin(world.step_count, dt, *self._tables, whole=self._whole)
         key = self._views_key
         if key is None or key[0] != world.epoch or key[1] is not ctx.position \
                 or key[2] is not ctx.velocity_buffer:
             self._views = self._views_of(ctx)
+        if self._dt_f != dt:
+            self._dt, self._dt_f = np.array(float(dt)), dt
+        dt0 = self._dt
         for x0, v0, a, x1, v1, rows in self._views:
             if rows is None:                          # contiguous rows: views, nothing gathered or made
                 if a is not None:
                     ctx.open_velocity()               # the other bodies' velocities copied in (see StepContext)
-                advance(x0, v0, a, dt, out=(x1, v1))
+                advance(x0, v0, a, dt0, out=(x1, v1))
                 continue
             pos = world.table(Transform).data["position"]
             vel = world.table(Velocity).data["linear"]
