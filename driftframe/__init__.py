@@ -30,7 +30,10 @@ if TYPE_CHECKING:       # what a type checker sees; at run time __getattr__ belo
     from driftframe.framework.loop import FixedStepLoop
     from driftframe.framework.placement import in_box, in_shell, place
     from driftframe.framework.recorder import record
+    from driftframe.framework.orbit_state import OrbitState
     from driftframe.framework.save import SaveError
+    from driftframe.framework.scene import SceneRecipe, Seed
+    from driftframe.framework.warp import TimeWarp
     from driftframe.framework.world import World
     from driftframe.systems.assist import RotationAssistSystem
     from driftframe.systems.autopilot import AutopilotSystem
@@ -69,6 +72,9 @@ _HOMES = {
     "orbit": "systems.readouts", "closest_approach": "systems.readouts", "predicted_orbit": "systems.readouts",
     "place": "framework.placement", "in_shell": "framework.placement", "in_box": "framework.placement",
     "SaveError": "framework.save",
+    # the framework's typed resources (docs/GUIDE.md, "Resources"): world.resource(Seed) and the like
+    "Seed": "framework.scene", "SceneRecipe": "framework.scene", "TimeWarp": "framework.warp",
+    "OrbitState": "framework.orbit_state",
 }
 
 
@@ -95,5 +101,5 @@ __all__ = [
     "simulation_systems", "attach_rendering", "make_world", "load_scene", "declare_variant", "declare_model_file",
     "play", "record", "look_rotation", "save_track", "load_track", "Autopilot", "FlightPlan", "Orbiting",
     "AutopilotSystem", "WarpGovernorSystem", "orbit", "closest_approach", "predicted_orbit",
-    "place", "in_shell", "in_box", "SaveError",
+    "place", "in_shell", "in_box", "SaveError", "Seed", "SceneRecipe", "TimeWarp", "OrbitState",
 ]
