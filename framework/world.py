@@ -403,6 +403,12 @@ class World:
         system.world = self
         return system
 
+    def wake(self) -> None:
+        """Read every system's ``requires`` again before the next step: for a system whose work changed
+        without any entity gaining or losing a component (a key pressed, a track given to the input
+        system), so that one idle until then is called."""
+        self._plans.clear()
+
     def remove_system(self, system: object) -> None:
         """Take ``system`` out of the schedule (its ``release()`` is called when it has one)."""
         self._schedule.remove(system)

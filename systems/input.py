@@ -59,11 +59,44 @@ class InputSystem(esper.Processor):
         self.handlers = {"switch_camera": _switch_camera, "warp_up": _warp_up, "warp_down": _warp_down}
         self.recorder: TrackRecorder | None = None
 
+    # a track, a recorder or a press gives the system work without any entity changing: the world is told
+    # (World.wake) to read `requires` again, so a system idle without them is not visited a step
+    @property
+    def track(self) -> Track | None:
+        return self._track
+
+    @track.setter
+    def track(self, value: Track | None) -> None:
+        self._track = value
+        self._wake()
+
+    @property
+    def recorder(self) -> TrackRecorder | None:
+        return self._recorder
+
+    @recorder.setter
+    def recorder(self, value: TrackRecorder | None) -> None:
+        self._recorder = value
+        self._wake()
+
+    @property
+    def requires(self) -> tuple[type, ...]:
+        """Nothing to do without a pilot (FlightInput and Player), a track, a recorder or a press."""
+        if self._track is not None or self._recorder is not None or self.pressed:
+            return ()
+        return (FlightInput, Player)
+
+    def _wake(self) -> None:
+        world = getattr(self, "world", None)
+        if world is not None:
+            world.wake()
+
     def press(self, action: str) -> None:
         """Queue a pressed action for the next step."""
         if action not in PRESSED:
             raise ValueError(f"unknown pressed action {action!r}; known: {', '.join(PRESSED)}")
         self.pressed.append(action)
+        self._wake()
 
     def live_intent(self) -> dict:
         """The intent of the held keys plus the gamepad's axes (each channel added, then clamped)."""
