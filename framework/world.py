@@ -123,7 +123,8 @@ class World:
         self._synced: dict[type, list] = {}
         self._probe = None
         self._queries: dict[tuple, Query] = {}
-        #: Each phase's plan: ``(epoch, schedule version, systems with work)`` (see :meth:`_plan`).
+        #: Each phase's plan: ``(epoch, schedule version, systems with work, how many resources)`` (see
+        #: :meth:`_plan`).
         self._plans: dict[str, tuple] = {}
         #: Bumped whenever an entity gains or loses a component (seen by :meth:`sync`, or made by this
         #: world): what is cached on "which entities have what" (a Query's rows, an idle system) is
@@ -475,10 +476,11 @@ class World:
         phase's profile lines: those of the systems it leaves out stay 0 while it holds."""
         kept = self._plans.get(phase)
         version = self._schedule.version
-        if kept is not None and kept[0] == self.epoch and kept[1] == version:
+        resources = len(self.resources)             # (a system may need a resource: the warp governor)
+        if kept is not None and kept[0] == self.epoch and kept[1] == version and kept[3] == resources:
             return kept[2]
         plan = self._schedule.plan(phase, self._busy)
-        self._plans[phase] = (self.epoch, version, plan)
+        self._plans[phase] = (self.epoch, version, plan, resources)
         self.profile.update(self._schedule.zero[phase])
         return plan
 

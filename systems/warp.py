@@ -43,6 +43,14 @@ class WarpGovernorSystem(esper.Processor):
     reads = (OrbitState, Orbiting, Autopilot, FlightPlan, FlightControl, Transform, Velocity, SphereCollider)
     writes = (time_warp.TimeWarp,)
 
+    @property
+    def requires(self) -> tuple[type, ...]:
+        """Nothing to do in a world without a TimeWarp (there is no warp to govern): then it asks for an
+        entity with a TimeWarp, which none has, so the world does not call it (the world reads this again
+        at the start of a step when resources were published or taken away since the last)."""
+        world = getattr(self, "world", None)
+        return () if world is not None and time_warp.TimeWarp in world.resources else (time_warp.TimeWarp,)
+
     def __init__(self, lead_frames: int = 30):
         if isinstance(lead_frames, bool) or not isinstance(lead_frames, int) or lead_frames < 1:
             raise ValueError(f"lead_frames must be an int >= 1, got {lead_frames!r}")
