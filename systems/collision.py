@@ -400,7 +400,11 @@ class CollisionSystem(esper.Processor):
             warnings.warn(text, RuntimeWarning, stacklevel=4)
 
     def process(self, dt: float) -> None:
-        lay = self._refresh()
+        world = self._world
+        world.sync()
+        lay = self._layout
+        if lay is None or self._layout_epoch != world.epoch:
+            lay = self._refresh()
         n = lay.n
         if n >= 2 and self.method == "continuous" and not self._uses_list(n):
             # the shortest path, a scene of a few bodies: one compiled call gathers them and finds the step

@@ -76,6 +76,8 @@ class MovementSystem(esper.Processor):
         self._plan_epoch = world.epoch
         ctx = world.step_context
         t_table, v_table = self._tables = world.table(Transform), world.table(Velocity)
+        if self._dt_f != world.dt:
+            self._dt, self._dt_f = np.array(float(world.dt)), world.dt
         ctx.prepare(t_table, v_table)
         self._views = self._views_of(ctx)
         # one group without an Acceleration over rows 0..size of the Transform table: its prediction is
