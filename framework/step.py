@@ -89,10 +89,12 @@ class _Column:
     def begin(self, fill: bool = True) -> None:
         """Open the column for a step: the table's values copied in (``fill``), or not, where the caller
         writes every row before anyone reads one (the movement stage predicting every body)."""
-        self.prepare()
+        table = self.table
+        if table.data[self.field] is not self._col or len(self.buf) != table.size:
+            self.prepare()
         if fill:
             np.copyto(self.buf, self._src)
-        self._version = self.table.version
+        self._version = table.version
 
     def commit(self) -> None:
         table = self.table
@@ -184,7 +186,12 @@ class StepContext:
         """Commit: write the context into the tables' position and velocity columns, and close it."""
         if self.step < 0:
             return
-        self._x.commit()
+        x = self._x
+        table = x.table
+        if table.version == x._version and table.data["position"] is x._col:
+            np.copyto(x._src, x.buf)                # (x.commit()'s usual step, inline: a small scene's step)
+        else:
+            x.commit()
         if self._v_open:
             self._v.commit()
         self.step = -1

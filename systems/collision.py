@@ -401,8 +401,7 @@ class CollisionSystem(esper.Processor):
 
     def process(self, dt: float) -> None:
         world = self._world
-        world.sync()
-        lay = self._layout
+        lay = self._layout                          # (the world has synced its tables before calling this)
         if lay is None or self._layout_epoch != world.epoch:
             lay = self._refresh()
         n = lay.n
