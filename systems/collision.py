@@ -74,16 +74,18 @@ _ZERO_STATS = {"pairs": 0, "contacts": 0, "waves": 0, "builds": 0, "swept": 0, "
 def kernel_events(ents, ev, ev_n, ev_x, t0: float, step: int, method: str = "continuous") -> list:
     """CollisionEvents from the contact kernel's arrays (:func:`framework.contact.solve_listed`:
     ``(i, j, time, impulse)``, the normal i to j, the points on i and on j), the lower entity id
-    first (its point, the normal towards the other). ``ents``: entity id of each kernel body;
-    ``t0``: the step's start (s)."""
+    first (its point, the normal towards the other). ``ents``: entity id of each kernel body (an array,
+    or a list of ints: then each event reads it without numpy's per-item cost); ``t0``: the step's
+    start (s)."""
     out = []
+    add = out.append
+    event = CollisionEvent
     for (i, j, t, lam), nrm, pts in zip(ev.tolist(), ev_n.tolist(), ev_x.tolist()):
         a, b = int(ents[int(i)]), int(ents[int(j)])
         if a < b:
-            out.append(CollisionEvent(a, b, t0 + t, t, tuple(pts[:3]), tuple(nrm), lam, method=method, step=step))
+            add(event(a, b, t0 + t, t, (pts[0], pts[1], pts[2]), (nrm[0], nrm[1], nrm[2]), lam, method, step))
         else:
-            out.append(CollisionEvent(b, a, t0 + t, t, tuple(pts[3:]), (-nrm[0], -nrm[1], -nrm[2]), lam,
-                                      method=method, step=step))
+            add(event(b, a, t0 + t, t, (pts[3], pts[4], pts[5]), (-nrm[0], -nrm[1], -nrm[2]), lam, method, step))
     return out
 
 
@@ -120,6 +122,7 @@ class _Layout:
         # the Transform rows of the bodies that move (have a Velocity), for the write-back
         self.tv_rows = as_index(self.t_idx[self.v_sel]) if len(self.v_sel) else self.t_idx[self.v_sel]
         self.state = None                           # the State of this layout (see State.of)
+        self.entity_list: list | None = None        # the entities as a list of ints (see CollisionSystem._emit)
 
 
 class _WithoutOrbiting:
@@ -638,5 +641,8 @@ class CollisionSystem(esper.Processor):
 
     def _emit(self, lay, ev, ev_n, ev_x):
         """One CollisionEvent per contact (a Python loop over contacts that happened)."""
-        for event in kernel_events(lay.entities, ev, ev_n, ev_x, self._now(), self.world.step_count):
+        ents = lay.entity_list
+        if ents is None:                                     # (the layout's ids as ints, made at its first event)
+            ents = lay.entity_list = lay.entities.tolist()
+        for event in kernel_events(ents, ev, ev_n, ev_x, self._now(), self.world.step_count):
             self.world.emit(event)
