@@ -85,6 +85,17 @@ def structure_unchanged(probe: list | None, name: str) -> bool:
             and esper.current_world == name)
 
 
+def ready(name: str, probe: list | None) -> bool:
+    """The start of a step of world ``name``: make it current, finish deleting the entities marked dead
+    (``esper.clear_dead_entities``), then :func:`structure_unchanged` (one call, not three: a small
+    scene's step is mostly such calls)."""
+    if esper.current_world != name:
+        esper.switch_world(name)
+    if esper._dead_entities:
+        esper.clear_dead_entities()
+    return not esper._cache_dirty and esper._get_component_cache.get(Probe) is probe
+
+
 def component_types() -> list[type]:
     """Every component class some entity had since esper last dropped it (some may have no holder now)."""
     return [c for c in esper._components if isinstance(c, type)]

@@ -502,13 +502,13 @@ class World:
 
     def _run(self, phase: str, dt: float) -> None:
         name = self.name
-        if self.closed or ea.current() != name:
-            self.activate()
-        esper.clear_dead_entities()
+        if self.closed:
+            self.activate()                         # (raises: closed)
         unchanged = ea.structure_unchanged
-        # self.sync()'s fast path, inline: esper's cache is clean and holds the probe list of the last sync,
-        # so no entity gained or lost a component (code outside the step may have); then after every system
-        if not unchanged(self._probe, name):
+        # current, its dead entities deleted, and self.sync()'s fast path: esper's cache is clean and holds
+        # the probe list of the last sync, so no entity gained or lost a component (code outside the step
+        # may have); then after every system
+        if not ea.ready(name, self._probe):
             self.sync()
         kept = self._plans.get(phase)               # (self._plan(phase)'s test, inline: the usual step)
         if kept is not None and kept[0] == self.epoch and kept[1] == self._schedule.version \
