@@ -177,7 +177,9 @@ class StepContext:
         if x is None or x.table is not t_table or v.table is not v_table:
             x, v = self._x, self._v = _Column(t_table, "position"), _Column(v_table, "linear")
         x.begin(not whole)
-        v.prepare()
+        vt = v.table
+        if vt.data["linear"] is not v._col or len(v.buf) != vt.size:
+            v.prepare()                             # (the velocities are copied in at their first use)
         self._v_open = False
         self.position = x.buf
         return True

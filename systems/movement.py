@@ -110,10 +110,10 @@ class MovementSystem(esper.Processor):
         if self._plan_epoch != world.epoch:
             self.prepare()
         ctx = world.step_context
-        ctx.begin(world.step_count, dt, *self._tables, whole=self._whole)
+        t_table, v_table = self._tables
+        ctx.begin(world.step_count, dt, t_table, v_table, self._whole)
         key = self._views_key
-        if key is None or key[0] != world.epoch or key[1] is not ctx.position \
-                or key[2] is not ctx.velocity_buffer:
+        if key[0] != world.epoch or key[1] is not ctx.position or key[2] is not ctx.velocity_buffer:
             self._views = self._views_of(ctx)
         if self._dt_f != dt:
             self._dt, self._dt_f = np.array(float(dt)), dt
