@@ -304,6 +304,14 @@ class CollisionSystem(esper.Processor):
         self._quiet_stats = -1                       # n of the last quiet step, whose counts stats holds
 
     @property
+    def requires(self) -> tuple[type, ...]:
+        """Nothing to do without a sphere collider, unless it holds colliders from before (it then runs
+        to let them go and zero its stats, like the gravity system with its bodies). Read by the world
+        once per change of entities: the world does not call an idle system (issue 20)."""
+        lay = self._layout
+        return () if lay is not None and lay.n else (Transform, SphereCollider)
+
+    @property
     def world(self) -> World | None:
         return self._world
 

@@ -108,3 +108,35 @@ def test_wake_reads_a_changed_requires_without_a_change_of_entities(world):
     world.wake()
     world.step()
     assert log == ["s"]                               # ...or the world is told
+
+
+def test_an_empty_world_with_the_standard_systems_calls_only_the_commit():
+    import numpy as np
+
+    from driftframe.app import simulation_systems
+    from driftframe.components.collision import SphereCollider
+    from driftframe.framework.world import World
+    from driftframe.systems.collision import CollisionSystem
+
+    w = World()
+    try:
+        for s in simulation_systems():
+            w.add_system(s)
+        w.prepare()
+        w.step(2)
+        assert [k for k, v in w.profile.items() if v] == ["commit"]
+        ents = w.create_entities(Transform.bulk(2, position=np.array([[-1.0, 0, 0], [1.0, 0, 0]])),
+                                 Velocity.bulk(2, linear=np.array([[60.0, 0, 0], [-60.0, 0, 0]])),
+                                 SphereCollider.bulk(2, radius=np.full(2, 0.5)))
+        w.step()                                      # they meet within this step
+        cs = w.get_system(CollisionSystem)
+        assert w.profile["collision"] > 0 and cs.stats["contacts"] == 1
+        for e in ents:
+            w.delete_entity(e)
+        w.step()                                      # it lets its colliders go: its stats read 0 again
+        assert cs.stats["contacts"] == 0 and cs.stats["pairs"] == 0
+        w.create_entity(Transform())                  # (a change of entities: the plan is made anew)
+        w.step()
+        assert w.profile["collision"] == 0.0
+    finally:
+        w.close()
