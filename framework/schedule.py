@@ -198,13 +198,16 @@ class Schedule:
         return None
 
     def plan(self, phase: str, busy: Callable[[Entry], bool], after: Entry | None = None,
-             written: set[str] | None = None) -> tuple[tuple[Entry, Any, str, bool], ...]:
+             written: set[str] | None = None) -> tuple[tuple[Entry, Any, str, bool, bool], ...]:
         """The systems of ``phase`` that have work (``busy(entry)``), in running order, each as
-        ``(entry, system, profile key, first)``: what a step runs while no entity gains or loses a
+        ``(entry, system, profile key, first, check)``: what a step runs while no entity gains or loses a
         component (the world makes one per structure epoch, so an idle system costs nothing a step).
         ``first``: the first of the plan's systems to book its time under that key (it sets the
-        profile's line, the others add to it). ``after``: only the systems after that entry (a change of
-        entities mid-step); ``written``: the profile keys already booked this step (updated)."""
+        profile's line, the others add to it). ``check``: whether the world looks for a change of
+        entities after it (not after a system that declares ``keeps_entities = True``: its ``process``
+        never adds or removes a component or an entity, nor calls code that could, such as event
+        subscribers). ``after``: only the systems after that entry (a change of entities mid-step);
+        ``written``: the profile keys already booked this step (updated)."""
         order = self.order[phase]
         if after is not None:
             order = order[order.index(after) + 1:]
@@ -212,7 +215,8 @@ class Schedule:
         out = []
         for e in order:
             if busy(e):
-                out.append((e, e.system, e.key, e.key not in seen))
+                check = getattr(e.system, "keeps_entities", False) is not True
+                out.append((e, e.system, e.key, e.key not in seen, check))
                 seen.add(e.key)
         return tuple(out)
 

@@ -211,6 +211,7 @@ class Commit(esper.Processor):
     stage = "commit"
     reads = (StepContext,)
     writes = ("Transform", "Velocity")
+    keeps_entities = True                 # (the world need not look for a change of entities after it)
     #: what no system may write between the movement stage and this one (the world's schedule refuses
     #: it): the step holds every body's velocity there. (Transform is not listed: the spin stage writes
     #: its orientation there; a position written there is overwritten all the same.)

@@ -527,7 +527,7 @@ class World:
         try:
             while plan:
                 todo, plan = plan, ()
-                for e, system, key, first in todo:
+                for e, system, key, first, check in todo:
                     last = e
                     if checked and e.checked:
                         access_check.running = (name, e)
@@ -542,7 +542,7 @@ class World:
                     else:
                         profile[key] += took
                     total[key] += took
-                    if not unchanged(self._probe, name):
+                    if check and not unchanged(self._probe, name):
                         epoch = self.epoch
                         self.sync()
                         t0 = clock()                # (the sync is booked under no system)

@@ -37,6 +37,7 @@ class MovementSystem(esper.Processor):
     reads = (Transform, Velocity, Acceleration)
     writes = (StepContext,)
     requires = (Transform, Velocity)
+    keeps_entities = True                 # (it adds and removes nothing: the world need not look after it)
 
     def __init__(self) -> None:
         self._plan_epoch = None

@@ -26,6 +26,7 @@ class SpinSystem(esper.Processor):
     reads = (AngularVelocity,)
     writes = (Transform,)
     requires = (Transform, AngularVelocity)
+    keeps_entities = True                 # (it adds and removes nothing: the world need not look after it)
 
     def __init__(self) -> None:
         self._scratch = np.empty((16, 0))    # work rows, reused every step (see _rotate)
