@@ -16,7 +16,9 @@ from driftframe.framework import validate
 
 #: "cockpit": the target's own frame. "chase": behind and above, looking along the velocity.
 #: "overhead": straight down on the target from above, fixed in world orientation (table tops, maps).
-MODES = ("cockpit", "chase", "overhead")
+#: "frame": down at an angle onto the x-z plane, over the target towards its first framed body, far enough back that the
+#: target and the bodies of ``Camera.frame`` are all in the picture (an orbit: the planet, ship and station).
+MODES = ("cockpit", "chase", "overhead", "frame")
 
 
 @dataclass
@@ -40,6 +42,15 @@ class Camera:
       world +y and looks straight down (-y); the top of the picture points
       along ``overhead_up`` (world frame, made perpendicular to y). It follows
       the target's position, never its rotation: a plan view.
+
+    * ``frame``: the eye looks ``frame_pitch`` degrees below the horizontal (across world y: the scene's
+      x-z plane), facing from the target towards the first body of ``frame`` (an orbit: over the ship's
+      shoulder onto its planet; without one, along the target's travel as the chase camera takes it, or
+      ``overhead_up`` where that is vertical), its up as near world +y as it can be, smoothed as the chase
+      camera is; it stands as close as it can with the target and
+      every ``(entity, radius)`` of ``frame`` inside the picture (each body a sphere of that radius, m; one
+      that is gone is left out), and never nearer the target than ``chase_distance``. The fit uses the
+      vertical field of view across the width too (a picture wider than tall shows them all).
 
     ``cycle``: the modes :func:`systems.camera.switch_camera` steps through
     for this camera (a camera whose mode is not in it goes to the first).
@@ -68,6 +79,10 @@ class Camera:
     overhead_height: float = 20.0
     #: Overhead: the world direction that points to the top of the picture (not along y).
     overhead_up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    #: Frame: the other bodies kept in the picture with the target, ``(entity id, radius in m)`` pairs.
+    frame: tuple[tuple[int, float], ...] = ()
+    #: Frame: how far below the direction of travel the eye looks, degrees in (0, 90] (90: a plan view).
+    frame_pitch: float = 55.0
     #: Modes a switch steps through, in order.
     cycle: tuple[str, ...] = ("cockpit", "chase")
     #: The render system draws from the first active camera.
@@ -102,6 +117,8 @@ class Camera:
             raise ValueError(f"Camera.overhead_up must have a part across world y (the overhead view looks "
                              f"along -y), got {up.tolist()}")
         self.overhead_up = tuple(up.tolist())
+        self.frame = _framed(self.frame)
+        self.frame_pitch = validate.scalar("Camera.frame_pitch", self.frame_pitch, positive=True, lo=0.0, hi=90.0)
         cycle = (self.cycle,) if isinstance(self.cycle, str) else tuple(self.cycle)
         if not cycle:
             raise ValueError("Camera.cycle must name at least one mode")
@@ -117,6 +134,19 @@ class Camera:
     def tan_half_fov(self) -> float:
         """tan(fov / 2): half the view's height at 1 m distance."""
         return math.tan(math.radians(self.fov) / 2.0)
+
+
+def _framed(frame) -> tuple[tuple[int, float], ...]:
+    """``Camera.frame`` checked: (entity id, radius >= 0) pairs."""
+    try:
+        pairs = [tuple(p) for p in frame]
+    except TypeError:
+        pairs = None
+    if pairs is None or any(len(p) != 2 for p in pairs):
+        raise ValueError(f"Camera.frame must be (entity id, radius in m) pairs, got {validate.shown(frame)}")
+    return tuple((validate.entity_id(f"Camera.frame[{k}] entity", e),
+                  validate.scalar(f"Camera.frame[{k}] radius", r, nonnegative=True))
+                 for k, (e, r) in enumerate(pairs))
 
 
 def check_mode(mode) -> str:

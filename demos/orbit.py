@@ -55,4 +55,7 @@ def build(world, rng):
         (BURN2 + 5.0, Autopilot(mode="match_velocity", target=station, tolerance=0.02)),
         (BURN2 + 15.0, Autopilot(mode="flip_and_burn", target=station, standoff=30.0, tolerance=0.02)),
     ]))
-    chase_camera(world, me, mode="chase", far=20_000.0, chase_distance=60.0, chase_height=25.0)
+    # the planet, the ship and the station in one picture, from above and behind the ship's travel;
+    # the script's switch then goes to the cockpit for the approach (then the chase view)
+    chase_camera(world, me, mode="frame", frame=((planet, R), (station, 8.0)),
+                 cycle=("frame", "cockpit", "chase"), far=20_000.0, chase_distance=60.0, chase_height=25.0)

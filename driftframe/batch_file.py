@@ -46,7 +46,7 @@ KEYS = {
     "seconds": "simulated seconds per run",
     "fps": "frames per second of a recording (must divide 60)",
     "size": "'WIDTHxHEIGHT' or [WIDTH, HEIGHT] of a recording (a list of those is an axis)",
-    "camera": "'cockpit', 'chase' or 'overhead'",
+    "camera": "'cockpit', 'chase', 'overhead' or 'frame'",
     "sky": "'starfield' or 'lines' (the green line cube); default: the demo's own (the starfield; rotation: lines)",
     "output": "file name template, relative to the output folder; none: headless",
     "stats": f"which stats to collect: any of {', '.join(STATS)}",

@@ -9,7 +9,7 @@ import math
 
 from driftframe.framework import __version__
 
-CAMERAS = ("cockpit", "chase", "overhead")
+CAMERAS = ("cockpit", "chase", "overhead", "frame")     # components.camera.MODES (not imported: a light parser)
 SKIES = ("lines", "starfield")
 
 

@@ -246,16 +246,19 @@ class AutopilotSystem(esper.Processor):
         # flip and burn: wanted velocity towards the point on the braking profile
         rel = p - x
         dist = float(np.linalg.norm(rel))
+        # the words give the distance to the target itself (the HUD's CLOSEST measures the same), not to
+        # the stopping point standoff m short of it: "arrived 0.09 m" beside "CLOSEST 30 m" read as a contradiction
+        away = dist
         if ap.standoff > 0 and dist > 0:                # stop short of it, on the line towards it
             rel = rel * max(0.0, 1.0 - ap.standoff / dist)
             dist = float(np.linalg.norm(rel))
         speed = float(np.linalg.norm(v_rel))
         if dist <= ap.tolerance * 10.0 and speed <= ap.tolerance:
             ap.done = True
-            ap.status = f"arrived ({dist:.2f} m, {speed:.3f} m/s)"
+            ap.status = f"arrived: {away:.1f} m off, {speed:.3f} m/s"
             return None, 0.0
         if ap.done:                                  # drifted off (tides in orbit): back to the point
-            ap.status = f"keeping station: {dist:.1f} m off"
+            ap.status = f"keeping station: {away:.1f} m off"
         alpha = TURN_MARGIN * ctl.angular_accel
         flip = 2.0 * math.sqrt(math.pi / alpha) + 4.0 * dt    # a half turn, bang-bang, and a margin
         v_want = (rel / dist if dist > 0 else np.zeros(3)) * float(flip_profile(dist, BRAKE_MARGIN * ctl.thrust,
@@ -263,7 +266,7 @@ class AutopilotSystem(esper.Processor):
         need = v_want - v_rel
         n = float(np.linalg.norm(need))
         if not ap.done:
-            ap.status = f"flip and burn: {dist:.0f} m, closing {float((rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
+            ap.status = f"flip and burn: {away:.0f} m off, closing {float((rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
         if n <= 0.5 * ap.tolerance:
             return None, 0.0                         # on the profile: coast, hold the attitude
         return need / n, min(1.0, n / full)

@@ -1,4 +1,4 @@
-"""Camera rigs: where a cockpit, chase or overhead camera puts its eye, the view / projection matrices drawn
+"""Camera rigs: where a cockpit, chase, overhead or frame camera puts its eye, the view / projection matrices drawn
 from it, and switching a camera's mode.
 
 The functions the camera system (:mod:`systems.camera`), the render system, the HUD and keyboard input
@@ -109,6 +109,69 @@ def overhead_rotation(up) -> np.ndarray:
     return fr.look_rotation((0.0, -1.0, 0.0), (up[0], 0.0, up[2]))
 
 
+def _frame_heading(cam: Camera, p_target, travel) -> np.ndarray:
+    """Where a frame camera faces: from the target towards the first body of ``cam.frame`` that is there
+    (an orbit: over the ship's shoulder onto its planet), else along ``travel``."""
+    for ent, _ in cam.frame:
+        tf = esper.try_component(ent, Transform) if esper.entity_exists(ent) else None
+        if tf is not None:
+            d = tf.position - p_target
+            if np.hypot(d[0], d[2]) > 0.0:
+                return d
+            break
+    return travel
+
+
+def frame_rotation(travel, pitch_deg: float, fallback) -> np.ndarray:
+    """Quaternion of a frame camera's eye: ``pitch_deg`` below the horizontal part of ``travel`` (across
+    world y), its up as near +y as it can be; ``fallback``'s horizontal part where ``travel`` is vertical."""
+    h = np.array([travel[0], 0.0, travel[2]])
+    n = float(np.hypot(h[0], h[2]))
+    if not n > 1e-9 * float(np.linalg.norm(travel)):
+        h, n = np.array([fallback[0], 0.0, fallback[2]]), float(np.hypot(fallback[0], fallback[2]))
+    p = math.radians(pitch_deg)
+    # d = cos p h - sin p y; its up (the look rotation's, from +y) = sin p h + cos p y
+    return fr.look_rotation(math.cos(p) * h / n - math.sin(p) * fr.UP, fr.UP)
+
+
+#: A frame camera fits its bodies into this share of the field of view (a margin round the edges).
+FRAME_FILL = 0.85
+
+
+def framing_eye(q, cam: Camera, p_target) -> np.ndarray:
+    """Eye position, with orientation ``q``, nearest the target with it and ``cam.frame``'s spheres in view.
+
+    In the eye's axes (a across, b up, f forward) a sphere at (x, y, z) of radius r is inside the top and
+    bottom planes through the eye at slope t = tan(FRAME_FILL fov / 2) when
+    ``y - t z + r sec <= y_e - t z_e`` and ``y + t z - r sec >= y_e + t z_e`` (sec = sqrt(1 + t^2)):
+    with T the largest left side and B the smallest, y_e = (T + B) / 2 and z_e = (B - T) / (2 t) is the
+    nearest eye, and any eye further back along f still holds them. The same across (x) with the same
+    slope; the eye takes the further of the two depths, and stands at least ``chase_distance`` behind
+    the target along f.
+    """
+    axes = fr.quat_to_matrix(np.asarray(q, dtype=np.float64))      # columns: a, b, f in world axes
+    pts, radii = [np.asarray(p_target, dtype=np.float64)], [0.0]
+    for ent, r in cam.frame:
+        tf = esper.try_component(ent, Transform) if esper.entity_exists(ent) else None
+        if tf is not None:
+            pts.append(tf.position)
+            radii.append(r)
+    local = np.asarray(pts) @ axes                                    # (n, 3): x, y, z in the eye's axes
+    rad = np.asarray(radii)
+    t = FRAME_FILL * cam.tan_half_fov
+    sec = math.sqrt(1.0 + t * t)
+    eye = np.empty(3)
+    depth = np.inf
+    for k in (0, 1):
+        u, z = local[:, k], local[:, 2]
+        top = float(np.max(u - t * z + rad * sec))
+        bottom = float(np.min(u + t * z - rad * sec))
+        eye[k] = 0.5 * (top + bottom)
+        depth = min(depth, (bottom - top) / (2.0 * t))
+    eye[2] = min(depth, local[0, 2] - cam.chase_distance)
+    return axes @ eye
+
+
 def update_camera(ent: int, cam: Camera, dt: float, *, snap: bool = False) -> Transform:
     """Move camera entity ``ent`` for one step of ``dt`` s; ``snap`` skips the smoothing.
 
@@ -152,14 +215,19 @@ def eye_pose(cam: Camera, target: Transform, q_prev, dt: float, *, snap: bool = 
         return p_t + np.array([0.0, cam.overhead_height, 0.0]), overhead_rotation(cam.overhead_up)
     vel = esper.try_component(cam.target, Velocity)
     d = chase_direction(cam, q_t, None if vel is None else vel.linear)
-    # the eye's up stays as close as possible to the target's up: it rolls with the ship
-    q_goal = fr.look_rotation(d, fr.rotate(q_t, fr.UP))
+    if cam.mode == "frame":
+        q_goal = frame_rotation(_frame_heading(cam, p_t, d), cam.frame_pitch, cam.overhead_up)
+    else:
+        # the eye's up stays as close as possible to the target's up: it rolls with the ship
+        q_goal = fr.look_rotation(d, fr.rotate(q_t, fr.UP))
     if snap or cam.smoothing == 0.0:
         q = q_goal
     else:
         # first-order lag with time constant tau: exact for any dt, so frame-rate independent
         alpha = 1.0 - math.exp(-dt / cam.smoothing)
         q = slerp(q_prev, q_goal, alpha)
+    if cam.mode == "frame":
+        return framing_eye(q, cam, p_t), q
     # behind (-forward) and above (+up) the target, in the eye's own smoothed frame
     return p_t + fr.rotate(q, np.array([0.0, cam.chase_height, -cam.chase_distance])), q
 

@@ -24,7 +24,9 @@ PROGRADE_COLOUR = (0.85, 1.00, 0.30, 1.0)
 RETROGRADE_COLOUR = (1.00, 0.55, 0.20, 1.0)
 ORBIT_COLOUR = (0.35, 0.75, 1.00, 0.9)
 SHIP_MARK_COLOUR = (0.55, 0.85, 1.00, 0.9)
-#: The player's ship drawn smaller than this (pixels across) gets corner brackets round it.
+TARGET_MARK_COLOUR = (1.00, 0.85, 0.35, 0.9)
+#: The player's ship (and its autopilot's target) drawn smaller than this (pixels across) gets a mark:
+#: corner brackets round the ship, a diamond round the target.
 SHIP_MARK_PX = 24.0
 #: Below this speed (m/s) there is no direction of travel to mark.
 MIN_SPEED = 1e-3
@@ -143,8 +145,13 @@ def _segments_to_triangles(segments: np.ndarray, width: float) -> np.ndarray:
 
 def marker_segments(centre, radius: float, kind: str) -> np.ndarray:
     """Line segments of a marker at ``centre``: prograde = circle with three ticks, retrograde = circle with an X,
-    ship = four corner brackets of a square (the player's ship, where it is too small to see)."""
+    ship = four corner brackets of a square (the player's ship, where it is too small to see), target = a
+    diamond (the autopilot's target, likewise)."""
     cx, cy = centre
+    if kind == "target":
+        k = radius * 1.2
+        corners = np.array([[cx, cy - k], [cx + k, cy], [cx, cy + k], [cx - k, cy], [cx, cy - k]])
+        return np.hstack([corners[:-1], corners[1:]])
     if kind == "ship":
         k, e = radius, radius * 0.45
         return np.array([[x0, y0, x0 + sx * e, y0] for x0, sx in ((cx - k, 1), (cx + k, -1)) for y0 in (cy - k, cy + k)]
@@ -230,7 +237,7 @@ class HudSystem(esper.Processor):
         return out
 
     def _small_ship(self, ent, size):
-        """Pixel centre of the subject's model where it is drawn under :data:`SHIP_MARK_PX` pixels across
+        """Pixel centre of ``ent``'s model (the subject's, its target's) where drawn under :data:`SHIP_MARK_PX` across
         (a chase camera far back, an orbit seen from afar), so it is never lost; else None. Not from the
         cockpit it is seen from."""
         r = self.render
@@ -310,6 +317,13 @@ class HudSystem(esper.Processor):
         if ship_px is not None:
             markers["ship"] = ship_px
             self._draw(_segments_to_triangles(marker_segments(ship_px, radius, "ship"), 2.0), SHIP_MARK_COLOUR, False)
+        ap = esper.try_component(ent, Autopilot) if ent is not None else None
+        aim_px = self._small_ship(ap.target, (w, h)) if ap is not None and ap.target is not None \
+            and esper.entity_exists(ap.target) else None
+        if aim_px is not None:
+            markers["target"] = aim_px
+            self._draw(_segments_to_triangles(marker_segments(aim_px, radius, "target"), 2.0), TARGET_MARK_COLOUR,
+                       False)
         orbit = self._orbit_line(ent, (w, h))
         if len(orbit):
             # depth-tested against the scene (the planet hides the far side of the orbit), no depth writes

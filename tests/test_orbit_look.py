@@ -1,0 +1,194 @@
+"""An orbit you can follow (issue 25): the frame camera keeps the planet, the ship and the station in the
+picture; the autopilot's words give the same distance as the HUD's CLOSEST; the ship and its target are
+marked where they are too small to see, at every output size."""
+from __future__ import annotations
+
+import re
+
+import esper
+import numpy as np
+import pytest
+
+from driftframe.components.body import Transform, Velocity
+from driftframe.components.camera import Camera
+from driftframe.framework import frame as fr
+from driftframe.framework.world import World
+from driftframe.systems import camera_rig as cr
+from driftframe.systems.camera import CameraSystem
+
+
+def _silhouette(centre, radius, n=4000, seed=0):
+    """Points on a sphere's surface (its outline on screen is among their projections)."""
+    u = np.random.default_rng(seed).normal(size=(n, 3))
+    return np.asarray(centre) + radius * u / np.linalg.norm(u, axis=1)[:, None]
+
+
+def _pixels(world, cam_ent, points, size):
+    tf = esper.component_for_entity(cam_ent, Transform)
+    cam = esper.component_for_entity(cam_ent, Camera)
+    vp = cr.perspective(cam.fov, size[0] / size[1], cam.near, cam.far) @ cr.view_matrix(tf.position, tf.orientation)
+    return cr.world_to_pixels(points, vp, size)
+
+
+@pytest.mark.parametrize("pitch", [30.0, 55.0, 90.0])
+@pytest.mark.parametrize("ship_at", [(1100.0, 0.0, 0.0), (-300.0, 40.0, 1200.0)])
+def test_a_frame_camera_fits_its_bodies_into_the_picture_and_no_further_back(pitch, ship_at):
+    w = World()
+    planet = w.create_entity(Transform())
+    station = w.create_entity(Transform((0.0, 0.0, -1600.0)))
+    ship = w.create_entity(Transform(ship_at), Velocity((0.0, 0.0, 50.0)))
+    eye = w.create_entity(Camera(target=ship, mode="frame", frame=((planet, 1000.0), (station, 8.0)),
+                                 frame_pitch=pitch, far=1e5))
+    w.add_system(CameraSystem())
+    w.step()
+    w.activate()
+    pts = np.vstack([_silhouette((0, 0, 0), 1000.0), _silhouette((0, 0, -1600.0), 8.0), [ship_at]])
+    size = (360, 360)                            # the fit uses the vertical field of view on both axes
+    px, front = _pixels(w, eye, pts, size)
+    assert front.all()
+    margin = 0.5 * 360 * (1 - cr.FRAME_FILL)     # FRAME_FILL of the half-angle: about this many pixels clear
+    assert px.min() >= margin - 2 and px.max() <= 360 - margin + 2
+    # as near as it can be: some body touches the filled part's edge (within a pixel)
+    edge = min(px.min(), 360 - px.max())
+    assert edge <= margin + 1.5
+    # the eye looks pitch degrees below the horizontal, with its up towards +y
+    q = esper.component_for_entity(eye, Transform).orientation
+    f = fr.rotate(q, fr.FORWARD)
+    assert np.degrees(np.arcsin(-f[1])) == pytest.approx(pitch, abs=1e-6)
+    assert fr.rotate(q, fr.UP)[1] >= -1e-12
+
+
+def test_a_frame_camera_on_a_lone_target_stands_chase_distance_back():
+    w = World()
+    ship = w.create_entity(Transform((5.0, 0.0, 0.0)), Velocity((0.0, 0.0, 3.0)))
+    eye = w.create_entity(Camera(target=ship, mode="frame", chase_distance=40.0, frame_pitch=45.0))
+    w.add_system(CameraSystem())
+    w.step()
+    w.activate()
+    tf = esper.component_for_entity(eye, Transform)
+    ship_x = esper.component_for_entity(ship, Transform).position
+    assert np.linalg.norm(ship_x - tf.position) == pytest.approx(40.0)
+    # along its travel (+z) and down at 45 degrees
+    np.testing.assert_allclose(fr.rotate(tf.orientation, fr.FORWARD), [0.0, -np.sqrt(0.5), np.sqrt(0.5)], atol=1e-12)
+
+
+@pytest.mark.parametrize("kw, msg", [
+    ({"frame": ((1, -2.0),)}, r"Camera.frame\[0\] radius must be >= 0"),
+    ({"frame": (1, 2)}, "Camera.frame must be"),
+    ({"frame_pitch": 0.0}, "Camera.frame_pitch must be > 0"),
+    ({"frame_pitch": 95.0}, r"Camera.frame_pitch must be in \[0.0, 90.0\]"),
+])
+def test_frame_settings_are_checked(kw, msg):
+    with pytest.raises(ValueError, match=msg):
+        Camera(target=1, mode="frame", **kw)
+
+
+def _orbit_entities(world):
+    """(ship, planet, camera) of the orbit demo's world."""
+    from driftframe.components.control import Player
+    from driftframe.components.gravity import GravityWell
+    world.activate()
+    ship = sorted(e for e, _ in esper.get_component(Player))[0]
+    planet = [e for e, g in esper.get_component(GravityWell) if g.parent is None][0]
+    cam = [e for e, _ in esper.get_component(Camera)][0]
+    return ship, planet, cam
+
+
+@pytest.mark.gl
+def test_the_orbit_demo_shows_the_planet_the_ship_and_the_station_until_the_approach(ctx):
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.components.autopilot import Autopilot
+    from driftframe.demos import orbit
+    from driftframe.systems.hud import HudSystem
+
+    world, _ = make_world("orbit")
+    try:
+        attach_rendering(world, ctx, size=(640, 360), own_context=False, sound=False, effects=False)
+        hud = world.get_system(HudSystem)
+        seen = 0
+        for t in (6.0, 20.0, 45.0, orbit.BURN2 - 5.0):
+            world.step(round(t / world.dt) - world.step_count)
+            world.render()
+            world.activate()
+            ship, planet, cam_ent = _orbit_entities(world)
+            cam = esper.component_for_entity(cam_ent, Camera)
+            assert cam.mode == "frame"
+            station = esper.component_for_entity(ship, Autopilot).target
+            assert station is not None
+            pts = np.vstack([_silhouette((0, 0, 0), orbit.R),
+                             [esper.component_for_entity(e, Transform).position for e in (ship, station)]])
+            px, front = _pixels(world, cam_ent, pts, (640, 360))
+            assert front.all() and (px >= 0).all() and (px[:, 0] <= 640).all() and (px[:, 1] <= 360).all()
+            marks = hud.last["markers"]
+            assert "ship" in marks and "target" in marks                 # both too small to see: both marked
+            np.testing.assert_allclose(marks["ship"], px[-2], atol=1.0)
+            np.testing.assert_allclose(marks["target"], px[-1], atol=1.0)
+            img = hud.render.read_rgba()[:, :, :3].astype(int)
+            x, y = np.round(_pixels(world, cam_ent, np.zeros((1, 3)), (640, 360))[0][0]).astype(int)
+            assert img[y, x, 2] > img[y, x, 0] + 30                      # the planet's blue at its centre
+            seen += 1
+        assert seen == 4
+    finally:
+        world.close()
+
+
+def test_the_autopilots_words_give_the_distance_the_hud_calls_closest():
+    from driftframe.app import make_world
+    from driftframe.components.autopilot import Autopilot
+    from driftframe.demos import orbit
+    from driftframe.systems import readouts
+
+    world, _ = make_world("orbit")
+    try:
+        ship, _, _ = _orbit_entities(world)
+        world.step(round((orbit.BURN2 + 15.0) / world.dt))
+        words = []
+        for _ in range(120 * 60):
+            world.step()
+            world.activate()
+            ap = esper.component_for_entity(ship, Autopilot)
+            if ap.mode == "flip_and_burn" and ap.status:
+                words.append(ap.status)
+            if ap.done:
+                break
+        assert ap.done and ap.status.startswith("arrived"), ap.status
+        said = float(re.match(r"arrived: ([0-9.]+) m off, ([0-9.]+) m/s", ap.status).group(1))
+        _, closest = readouts.closest_approach(world, ship, ap.target, horizon=1.0)
+        x = world.columns(Transform, [ship, ap.target]).position
+        assert said == pytest.approx(np.linalg.norm(x[1] - x[0]), abs=0.051)   # the distance to the station,
+        assert said == pytest.approx(closest, abs=0.2)                        # as CLOSEST gives it now
+        assert said == pytest.approx(30.0, abs=0.3)                           # the standoff, not its error
+        line = [s for s in readouts.lines(world, ship) if s.startswith("CLOSEST")][0]
+        assert round(float(line.split()[1])) == round(said)
+        flying = [float(re.match(r"flip and burn: ([0-9.]+) m off", s).group(1)) for s in words
+                  if s.startswith("flip and burn")]
+        assert flying and max(flying) > 40.0 and min(flying) >= 29.0           # to the station, never under 30 m
+    finally:
+        world.close()
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("size", [(160, 90), (640, 360), (1920, 1080)])
+def test_the_chase_view_shows_the_ship_at_every_size(ctx, size):
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.systems.hud import HudSystem, SHIP_MARK_PX
+
+    world, _ = make_world("orbit")
+    try:
+        render = attach_rendering(world, ctx, size=size, own_context=False, camera="chase", sound=False,
+                                  effects=False)
+        world.step(60)
+        world.render()
+        ship, _, cam_ent = _orbit_entities(world)
+        assert esper.component_for_entity(cam_ent, Camera).mode == "chase"
+        model = render.cache.get("ship")
+        x_ship = esper.component_for_entity(ship, Transform).position
+        away = np.linalg.norm(x_ship - esper.component_for_entity(cam_ent, Transform).position)
+        across = 2 * model.radius * 0.5 * size[1] * render.projection[1, 1] / away      # pixels
+        px, front = _pixels(world, cam_ent, x_ship[None], size)
+        marks = world.get_system(HudSystem).last["markers"]
+        assert front[0] and 0 <= px[0, 0] <= size[0] and 0 <= px[0, 1] <= size[1]
+        # drawn big enough to see, or marked where it is
+        assert across >= SHIP_MARK_PX or np.allclose(marks.get("ship", (-1e9, -1e9)), px[0], atol=1.0)
+    finally:
+        world.close()
