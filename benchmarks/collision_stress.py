@@ -64,6 +64,7 @@ class Drift:
                 self.w.prepare()            # the systems' packed rows and buffers, as a game builds them at load
         self.warnings = list(rec)
         self.most = 0
+        self.contacts = []                  # contacts of each step
         self.m = scene[3]
         self.r = scene[2]
 
@@ -76,6 +77,7 @@ class Drift:
             el = time.perf_counter() - t
             self.cpu = time.thread_time() - c
         self.warnings += rec
+        self.contacts.append(self.cs.stats["contacts"])
         self.most = max(self.most, self.cs.stats["contacts"])
         return el
 
@@ -149,17 +151,26 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
     firsts = {}
     cpu_first = {}
     most = 0
+    contacts = []                           # driftframe's contacts of each step, per run
     rise, change, over = {}, {}, {}
     for rep in range(repeats):
         scene = make()
         # pybullet's world is built first, so driftframe's first step follows its world.prepare() as in a
         # game (a level loaded, then the first frame), not another engine's set-up; driftframe steps first
         peer = Bullet(scene) if bullet else None
+        # the start's kinetic energy before the Drift is made, so that its first step follows its prepare()
+        # at once (pybullet's reads 2,000 bodies through Python calls: it left the caches cold); driftframe's
+        # from the scene's own arrays, the same numbers its world holds
+        k0 = {}
+        if energy:
+            if peer is not None:
+                k0["pybullet"] = kinetic(peer)
+            fin = np.isfinite(scene[3])
+            k0["driftframe"] = 0.5 * float((scene[3][fin] * (scene[1][fin] * scene[1][fin]).sum(1)).sum())
         sims = {"driftframe": Drift(scene, events=events)}
         if peer is not None:
             sims["pybullet"] = peer
         run_t = {k: [] for k in sims}
-        k0 = {k: kinetic(s) for k, s in sims.items()} if energy else {}
         last = dict(k0)
         done = 0
         while done < steps:
@@ -185,6 +196,7 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
                 change[k] = ch if abs(ch) > abs(change.get(k, 0.0)) else change.get(k, 0.0)
         d = sims["driftframe"]
         most = max(most, d.most)
+        contacts.append(d.contacts)
         for s in sims.values():
             s.close()
     out = {k: {"mean": float(np.median(means[k])), "means": means[k], "median": float(np.median(t)),
@@ -206,6 +218,8 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
                                       if issubclass(w.category, RuntimeWarning) and "overlap" in str(w.message)])
     out["driftframe"]["stats"] = dict(d.cs.stats)
     out["driftframe"]["max_contacts"] = most
+    out["driftframe"]["contacts_first"] = float(np.median([c[0] for c in contacts]))
+    out["driftframe"]["contacts_median"] = float(np.median(np.concatenate(contacts)))
     return out
 
 
@@ -221,6 +235,37 @@ def worst_cases(quick: bool) -> list:
             ("tunnel", "tunnel sweep: 1 fast sphere down a line of 20", S.tunnel_sweep, 60),
             ("graze", "10 grazing pairs (near misses and touches)", S.grazing_pairs, 60),
             ("break16", "16-ball break", billiard_break, 60)]
+
+
+def rebuilds(ratio: float, n: int = 4000, steps: int = 40, runs: int = 3, bullet: bool = True) -> dict:
+    """Mixed sizes (issue 24): the neighbour list's rebuilds in steps of one large sphere ``ratio`` times the
+    radius of ``n`` small ones (``stress_scenes.mixed_sizes``), against the median step; CPU time of the
+    thread, in blocks of 5 steps interleaved with pybullet's as the worst-case rows are. A rebuild is the
+    collision system's whole ``_build_list`` (displacements, territories, grid, x order, the step's
+    scratch); prepare()'s own build is not counted."""
+    build, step = [], []
+    for _ in range(runs):
+        scene = S.mixed_sizes(n, ratio=ratio)
+        peer = Bullet(scene) if bullet else None
+        d = Drift(scene)
+        cs, inner = d.cs, d.cs._build_list
+
+        def timed(*a, **k):
+            c = time.thread_time()
+            inner(*a, **k)
+            build.append(time.thread_time() - c)
+        cs._build_list = timed                           # (an instance attribute: _continuous calls it)
+        for k in range(steps):
+            d.step()
+            step.append(d.cpu)
+            if peer is not None and k % 5 == 4:
+                for _ in range(5):
+                    peer.step()
+        d.close()
+        if peer is not None:
+            peer.close()
+    return {"build_median": float(np.median(build)), "build_worst": float(np.max(build)), "builds": len(build),
+            "step_median": float(np.median(step))}
 
 
 def first_step(make, *, bullet=True):
@@ -286,42 +331,88 @@ def child(code: str, env=None, timeout=900) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def timed_rows(q: bool, bullet: bool) -> dict:
+    """Each timed row's key and the call that measures it (``--only`` runs some of them)."""
+    steps = 30 if q else 180
+    R = 1 if q else 3                   # interleaved repeats of each row (medians over them: a shared machine)
+    rows = {}
+    for frac in (0.30, 0.45):
+        rows[f"gas{frac}"] = lambda frac=frac: run_scene(lambda: S.gas(2000, frac), steps, bullet=bullet, energy=True,
+                                                         repeats=R)
+    for e in (0.0, 0.5):
+        rows[f"conv{e}"] = lambda e=e: run_scene(lambda: S.converging(200, e), steps, bullet=bullet, energy=True,
+                                                 overlap=True, repeats=R)
+    for n in (50, 500, 10_000) + (() if q else (100_000,)):
+        st = steps if n <= 500 else (steps // 3 if n <= 10_000 else 20)
+        rows[f"field{n}"] = lambda n=n, st=st: run_scene(lambda: S.field(n), st, bullet=bullet,
+                                                         block=max(2, min(10, st // 4)),
+                                                         repeats=5 * R if n <= 500 else (R if n <= 10_000 else 1))
+    rows["head_on"] = lambda: run_scene(S.head_on, 2000 if not q else 300, bullet=bullet, block=100)
+    # the worst cases of issue 24: each one's worst step against pybullet's in the same run
+    for key, _, make, n_steps in worst_cases(q):
+        rows[key] = lambda make=make, n_steps=n_steps: run_scene(make, n_steps, bullet=bullet, block=5, repeats=R)
+    rows["rebuild1000"] = lambda: rebuilds(1000.0, runs=R, bullet=bullet)
+    return rows
+
+
+def warm_up() -> None:
+    """Load every compiled kernel before timing (the cold start is measured apart): both solver entry
+    points, and enough steps of list scenes that the list is rebuilt, bodies stray and sparse cells are
+    filed (and an inelastic scene, whose steps take the TC model's and the jam path's code: the first such
+    step of a process runs every line of it for the first time, a once-per-process cost measured apart)."""
+    for make, n_steps in ((S.head_on, 3), (lambda: S.gas(200, 0.3), 30), (lambda: S.field(50), 60),
+                          (lambda: S.converging(50, 0.0), 40), (lambda: S.mixed_sizes(500, ratio=300.0), 30)):
+        d = Drift(make())
+        for _ in range(n_steps):
+            d.step()
+        d.close()
+
+
+def only(keys: list, rows: dict) -> int:
+    """Run some timed rows and print their figures (no report is written)."""
+    bad = [k for k in keys if k not in rows]
+    if bad:
+        raise SystemExit(f"collision_stress --only: unknown row {bad[0]!r}; the rows: {', '.join(rows)}")
+    warm_up()
+    for key in keys:
+        r = rows[key]()
+        if key.startswith("rebuild"):
+            print(f"{key}: rebuild median {_ms(r['build_median'])} ms (worst {_ms(r['build_worst'])}, "
+                  f"{r['builds']} rebuilds), median step {_ms(r['step_median'])} ms: "
+                  f"{r['build_median'] / r['step_median']:.2f}x (CPU)")
+            continue
+        d, p = r["driftframe"], r.get("pybullet", {})
+        print(f"{key}: median {_ms(d['median'])} ms, mean {_ms(d['mean'])}, first {_ms(d['first_med'])} "
+              f"({d['first_med'] / d['median']:.2f}x the median; contacts {d['contacts_first']:g} against "
+              f"{d['contacts_median']:g}), worst CPU {_ms(d['cpu_worst'])}; pybullet mean "
+              f"{_ms(p.get('mean', math.nan))}, worst CPU {_ms(p.get('cpu_worst', math.nan))}: worst "
+              f"{d['cpu_worst'] / p.get('cpu_worst', math.nan):.2f}x pybullet's")
+    return 0
+
+
 def main(argv=None) -> int:
-    args = common.parser(__doc__.splitlines()[0]).parse_args(argv)
+    parser = common.parser(__doc__.splitlines()[0])
+    parser.add_argument("--only", metavar="ROWS", help="run only these timed rows, comma-separated, and print them "
+                        "(no report): gas0.3, gas0.45, conv0.0, conv0.5, field50 ... field100000, head_on, struck, "
+                        "fast, jammed, mixed, tunnel, graze, break16, rebuild1000")
+    args = parser.parse_args(argv)
     q = args.quick
     started = time.perf_counter()
     bullet = common.have_pybullet()
     if not bullet:
         print("[collision_stress] pybullet is not installed (pip install -e '.[compare]'): its column is empty")
+    rows = timed_rows(q, bullet)
+    if args.only:
+        return only([k.strip() for k in args.only.split(",") if k.strip()], rows)
     steps = 30 if q else 180
-    R = 1 if q else 3                   # interleaved repeats of each row (medians over them: a shared machine)
+    R = 1 if q else 3
     res = {}
-    # load every compiled kernel before timing (the cold start is measured below, apart): both solver
-    # entry points, and enough steps of list scenes that the list is rebuilt, bodies stray and sparse
-    # cells are filed
-    # (and an inelastic scene, whose steps take the TC model's and the jam path's code: the first such step
-    # of a process runs every line of it for the first time, a once-per-process cost measured apart)
-    for make, n_steps in ((S.head_on, 3), (lambda: S.gas(200, 0.3), 30), (lambda: S.field(50), 60),
-                          (lambda: S.converging(50, 0.0), 40)):
-        d = Drift(make())
-        for _ in range(n_steps):
-            d.step()
-        d.close()
-    # -- rows with many steps --
-    for frac in (0.30, 0.45):
-        res[f"gas{frac}"] = run_scene(lambda: S.gas(2000, frac), steps, bullet=bullet, energy=True, repeats=R)
-        res[f"gas{frac}_events"] = run_scene(lambda: S.gas(2000, frac), steps // 3, bullet=False, events=True)
-    for e in (0.0, 0.5):
-        res[f"conv{e}"] = run_scene(lambda: S.converging(200, e), steps, bullet=bullet, energy=True, overlap=True,
-                                    repeats=R)
-    for n in (50, 500, 10_000) + (() if q else (100_000,)):
-        st = steps if n <= 500 else (steps // 3 if n <= 10_000 else 20)
-        res[f"field{n}"] = run_scene(lambda: S.field(n), st, bullet=bullet, block=max(2, min(10, st // 4)),
-                                     repeats=5 * R if n <= 500 else (R if n <= 10_000 else 1))
-    res["head_on"] = run_scene(S.head_on, 2000 if not q else 300, bullet=bullet, block=100)
-    # -- the worst cases of issue 24: each one's worst step against pybullet's in the same run --
-    for key, _, make, n_steps in worst_cases(q):
-        res[key] = run_scene(make, n_steps, bullet=bullet, block=5, repeats=R)
+    warm_up()
+    for key, measure in rows.items():
+        res[key] = measure()
+        if key.startswith("gas"):
+            res[f"{key}_events"] = run_scene(lambda: S.gas(2000, float(key[3:])), steps // 3, bullet=False,
+                                             events=True)
     d = Drift(S.head_on())
     d.step()
     stage = []
@@ -464,12 +555,19 @@ def report(res, quick, bullet, started):
         d = res[key]["driftframe"]
         ratio = d["first_med"] / d["median"]
         first_rows.append([name, _ms(d["first_med"]), _ms(d["first_worst"]), _ms(d["median"]), f"{ratio:.2f}",
+                           f"{d['contacts_first']:g} / {d['contacts_median']:g}",
                            bar(f"first step {name}", ratio <= 2.0, f"first {_ms(d['first_med'])} ms = {ratio:.2f}x median")])
     for key, name in (("sc", "touching simple cubic 10x10x10"), ("fcc", "touching FCC 500")):
         d = res[key]["driftframe"]
         first_rows.append([name, _ms(d["first_med"]), _ms(d["first_worst"]), _ms(d["median"]),
-                           f"{d['first_med'] / d['median']:.2f}", "the scene's event (every contact is in step 1): "
-                           "its bar is first step <= 50 ms, above"])
+                           f"{d['first_med'] / d['median']:.2f}", f"{d['contacts_first']:g} / {d['contacts_median']:g}",
+                           "the scene's event (every contact is in step 1): its bar is first step <= 50 ms, above"])
+    rb = res["rebuild1000"]
+    rb_ratio = rb["build_median"] / rb["step_median"]
+    rebuild_text = (f"{_ms(rb['build_median'])} ms CPU, the median of {rb['builds']} rebuilds (the worst "
+                    f"{_ms(rb['build_worst'])}), against a median step of {_ms(rb['step_median'])} ms: "
+                    f"{rb_ratio:.2f}x; " + bar("rebuild at a radius ratio of 1,000", rb_ratio <= 2.0,
+                                              f"rebuild {rb_ratio:.2f}x the median step"))
     # issue 24: every class's worst step at most 2x pybullet's worst step (CPU time, same run)
     worst_rows = []
     for key, name, _, n_steps in worst_cases(quick) + [("conv0.0", "200 converging, e = 0", None, 0)]:
@@ -491,7 +589,8 @@ def report(res, quick, bullet, started):
                                 "pybullet worst: CPU / wall", "mean: CPU / wall", "first, CPU",
                                 "worst / pybullet's worst (CPU)", "worst <= 2x pybullet's"], worst_rows)
     first_table = common.table(["scene", "first step ms (median of the runs)", "worst first step", "median step ms",
-                                "first / median", "first <= 2x median"], first_rows)
+                                "first / median", "contacts: first step / median step", "first <= 2x median"],
+                               first_rows)
     met = sum(v[1] == "met" for v in verdicts)
     missed = ", ".join(f"{n} ({t})" for n, s, t in verdicts if s != "met") or "none"
     body = f"""
@@ -517,8 +616,17 @@ of the runs. The bar is on the worst step in CPU time (the machine is shared).
 
 {worst_table}
 
+Mixed sizes (issue 24): the neighbour list's rebuild at a radius ratio of 1,000 (one sphere of 100 m among
+4,000 of 0.1 m, `stress_scenes.mixed_sizes(4000, ratio=1000)`; 40 steps, {reps} runs, in blocks of 5
+interleaved with pybullet), the collision system's whole rebuild in CPU time: {rebuild_text}. The large
+body tests every body as one block (its block of cells would be more cells than there are bodies); the
+sparse grid's cells are found in a hash table with a bitmap of occupied cells, no sort and no copies.
+
 First step after `world.prepare()` (issue 20): the first step of each run from a fresh scene (the world
-prepared as a game does when a level has loaded), the median over the runs, against the scene's median step.
+prepared as a game does when a level has loaded, then stepped at once), the median over the runs, against the
+scene's median step. prepare() builds the list and rehearses the first step's solver on copies, so what is
+left is cold CPU caches for the step's code and data (a tiny step's fixed cost: a few microseconds of cache
+misses is 2-4x its median) and the scene's own work: a gas starts with its busiest steps (the contacts column).
 
 {first_table}
 
