@@ -41,7 +41,9 @@ class Camera:
     * ``overhead``: the eye sits ``overhead_height`` m above the target along
       world +y and looks straight down (-y); the top of the picture points
       along ``overhead_up`` (world frame, made perpendicular to y). It follows
-      the target's position, never its rotation: a plan view.
+      the target's position, never its rotation: a plan view. With bodies in ``frame`` it stands over
+      them and the target together, as high as it must to see them all (never under
+      ``overhead_height`` above the target): the fit of the frame mode, looking straight down.
 
     * ``frame``: the eye looks ``frame_pitch`` degrees below the horizontal (across world y: the scene's
       x-z plane), facing from the target towards the first body of ``frame`` (an orbit: over the ship's
@@ -79,7 +81,8 @@ class Camera:
     overhead_height: float = 20.0
     #: Overhead: the world direction that points to the top of the picture (not along y).
     overhead_up: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    #: Frame: the other bodies kept in the picture with the target, ``(entity id, radius in m)`` pairs.
+    #: Frame (and overhead): the other bodies kept in the picture with the target, ``(entity id, radius in m)``
+    #: pairs.
     frame: tuple[tuple[int, float], ...] = ()
     #: Frame: how far below the direction of travel the eye looks, degrees in (0, 90] (90: a plan view).
     frame_pitch: float = 55.0

@@ -1,5 +1,11 @@
 """asteroids — the ship flies into a cluster of fifty asteroids, scaled variants of four rock meshes (Framework 0.0.5)."""
+import dataclasses
+
+import esper
 import numpy as np
+
+from driftframe.components.camera import Camera
+from driftframe.components.collision import SphereCollider
 
 from driftframe.demos.parts import asteroid_field, balls, chase_camera, ship
 from driftframe.framework.input import Hold, Press, Track
@@ -31,13 +37,17 @@ SCRIPT = Track((
 
 def build(world, rng):
     me = ship(world, mode="momentum")
-    # a 45-degree lens (70 across at 16:9): rocks near the edges keep their shape in the cockpit view; from
-    # overhead (--camera overhead) 200 m up, the field 40-100 m ahead is in the picture with the ship
-    chase_camera(world, me, mode="chase", fov=45.0, overhead_height=200.0)
+    # a 45-degree lens (70 across at 16:9): rocks near the edges keep their shape in the cockpit view
+    cam = chase_camera(world, me, mode="chase", fov=45.0, overhead_height=40.0)
     # 1.8 t against the ship's 10 t: the ship slows from 4.2 to 2.9 m/s, the pebble leaves at 7.1 m/s
     balls(world, [PEBBLE], [(0.0, 0.0, 0.0)], 0.6, mass=DENSITY * 4 / 3 * np.pi * 0.6 ** 3, colour=(0.7, 0.62, 0.5))
     # the pebble looks like a rock too; its ModelRef keeps its name, so the state hash is unchanged
     declare_variant(world, "sphere_r0.6", "rock2", scale=0.6)
     # dense enough (50 rocks in 30 m) for a collision every second or two, all in front of the ship
-    asteroid_field(world, rng, 50, inner=0.0, outer=30.0, radii=(0.6, 3.5), speed=1.5, centre=FIELD,
-                   density=DENSITY, keep_clear=[(PEBBLE, 3.0), ((0.0, 0.0, 0.0), 12.0)])
+    rocks = asteroid_field(world, rng, 50, inner=0.0, outer=30.0, radii=(0.6, 3.5), speed=1.5, centre=FIELD,
+                           density=DENSITY, keep_clear=[(PEBBLE, 3.0), ((0.0, 0.0, 0.0), 12.0)])
+    # from overhead (--camera overhead) the eye stands over the ship and the field together, as high as it
+    # must to see every rock (the camera is made first, so the bodies' entity ids stay as they were)
+    radii = world.columns(SphereCollider, rocks).radius
+    view = esper.component_for_entity(cam, Camera)
+    world.add_component(cam, dataclasses.replace(view, frame=tuple(zip(rocks, radii.tolist()))))

@@ -138,7 +138,7 @@ def frame_rotation(travel, pitch_deg: float, fallback) -> np.ndarray:
 FRAME_FILL = 0.85
 
 
-def framing_eye(q, cam: Camera, p_target) -> np.ndarray:
+def framing_eye(q, cam: Camera, p_target, back: float | None = None) -> np.ndarray:
     """Eye position, with orientation ``q``, nearest the target with it and ``cam.frame``'s spheres in view.
 
     In the eye's axes (a across, b up, f forward) a sphere at (x, y, z) of radius r is inside the top and
@@ -146,8 +146,8 @@ def framing_eye(q, cam: Camera, p_target) -> np.ndarray:
     ``y - t z + r sec <= y_e - t z_e`` and ``y + t z - r sec >= y_e + t z_e`` (sec = sqrt(1 + t^2)):
     with T the largest left side and B the smallest, y_e = (T + B) / 2 and z_e = (B - T) / (2 t) is the
     nearest eye, and any eye further back along f still holds them. The same across (x) with the same
-    slope; the eye takes the further of the two depths, and stands at least ``chase_distance`` behind
-    the target along f.
+    slope; the eye takes the further of the two depths, and stands at least ``back`` (default
+    ``chase_distance``; an overhead camera's ``overhead_height``) behind the target along f.
     """
     axes = fr.quat_to_matrix(np.asarray(q, dtype=np.float64))      # columns: a, b, f in world axes
     pts, radii = [np.asarray(p_target, dtype=np.float64)], [0.0]
@@ -168,7 +168,7 @@ def framing_eye(q, cam: Camera, p_target) -> np.ndarray:
         bottom = float(np.min(u + t * z - rad * sec))
         eye[k] = 0.5 * (top + bottom)
         depth = min(depth, (bottom - top) / (2.0 * t))
-    eye[2] = min(depth, local[0, 2] - cam.chase_distance)
+    eye[2] = min(depth, local[0, 2] - (cam.chase_distance if back is None else back))
     return axes @ eye
 
 
@@ -212,7 +212,10 @@ def eye_pose(cam: Camera, target: Transform, q_prev, dt: float, *, snap: bool = 
     if cam.mode == "cockpit":
         return p_t + fr.rotate(q_t, np.asarray(cam.cockpit_offset)), q_t
     if cam.mode == "overhead":
-        return p_t + np.array([0.0, cam.overhead_height, 0.0]), overhead_rotation(cam.overhead_up)
+        q = overhead_rotation(cam.overhead_up)
+        if cam.frame:                   # over the target and its framed bodies, high enough to see them all
+            return framing_eye(q, cam, p_t, back=cam.overhead_height), q
+        return p_t + np.array([0.0, cam.overhead_height, 0.0]), q
     vel = esper.try_component(cam.target, Velocity)
     d = chase_direction(cam, q_t, None if vel is None else vel.linear)
     if cam.mode == "frame":

@@ -192,3 +192,30 @@ def test_the_chase_view_shows_the_ship_at_every_size(ctx, size):
         assert across >= SHIP_MARK_PX or np.allclose(marks.get("ship", (-1e9, -1e9)), px[0], atol=1.0)
     finally:
         world.close()
+
+
+@pytest.mark.parametrize("seconds", [0.0, 6.0, 19.0])
+def test_the_asteroids_overhead_camera_frames_the_ship_and_every_rock(seconds):
+    from driftframe.app import make_world
+    from driftframe.components.collision import SphereCollider
+
+    world, _ = make_world("asteroids")
+    try:
+        world.step(round(seconds / world.dt))
+        world.activate()
+        cam_ent, cam = [(e, c) for e, c in esper.get_component(Camera)][0]
+        cr.switch_camera(world, "overhead", camera=cam_ent)
+        ids = [e for e, _ in cam.frame]
+        assert len(ids) == 50
+        x = world.columns(Transform, ids).position
+        r = world.columns(SphereCollider, ids).radius
+        pts = np.vstack([_silhouette(c, rad, n=200) for c, rad in zip(x, r)]
+                        + [esper.component_for_entity(cam.target, Transform).position[None]])
+        px, front = _pixels(world, cam_ent, pts, (640, 360))
+        assert front.all() and (px >= 0).all() and (px[:, 0] <= 640).all() and (px[:, 1] <= 360).all()
+        eye = esper.component_for_entity(cam_ent, Transform)
+        np.testing.assert_allclose(fr.rotate(eye.orientation, fr.FORWARD), [0.0, -1.0, 0.0], atol=1e-12)
+        ship_y = esper.component_for_entity(cam.target, Transform).position[1]
+        assert eye.position[1] - ship_y >= cam.overhead_height
+    finally:
+        world.close()
