@@ -396,9 +396,17 @@ class World:
         nothing to do in a step in which no entity has all of them, so the world
         does not call its ``process`` then (its profile line reads 0). The
         world asks esper once each time entities gain or lose components
-        (:attr:`epoch`), so an idle system costs a comparison per step. A
-        system may change its ``requires`` (the gravity system while it holds
-        bodies); the world reads it again at the next change of entities.
+        (:attr:`epoch`), the schedule changes or a resource is published or
+        taken away, and keeps a plan of the systems with work, so an idle
+        system costs nothing a step. A system may change its ``requires``
+        (the gravity system while it holds bodies, the input system when a
+        key is pressed); the world reads it again at the next such change,
+        or at the next step after :meth:`wake`.
+
+        ``keeps_entities = True`` (optional): the system's ``process`` never
+        adds or removes a component or an entity, nor calls code that could
+        (event subscribers), so the world does not look for a change of
+        entities after it (the movement, spin and commit stages).
         """
         self._schedule.add(system, stage, after=after, before=before, name=name)
         system.world = self
