@@ -480,8 +480,9 @@ class World:
 
     def _plan(self, phase: str) -> tuple:
         """The systems of ``phase`` that have work at this structure epoch (see add_system's ``requires``;
-        :meth:`Schedule.plan`), made once per epoch and change of the schedule. A new plan zeroes the
-        phase's profile lines: those of the systems it leaves out stay 0 while it holds."""
+        :meth:`Schedule.plan`), made anew when the epoch, the schedule or the number of resources
+        changes, or after :meth:`wake`. A new plan zeroes the phase's profile lines: those of the systems
+        it leaves out stay 0 while it holds."""
         kept = self._plans.get(phase)
         version = self._schedule.version
         resources = len(self.resources)             # (a system may need a resource: the warp governor)
