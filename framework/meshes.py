@@ -56,7 +56,8 @@ the coarsest level whose ``eps * r_px`` is under its tolerance
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
+from typing import NamedTuple
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -75,6 +76,10 @@ class Mesh:
     relative to ``radius`` (0 for exact shapes such as the pyramid).
     ``uvs``: (N, 2) float32 texture coordinates (glTF's convention: ``(0, 0)``
     the top-left of the image), or None for an untextured mesh.
+    ``tangents``: (N, 4) float32, glTF's TANGENT (unit xyz along increasing u,
+    perpendicular to the normal; w = +-1, the bitangent ``w (n x t)`` pointing
+    up the image, towards decreasing v), for a normal map; None without one
+    (:func:`tangent_frames` makes them from the uvs).
     """
 
     name: str
@@ -84,6 +89,7 @@ class Mesh:
     mode: str = "triangles"
     lod_error: float = 0.0
     uvs: np.ndarray | None = None
+    tangents: np.ndarray | None = None
     #: Bounding radius about the local origin, m (the largest |vertex|).
     radius: float = field(init=False)
 
@@ -115,6 +121,13 @@ class Mesh:
                 raise ValueError(f"Mesh {self.name!r}: uvs must be finite with shape ({len(v)}, 2), got {uv.shape}")
             uv.flags.writeable = False
             object.__setattr__(self, "uvs", uv)
+        if self.tangents is not None:
+            t = np.array(self.tangents, dtype=np.float32)
+            if self.uvs is None or t.shape != (len(v), 4) or not np.isfinite(t).all():
+                raise ValueError(f"Mesh {self.name!r}: tangents must be finite with shape ({len(v)}, 4), on a "
+                                 f"mesh with uvs, got {t.shape}{'' if self.uvs is not None else ' without uvs'}")
+            t.flags.writeable = False
+            object.__setattr__(self, "tangents", t)
         for arr in (v, n, i):
             arr.flags.writeable = False
         object.__setattr__(self, "vertices", v)
@@ -128,8 +141,9 @@ class Mesh:
         return len(self.indices) // (3 if self.mode == "triangles" else 2)
 
     def interleaved(self) -> np.ndarray:
-        """(N, 6) float32 rows ``x y z nx ny nz``, or (N, 8) ``... u v`` with uvs: the vertex buffer's layout."""
-        cols = [self.vertices, self.normals] + ([] if self.uvs is None else [self.uvs])
+        """(N, 6) float32 rows ``x y z nx ny nz``, (N, 8) ``... u v`` with uvs, (N, 12) ``... tx ty tz tw`` with
+        tangents too: the vertex buffer's layout."""
+        cols = [self.vertices, self.normals] + [c for c in (self.uvs, self.tangents) if c is not None]
         return np.ascontiguousarray(np.hstack(cols), dtype=np.float32)
 
     def face_normals(self) -> np.ndarray:
@@ -138,6 +152,47 @@ class Mesh:
             raise ValueError(f"Mesh {self.name!r} has no faces (mode {self.mode!r})")
         t = self.vertices.astype(np.float64)[self.indices.reshape(-1, 3)]
         return np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+
+
+def tangent_frames(mesh: Mesh) -> Mesh:
+    """``mesh`` with glTF tangents made from its positions, normals and uvs (for a normal map).
+
+    Per triangle, with edges e1, e2 and their uv steps (du1, dv1), (du2, dv2):
+    ``dP/du = (dv2 e1 - dv1 e2) / r`` and ``dP/dv = (du1 e2 - du2 e1) / r``, r = du1 dv2 - du2 dv1
+    (dimensionless uv). Each vertex sums its triangles' (area-weighted: unnormalised) dP/du and dP/dv;
+    the tangent is dP/du made perpendicular to the normal (Gram-Schmidt) and unit; w = +1 where
+    ``n x t`` points up the image (along -dP/dv: glTF's v runs down), else -1. A triangle with no uv
+    area adds nothing; a vertex left without a tangent takes any unit vector perpendicular to its normal.
+    """
+    if mesh.mode != "triangles" or mesh.uvs is None:
+        raise ValueError(f"Mesh {mesh.name!r}: tangents need triangles with uvs")
+    f = mesh.indices.reshape(-1, 3).astype(np.int64)
+    p = mesh.vertices.astype(np.float64)
+    uv = mesh.uvs.astype(np.float64)
+    e1, e2 = p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]]
+    d1, d2 = uv[f[:, 1]] - uv[f[:, 0]], uv[f[:, 2]] - uv[f[:, 0]]
+    r = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    ok = np.abs(r) > 1e-20
+    inv = np.where(ok, 1.0 / np.where(ok, r, 1.0), 0.0)[:, None]
+    w = np.linalg.norm(np.cross(e1, e2), axis=1)[:, None] * inv       # each triangle weighted by its area
+    du = (d2[:, 1:2] * e1 - d1[:, 1:2] * e2) * w
+    dv = (d1[:, 0:1] * e2 - d2[:, 0:1] * e1) * w
+    tu, tv = np.zeros_like(p), np.zeros_like(p)
+    for k in range(3):
+        np.add.at(tu, f[:, k], du)
+        np.add.at(tv, f[:, k], dv)
+    n = mesh.normals.astype(np.float64)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    t = tu - n * np.sum(tu * n, axis=1, keepdims=True)
+    length = np.linalg.norm(t, axis=1)
+    lost = length < 1e-12
+    if lost.any():                                   # no uv gradient: any perpendicular will do
+        a = np.where(np.abs(n[lost, 0:1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        t[lost] = np.cross(n[lost], a)
+        length = np.linalg.norm(t, axis=1)
+    t /= length[:, None]
+    sign = np.where(np.sum(np.cross(n, t) * -tv, axis=1) < 0.0, -1.0, 1.0)
+    return replace(mesh, tangents=np.column_stack([t, sign]))
 
 
 def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
@@ -427,17 +482,30 @@ def line_cube(divisions: int = 1) -> Mesh:
 MODEL_FILES = (".obj", ".gltf", ".glb")
 
 
+class LoadedModel(NamedTuple):
+    """What :func:`load_model` reads from a model file."""
+
+    #: The triangle mesh, recentred; with uvs where the file has a texture, tangents where a normal map.
+    mesh: Mesh
+    #: The base-colour image (H, W, 4) uint8, top row first, or None.
+    texture: np.ndarray | None
+    #: The tangent-space normal map (H, W, 4) uint8, top row first (glTF's: x right, y up the image,
+    #: z out of the surface, each as 0..255 for -1..1), or None.
+    normal_map: np.ndarray | None
+
+
 def load_mesh(path, name: str | None = None, *, shading: str = "smooth") -> Mesh:
     """A triangle :class:`Mesh` from an OBJ / glTF / GLB file, recentred on its centre of mass
-    (:func:`load_model` without the texture)."""
-    return load_model(path, name, shading=shading)[0]
+    (:func:`load_model` without the images)."""
+    return load_model(path, name, shading=shading).mesh
 
 
-def load_model(path, name: str | None = None, *, shading: str = "smooth") -> tuple[Mesh, np.ndarray | None]:
-    """``(mesh, texture)`` from an OBJ / glTF / GLB file: the triangle :class:`Mesh`, recentred on its
-    centre of mass, with its texture coordinates, and its base-colour texture as an (H, W, 4) uint8
-    array (top row first), or None when the file has none (normal maps and other material maps are
-    not read).
+def load_model(path, name: str | None = None, *, shading: str = "smooth") -> LoadedModel:
+    """``(mesh, texture, normal_map)`` from an OBJ / glTF / GLB file: the triangle :class:`Mesh`, recentred
+    on its centre of mass, with its texture coordinates, its base-colour texture as an (H, W, 4) uint8
+    array (top row first), or None when the file has none, and its normal map likewise (glTF's
+    normalTexture, OBJ's map_bump / norm; the mesh then has :func:`tangent_frames`; glTF's normal
+    ``scale`` is taken as 1). Other material maps are not read.
 
     All the file's geometry is joined into one mesh (node transforms
     applied). ``shading``: ``"smooth"`` (trimesh's area-weighted vertex
@@ -454,33 +522,39 @@ def load_model(path, name: str | None = None, *, shading: str = "smooth") -> tup
     if shading not in ("smooth", "flat"):
         raise ValueError(f"load_mesh shading must be 'smooth' or 'flat', got {shading!r}")
     mesh = _read_trimesh(path)
-    uv, texture = _base_colour(mesh, path)
+    uv, texture, normal_map = _maps(mesh, path)
     centre = mesh_centre(mesh)
     v = np.asarray(mesh.vertices, dtype=np.float64) - centre
     f = np.asarray(mesh.faces, dtype=np.int64)
     label = name or _stem(path)
     if shading == "flat":
-        return flat_shaded(label, v, f, uvs=uv), texture
-    return Mesh(label, v, np.asarray(mesh.vertex_normals, dtype=np.float64), f.ravel(), "triangles", uvs=uv), texture
+        out = flat_shaded(label, v, f, uvs=uv)
+    else:
+        out = Mesh(label, v, np.asarray(mesh.vertex_normals, dtype=np.float64), f.ravel(), "triangles", uvs=uv)
+    return LoadedModel(out if normal_map is None else tangent_frames(out), texture, normal_map)
 
 
-def _base_colour(mesh, path) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """The trimesh mesh's per-vertex UVs and base-colour image (glTF's baseColorTexture, OBJ's map_Kd), or
-    ``(None, None)``; the image as (H, W, 4) uint8 (greyscale and RGB made RGBA)."""
+def _maps(mesh, path) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """The trimesh mesh's per-vertex UVs, base-colour image (glTF's baseColorTexture, OBJ's map_Kd) and
+    normal map (glTF's normalTexture; OBJ's map_bump / norm), each None where missing (the UVs too when
+    there is no image); the images as (H, W, 4) uint8 (greyscale and RGB made RGBA)."""
     visual = getattr(mesh, "visual", None)
     uv = getattr(visual, "uv", None)
     material = getattr(visual, "material", None)
-    image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
-    if uv is None or image is None or len(uv) != len(mesh.vertices):
-        return None, None
-    try:
-        rgba = np.asarray(image.convert("RGBA"), dtype=np.uint8)
-    except Exception as e:                         # a texture Pillow cannot decode: name the file
-        raise ValueError(f"model file {str(path)!r}: its texture could not be read: {e}") from None
+    images = [getattr(material, "baseColorTexture", None) or getattr(material, "image", None),
+              getattr(material, "normalTexture", None) or getattr(material, "bump", None)]
+    if uv is None or len(uv) != len(mesh.vertices) or all(im is None for im in images):
+        return None, None, None
+    out = []
+    for im, what in zip(images, ("texture", "normal map")):
+        try:
+            out.append(None if im is None else np.asarray(im.convert("RGBA"), dtype=np.uint8))
+        except Exception as e:                     # an image Pillow cannot decode: name the file
+            raise ValueError(f"model file {str(path)!r}: its {what} could not be read: {e}") from None
     # glTF's v runs down the image; trimesh gives OpenGL's (v up), so flip it back to glTF's
     uv = np.asarray(uv, dtype=np.float64).copy()
     uv[:, 1] = 1.0 - uv[:, 1]
-    return uv, rgba
+    return uv, out[0], out[1]
 
 
 def mesh_centre(mesh) -> np.ndarray:

@@ -88,10 +88,12 @@ class MeshSet:
     """One shape at one or more levels of detail, coarsest first, its texture, and its GPU objects once built.
 
     ``texture``: a base-colour image (H, W, 3 or 4) uint8, top row first, which every level's
-    ``uvs`` index; None for an untextured shape.
+    ``uvs`` index; None for an untextured shape. ``normal_map``: a tangent-space normal map, the same
+    kind of image (glTF's convention), for levels with ``tangents``; a plain white texture stands in
+    for a missing base colour.
     """
 
-    def __init__(self, name: str, lods, texture=None):
+    def __init__(self, name: str, lods, texture=None, normal_map=None):
         if isinstance(lods, meshes.Mesh):
             lods = (lods,)
         lods = tuple(lods)
@@ -118,6 +120,15 @@ class MeshSet:
         self.gpu_texture = None
         if self.texture is not None and any(m.uvs is None for m in lods):
             raise ValueError(f"model {name!r}: a texture needs uvs on every level of its mesh")
+        #: The tangent-space normal map (H, W, 4) uint8, or None; its GL texture once built.
+        self.normal_map = None if normal_map is None else check_texture(f"model {name!r} normal_map", normal_map)
+        self.gpu_normal_map = None
+        if self.normal_map is not None:
+            if any(m.tangents is None for m in lods):
+                raise ValueError(f"model {name!r}: a normal map needs tangents on every level of its mesh "
+                                 "(framework.meshes.tangent_frames makes them from the uvs)")
+            if self.texture is None:
+                self.texture = np.full((1, 1, 4), 255, np.uint8)
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,16 +211,18 @@ class ModelCache:
             raise TypeError(f"a model name must be a non-empty str, got {name!r}")
         return name
 
-    def define(self, name: str, lods, *, colour=GREY, texture=None) -> Model:
+    def define(self, name: str, lods, *, colour=GREY, texture=None, normal_map=None) -> Model:
         """Add a base model from one :class:`~framework.meshes.Mesh` or several levels (coarsest first).
 
         ``texture``: a base-colour image (H, W, 3 or 4) uint8, top row first, which the meshes' ``uvs``
         index (``(0, 0)`` its top-left corner); the drawn colour is ``colour * texel * light``.
+        ``normal_map``: a tangent-space normal map indexed the same way (the meshes need ``tangents``):
+        the light falls on its normals instead of the mesh's.
         """
         name = self._check_name(name)
         if name in self._models:
             raise ValueError(f"model {name!r} is defined already")
-        mesh_set = MeshSet(name, lods, texture)
+        mesh_set = MeshSet(name, lods, texture, normal_map)
         model = Model(name, mesh_set, np.ones(3), check_colour(f"model {name!r} colour", colour), name)
         self._sets.append(mesh_set)
         self._models[name] = model
@@ -226,10 +239,10 @@ class ModelCache:
         name = self._check_name(name)
         if name in self._models:
             raise ValueError(f"model {name!r} is defined already")
-        mesh, texture = meshes.load_model(path, name, shading=shading)
+        mesh, texture, normal_map = meshes.load_model(path, name, shading=shading)
         if colour is None:
             colour = GREY if texture is None else (1.0, 1.0, 1.0)
-        return self.define(name, mesh, colour=colour, texture=texture)
+        return self.define(name, mesh, colour=colour, texture=texture, normal_map=normal_map)
 
     def variant(self, name: str, base: str, *, scale=1.0, colour=None) -> Model:
         """An entry sharing ``base``'s vertex and index buffers, scaled by ``scale`` (one or three numbers).
@@ -295,14 +308,26 @@ class ModelCache:
         if ms.texture is None:
             return None
         if ms.gpu_texture is None:
-            import moderngl
-
-            h, w = ms.texture.shape[:2]
-            tex = self.ctx.texture((w, h), 4, ms.texture.tobytes())
-            tex.build_mipmaps()
-            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-            ms.gpu_texture = tex
+            ms.gpu_texture = self._image(ms.texture)
         return ms.gpu_texture
+
+    def normal_texture(self, model):
+        """The GL texture of a model's normal map, built on first use as :meth:`texture`, or None."""
+        ms = model if isinstance(model, MeshSet) else model.meshes
+        if ms.normal_map is None:
+            return None
+        if ms.gpu_normal_map is None:
+            ms.gpu_normal_map = self._image(ms.normal_map)
+        return ms.gpu_normal_map
+
+    def _image(self, rgba):
+        import moderngl
+
+        h, w = rgba.shape[:2]
+        tex = self.ctx.texture((w, h), 4, rgba.tobytes())
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        return tex
 
     @property
     def buffers_alive(self) -> int:
@@ -320,6 +345,9 @@ class ModelCache:
             if ms.gpu_texture is not None:
                 ms.gpu_texture.release()
                 ms.gpu_texture = None
+            if ms.gpu_normal_map is not None:
+                ms.gpu_normal_map.release()
+                ms.gpu_normal_map = None
 
 
 def declare_variant(world: World, name: str, base: str = "sphere", *, scale: ArrayLike = 1.0,

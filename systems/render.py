@@ -91,6 +91,11 @@ out vec3 v_colour;
 in vec2 in_uv;                     // texture coordinates, (0, 0) the image's top-left
 out vec2 v_uv;
 #endif
+#ifdef NORMAL_MAPPED
+in vec4 in_tangent;                // glTF's: xyz along increasing u, w the bitangent's handedness
+out vec3 v_tangent;
+out float v_handed;
+#endif
 void main() {
     gl_Position = u_view_proj * (MODEL * vec4(in_position, 1.0));
 #ifdef TEXTURED
@@ -100,6 +105,10 @@ void main() {
     mat3 m = mat3(MODEL);
     vec3 s2 = vec3(dot(m[0], m[0]), dot(m[1], m[1]), dot(m[2], m[2]));
     v_normal = m * (in_normal / s2);
+#ifdef NORMAL_MAPPED
+    v_tangent = m * in_tangent.xyz;    // a direction along the surface: it transforms by R S itself
+    v_handed = in_tangent.w;
+#endif
     v_colour = COLOUR;
 }
 """
@@ -117,10 +126,21 @@ out vec4 f_colour;
 uniform sampler2D u_texture;       // base colour, uploaded top row first: v = 0 is the top
 in vec2 v_uv;
 #endif
+#ifdef NORMAL_MAPPED
+uniform sampler2D u_normal_map;    // tangent space (glTF): x along u, y up the image, z out; 0..1 for -1..1
+in vec3 v_tangent;
+in float v_handed;
+#endif
 void main() {
     float shade = 1.0;
     if (u_lit != 0) {
         vec3 n = normalize(v_normal);
+#ifdef NORMAL_MAPPED
+        // the map's normal in the surface's frame: t (made perpendicular to n), b = w (n x t), n
+        vec3 t = normalize(v_tangent - n * dot(n, v_tangent));
+        vec3 mapped = texture(u_normal_map, v_uv).xyz * 2.0 - 1.0;
+        n = normalize(mapped.x * t + mapped.y * cross(n, t) * v_handed + mapped.z * n);
+#endif
         float nl = dot(n, u_to_light);
         // hemisphere ambient (u_ambient towards the light, u_ambient + u_fill away from it) + diffuse
         shade = u_ambient + u_fill * (0.5 - 0.5 * nl) + (1.0 - u_ambient) * max(nl, 0.0);
@@ -135,6 +155,15 @@ void main() {
 
 #: Floats per instance: a column-major mat4 and an RGB colour.
 INSTANCE_FLOATS = 19
+
+
+#: The shaders' defines for a mesh set's maps: none, a base-colour texture, a texture and a normal map.
+_MAP_DEFINES = ([], ["TEXTURED"], ["TEXTURED", "NORMAL_MAPPED"])
+
+
+def _maps(mesh_set) -> int:
+    """0: no image; 1: a base-colour texture; 2: a texture and a normal map (a program each)."""
+    return 0 if mesh_set.texture is None else 1 if mesh_set.normal_map is None else 2
 
 
 def _with_define(src: str, *defines: str) -> str:
@@ -202,11 +231,15 @@ class RenderSystem(esper.Processor):
         #: Optional hook ``blend(entities, positions, orientations) -> (positions, orientations)``
         #: giving the poses to draw (a window's interpolation, :mod:`systems.interpolation`); None: as they are.
         self.poses = None
-        # (per draw, textured) -> program; the instanced untextured one is the common case
-        self._progs = {(per_draw, tex): ctx.program(
-            vertex_shader=_with_define(VERTEX_SHADER, *(["PER_DRAW"] * per_draw + ["TEXTURED"] * tex)),
-            fragment_shader=_with_define(FRAGMENT_SHADER, *(["TEXTURED"] * tex)))
-            for per_draw in (False, True) for tex in (False, True)}
+        # (per draw, maps: 0 none, 1 a texture, 2 and a normal map) -> program; the instanced plain one is
+        # the common case
+        self._progs = {(per_draw, maps): ctx.program(
+            vertex_shader=_with_define(VERTEX_SHADER, *(["PER_DRAW"] * per_draw + _MAP_DEFINES[maps])),
+            fragment_shader=_with_define(FRAGMENT_SHADER, *_MAP_DEFINES[maps]))
+            for per_draw in (False, True) for maps in (0, 1, 2)}
+        for per_draw in (False, True):
+            self._progs[per_draw, 2]["u_texture"].value = 0
+            self._progs[per_draw, 2]["u_normal_map"].value = 1
         self._prog = self._progs[False, False]
         self._rows = None                # the world's Query of (Transform, ModelRef), once added
         self._groups: list[_Group] = []
@@ -283,11 +316,15 @@ class RenderSystem(esper.Processor):
     # -- GL objects ----------------------------------------------------------------------
     @staticmethod
     def _vertex_layout(mesh_set) -> tuple:
-        """The vertex buffer's format and attribute names (with ``in_uv`` for a textured mesh)."""
-        if mesh_set.texture is not None:
-            return ("3f 3f 2f", "in_position", "in_normal", "in_uv")
-        return ("3f 3f", "in_position", "in_normal") if mesh_set.lods[0].uvs is None \
-            else ("3f 3f 8x", "in_position", "in_normal")
+        """The vertex buffer's format and attribute names (``in_uv`` for a textured mesh, ``in_tangent`` for
+        a normal-mapped one); the columns a program does not read are skipped."""
+        m = mesh_set.lods[0]
+        maps = _maps(mesh_set)
+        if maps == 2:
+            return ("3f 3f 2f 4f", "in_position", "in_normal", "in_uv", "in_tangent")
+        skip = 4 * (2 * (m.uvs is not None and maps == 0) + 4 * (m.tangents is not None))
+        return ("3f 3f" + (" 2f" if maps else "") + (f" {skip}x" if skip else ""), "in_position", "in_normal",
+                *(["in_uv"] if maps else []))
 
     def _vao(self, group: _Group, level: int, n: int):
         key = (id(group.mesh_set), level)
@@ -300,7 +337,7 @@ class RenderSystem(esper.Processor):
             buf = self.ctx.buffer(reserve=cap * INSTANCE_FLOATS * 4, dynamic=True)
             vbo, ibo = self.cache.buffers(group.mesh_set)[level]
             vao = self.ctx.vertex_array(
-                self._progs[False, group.mesh_set.texture is not None],
+                self._progs[False, _maps(group.mesh_set)],
                 [(vbo, *self._vertex_layout(group.mesh_set)), (buf, "16f 3f/i", "in_model", "in_colour")],
                 index_buffer=ibo, index_element_size=4)
             slot = [buf, cap, vao]
@@ -312,7 +349,7 @@ class RenderSystem(esper.Processor):
         vao = self._draw_vaos.get(key)
         if vao is None:
             vbo, ibo = self.cache.buffers(group.mesh_set)[level]
-            vao = self.ctx.vertex_array(self._progs[True, group.mesh_set.texture is not None],
+            vao = self.ctx.vertex_array(self._progs[True, _maps(group.mesh_set)],
                                         [(vbo, *self._vertex_layout(group.mesh_set))],
                                         index_buffer=ibo, index_element_size=4)
             self._draw_vaos[key] = vao
@@ -425,12 +462,14 @@ class RenderSystem(esper.Processor):
             start = 0
             mode = moderngl.LINES if g.mesh_set.mode == "lines" else moderngl.TRIANGLES
             lit = 0 if g.mesh_set.mode == "lines" else 1
-            textured = g.mesh_set.texture is not None
-            prog_draw = self._progs[True, textured]
-            self._progs[False, textured]["u_lit"].value = lit
+            maps = _maps(g.mesh_set)
+            prog_draw = self._progs[True, maps]
+            self._progs[False, maps]["u_lit"].value = lit
             prog_draw["u_lit"].value = lit
-            if textured:
+            if maps:
                 self.cache.texture(g.mesh_set).use(0)
+            if maps == 2:
+                self.cache.normal_texture(g.mesh_set).use(1)
             for lv in range(n_levels):
                 n = int(counts[lv])
                 if not n:

@@ -238,7 +238,7 @@ def test_a_glb_model_keeps_its_uvs_and_base_colour_texture(ctx, world, tmp_path)
                                                               image=Image.fromarray(CHECKER)))
     path = tmp_path / "square.glb"
     tm.export(path)
-    mesh, texture = meshes.load_model(path)
+    mesh, texture, _ = meshes.load_model(path)
     assert mesh.uvs is not None and texture.shape == (16, 16, 4)
     np.testing.assert_array_equal(texture[:, :, :3], CHECKER)
     img = _shot(ctx, world, lambda cache: cache.load("square", path))
