@@ -29,8 +29,13 @@ X264_PRESET = "ultrafast"
 #: x264 then runs on the recorder's writer thread beside the render, and at ultrafast one thread keeps up.
 X264_THREADS = 1
 #: Per-preset x264 settings beyond the preset. ultrafast turns off CABAC and the deblocking filter; both
-#: are turned back on: fewer bits and a better picture for little CPU (docs/design/recorder.md).
-X264_TUNING = {"ultrafast": {"x264-params": "cabac=1:deblock=0,0"}}
+#: are turned back on (``deblock=0,0``: on, at offsets 0): fewer bits and a better picture for little CPU
+#: (docs/design/recorder.md). Against streaks on black (issue 25): a smaller quantiser deadzone (6, as
+#: ``--tune grain``; ultrafast has no trellis, so the deadzone decides which small coefficients survive)
+#: keeps the faint corrections dark areas need, and a keyframe every 60 frames (1 s at 60 fps; x264's
+#: default is 250) clears the error P-frames pile up there. 0.3 as many streaks, for ~1 % of a
+#: recording's CPU and ~30 % more bytes (docs/bench/dark_video.md).
+X264_TUNING = {"ultrafast": {"x264-params": "cabac=1:deblock=0,0:deadzone-inter=6:deadzone-intra=6:keyint=60"}}
 #: Default crf per preset (others: :data:`X264_DEFAULT_CRF`): what gives ultrafast the quality of veryfast at 20.
 X264_CRF = {"ultrafast": 26}
 X264_DEFAULT_CRF = 20
