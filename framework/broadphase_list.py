@@ -248,7 +248,8 @@ def _grid_setup(c, reach, swept):
         if not swept[k]:
             rs[m] = reach[k]
             m += 1
-    cut = 2.0 * sorting.median(rs)
+    r_lo, r_hi = sorting.select_middle(rs)                 # (rs is this call's own: reordered in place)
+    cut = 2.0 * (r_hi if m & 1 else (r_lo + r_hi) / 2)     # twice the median
     hh = 0.0
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)

@@ -135,13 +135,9 @@ def argsort_spread(a, m):
 
 
 @kernel(no_cfunc_wrapper=True)
-def middle(a):
-    """The two middle order statistics of a non-empty 1-d float array without NaN: ``(lower, upper)``,
-    the ``(n - 1) // 2``-th and the ``n // 2``-th smallest (the same value for an odd count), by Wirth's
-    selection, O(n). :func:`median` is ``upper`` for an odd count, else ``(lower + upper) / 2``; so is the
-    median of ``f(a)`` for any ``f`` that never decreases (the neighbour list's skins from displacements)."""
-    n = a.shape[0]
-    w = a.copy()
+def select_middle(w):
+    """:func:`middle` in place: reorders ``w`` (a scratch copy the caller owns) instead of copying it."""
+    n = w.shape[0]
     h = n >> 1
     lo = 0
     hi = n - 1
@@ -168,6 +164,16 @@ def middle(a):
     for k in range(1, h):
         below = max(below, w[k])
     return below, w[h]
+
+
+@kernel(no_cfunc_wrapper=True)
+def middle(a):
+    """The two middle order statistics of a non-empty 1-d float array without NaN: ``(lower, upper)``,
+    the ``(n - 1) // 2``-th and the ``n // 2``-th smallest (the same value for an odd count), by Wirth's
+    selection on a copy, O(n). :func:`median` is ``upper`` for an odd count, else ``(lower + upper) / 2``;
+    so is the median of ``f(a)`` for any ``f`` that never decreases (the neighbour list's skins from
+    displacements)."""
+    return select_middle(a.copy())
 
 
 @kernel(no_cfunc_wrapper=True)
