@@ -288,14 +288,14 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
     Cells of side ``h > 2 hh`` by centre, so a pair of ordinary bodies (reach <= ``hh``) lies in the
     same or neighbouring cells. The bodies are filed by a counting sort, O(n + table): ``dense``, into a
     table of every cell; else (a sparse scene: far more cells than bodies) into a hash table of ``nt``
-    buckets (the caller's power of two >= 2 m; m the bodies filed) with a bitmap of the occupied cells'
-    hashes (32 bits a bucket: a look at an empty cell reads one bit), a bucket holding the bodies of the cells that hash to it
-    (no sort, no binary search: a radius ratio of 1,000 has a million cells for 4,000 bodies, and
-    sorting their keys then searching 14 cells per body cost 7x a step). Each ordinary body tests the
-    later ordinary bodies of its own cell and those of the 13 cells of a half stencil; a body read from
-    a bucket counts only when it is in the cell looked for, so each pair is found once. A large body
-    (reach > ``hh``) tests every body in the block of cells its reach plus the largest can span
-    (large-large pairs once, from the lower index).
+    buckets (the caller's power of two >= 2 m; m the bodies filed), a bucket holding the bodies of the
+    cells that hash to it, and a bitmap of the occupied cells' hashes (32 bits a bucket: a look at an
+    empty cell reads one bit). No sort, no binary search: a radius ratio of 1,000 has a million cells
+    for 4,000 bodies, and sorting their keys then searching 14 cells per body cost 7x a step. Each
+    ordinary body tests the later ordinary bodies of its own cell and those of the 13 cells of a half
+    stencil; a body read from a bucket counts only when it is in the cell looked for, so each pair is
+    found once. A large body (reach > ``hh``) tests every body in the block of cells its reach plus the
+    largest can span (large-large pairs once, from the lower index).
 
     ``nt``: the table's size (the cells, dense; else a power of two), ``shift``: 64 minus its
     bits. ``wi``, ``wf``: int64 and float64 scratch, at least ``2 n + nt + 1 + 2 m`` (and ``nt / 2`` more
