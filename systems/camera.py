@@ -22,6 +22,8 @@ from driftframe.systems.camera_rig import (  # noqa: F401  (re-exported: the nam
     overhead_rotation,
     update_camera,
     eye_pose,
+    frame_rotation,
+    framing_eye,
     placed_pose,
     update_cameras,
     active_camera,
@@ -36,7 +38,10 @@ class CameraSystem(esper.Processor):
     direction -> velocity direction (nose below ``rest_speed``), smoothed by
     ``q <- slerp(q, q_goal, 1 - exp(-dt / smoothing))``; eye at
     ``target + R_eye (0, chase_height, -chase_distance)``. overhead: eye at
-    ``target + (0, overhead_height, 0)`` looking down -y, fixed orientation. A handful of
+    ``target + (0, overhead_height, 0)`` looking down -y, fixed orientation (with ``frame`` bodies: over
+    them all, as high as it must be to see them). frame: looking ``frame_pitch`` below the horizontal from
+    over the target towards its first framed body, smoothed as chase, as near as it can be with the target
+    and every framed sphere in view (:func:`systems.camera_rig.framing_eye`). A handful of
     cameras: a per-camera loop.
     """
 
