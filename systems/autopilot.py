@@ -266,7 +266,7 @@ class AutopilotSystem(esper.Processor):
         need = v_want - v_rel
         n = float(np.linalg.norm(need))
         if not ap.done:
-            ap.status = f"flip and burn: {away:.0f} m off, closing {float((rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
+            ap.status = f"flip & burn: {away:.0f} m, closing {float((rel @ v_rel) / max(dist, 1e-300)):.1f} m/s"
         if n <= 0.5 * ap.tolerance:
             return None, 0.0                         # on the profile: coast, hold the attitude
         return need / n, min(1.0, n / full)

@@ -137,7 +137,7 @@ def lines(world, ent: int) -> list[str]:
     warp = world.resources.get(TimeWarp)
     if warp is not None and (warp.requested > 1 or warp.reason):
         line = f"WARP    x{warp.factor:,}"
-        if warp.dropped:
-            line += f" (asked x{warp.requested:,}: {warp.reason})"
+        if warp.dropped:                 # asked -> held to, and why (short: the HUD keeps to a sixth of the frame)
+            line = f"WARP    x{warp.requested:,}\u2192x{warp.factor:,}: {warp.reason}"
         out.append(line)
     return out

@@ -160,8 +160,8 @@ def test_the_autopilots_words_give_the_distance_the_hud_calls_closest():
         assert said == pytest.approx(30.0, abs=0.3)                           # the standoff, not its error
         line = [s for s in readouts.lines(world, ship) if s.startswith("CLOSEST")][0]
         assert round(float(line.split()[1])) == round(said)
-        flying = [float(re.match(r"flip and burn: ([0-9.]+) m off", s).group(1)) for s in words
-                  if s.startswith("flip and burn")]
+        flying = [float(re.match(r"flip & burn: ([0-9.]+) m, closing", s).group(1)) for s in words
+                  if s.startswith("flip & burn")]
         assert flying and max(flying) > 40.0 and min(flying) >= 29.0           # to the station, never under 30 m
     finally:
         world.close()
@@ -217,5 +217,34 @@ def test_the_asteroids_overhead_camera_frames_the_ship_and_every_rock(seconds):
         np.testing.assert_allclose(fr.rotate(eye.orientation, fr.FORWARD), [0.0, -1.0, 0.0], atol=1e-12)
         ship_y = esper.component_for_entity(cam.target, Transform).position[1]
         assert eye.position[1] - ship_y >= cam.overhead_height
+    finally:
+        world.close()
+
+
+@pytest.mark.gl
+def test_the_orbit_hud_stays_within_a_sixth_of_a_640x360_frame_all_through(ctx):
+    from driftframe.app import attach_rendering, make_world
+    from driftframe.demos import orbit
+    from driftframe.systems.hud import HudSystem
+
+    world, _ = make_world("orbit")
+    try:
+        attach_rendering(world, ctx, size=(640, 360), own_context=False, sound=False, effects=False)
+        hud = world.get_system(HudSystem)
+        seen = set()
+        # every 2 s: the coast, the warp held back for the second burn (the longest WARP line), flip and
+        # burn (the longest AUTO line), arrived
+        warp_held = False
+        for t in np.arange(2.0, orbit.BURN2 + 60.0, 2.0):
+            world.step(round(t / world.dt) - world.step_count)
+            world.render()
+            text, font = hud.last["text"], hud.font
+            seen |= {line.split()[0] for line in text}
+            warp_held |= any(line.startswith("WARP    x10\u2192x1: burn of") for line in text)
+            # the block from the frame's corner: the longest line and every line, with the pad round them
+            width = max(sum(font.advance.get(c, font.advance["?"]) for c in line) for line in text) + font.line_height
+            height = (len(text) + 1) * font.line_height
+            assert width * height <= 640 * 360 / 6, (t, width, height, text)
+        assert {"CLOSEST", "AUTO", "WARP"} <= seen and warp_held
     finally:
         world.close()

@@ -91,4 +91,4 @@ def test_the_warp_line_says_why_it_dropped(world):
     warp = time_warp.of(world)
     warp.request(10_000)
     warp.limit, warp.reason = 10, "burn of 5.0 m/s in 40 s"
-    assert readouts.lines(world, ship) == ["WARP    x10 (asked x10,000: burn of 5.0 m/s in 40 s)"]
+    assert readouts.lines(world, ship) == ["WARP    x10,000\u2192x10: burn of 5.0 m/s in 40 s"]
