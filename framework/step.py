@@ -63,18 +63,25 @@ def advance(x0: np.ndarray, v0: np.ndarray, a: np.ndarray | None, dt: float,
     return x1, v1
 
 
+def _bytes(a: np.ndarray) -> memoryview | None:
+    """``a``'s bytes as a flat memoryview (non-empty C-contiguous arrays; else None): ``dst[:] = src`` of two
+    such views copies 48 bytes in about 0.06 us, where ``np.copyto`` takes 0.28 (a small scene's commit is
+    one copy)."""
+    return memoryview(a).cast("B") if a.size and a.flags.c_contiguous else None
+
+
 class _Column:
     """One column of the context: a table's field (``position`` of Transform, ``linear`` of Velocity),
     copied in at :meth:`begin` and written back at :meth:`commit`. The views are kept while the table's
     array and size stay the same (until an entity gains or loses the component), so a step costs one
-    copy each way."""
+    copy each way (a byte copy where both sides are contiguous: the same bits)."""
 
-    __slots__ = ("table", "field", "buf", "_col", "_src", "_version")
+    __slots__ = ("table", "field", "buf", "_col", "_src", "_version", "_src_b", "_buf_b")
 
     def __init__(self, table, field: str):
         self.table, self.field = table, field
         self.buf = np.empty((0, 3))
-        self._col = self._src = None
+        self._col = self._src = self._src_b = self._buf_b = None
         self._version = -1
 
     def prepare(self) -> None:
@@ -85,6 +92,9 @@ class _Column:
         if col is not self._col or len(self.buf) != n:
             self._col, self._src = col, col[:n]
             self.buf = np.empty((n, 3))
+            self._src_b, self._buf_b = _bytes(self._src), _bytes(self.buf)
+            if self._src_b is None or self._buf_b is None:
+                self._src_b = self._buf_b = None
 
     def begin(self, fill: bool = True) -> None:
         """Open the column for a step: the table's values copied in (``fill``), or not, where the caller
@@ -93,13 +103,19 @@ class _Column:
         if table.data[self.field] is not self._col or len(self.buf) != table.size:
             self.prepare()
         if fill:
-            np.copyto(self.buf, self._src)
+            if self._buf_b is not None:
+                self._buf_b[:] = self._src_b
+            else:
+                np.copyto(self.buf, self._src)
         self._version = table.version
 
     def commit(self) -> None:
         table = self.table
         if table.version == self._version and table.data[self.field] is self._col:
-            np.copyto(self._src, self.buf)          # the usual step: no row changed hands
+            if self._src_b is not None:             # the usual step: no row changed hands
+                self._src_b[:] = self._buf_b
+            else:
+                np.copyto(self._src, self.buf)
             return
         # rows were taken or freed mid-step (a system deleted or spawned a body): write back the rows that
         # hold the entity they held when the step began, never a row freed or taken since
@@ -190,8 +206,8 @@ class StepContext:
             return
         x = self._x
         table = x.table
-        if table.version == x._version and table.data["position"] is x._col:
-            np.copyto(x._src, x.buf)                # (x.commit()'s usual step, inline: a small scene's step)
+        if table.version == x._version and table.data["position"] is x._col and x._src_b is not None:
+            x._src_b[:] = x._buf_b                  # (x.commit()'s usual step, inline: a small scene's step)
         else:
             x.commit()
         if self._v_open:

@@ -29,8 +29,10 @@ class MovementSystem(esper.Processor):
     constant-acceleration update. Nothing else changes velocity here: there is
     no drag in space.
 
-    All matching bodies are updated with whole-column numpy operations; the
-    packed rows are rebuilt only when entities gain or lose components.
+    All matching bodies are updated with whole-column operations (free flight
+    of contiguous rows in one compiled call, framework/free_flight.py, the same
+    bits as numpy's); the packed rows are rebuilt only when entities gain or
+    lose components.
     """
 
     stage = "movement"
@@ -47,8 +49,9 @@ class MovementSystem(esper.Processor):
         self._tables = (None, None)           # the Transform and Velocity tables (a world's, kept)
         self._whole = False                   # the plan writes every row of the step context's positions
         # dt as a 0-d array (numpy's multiply takes it ~0.1 us sooner than a float, which it converts at
-        # every call; the same bits), and the float it was made from
-        self._dt, self._dt_f = np.array(0.0), 0.0
+        # every call; the same bits), the dt it was made from, and that as a float (the compiled free flight's)
+        self._dt, self._dt_f, self._dt_x = np.array(0.0), 0.0, 0.0
+        self._free_flight = None              # framework/free_flight.py's kernel, loaded by prepare()
 
     def _moves(self) -> tuple:
         """What a step does, as packed rows: ``((t_rows, v_rows), (t_rows, v_rows, a_rows))``, the bodies
@@ -78,14 +81,26 @@ class MovementSystem(esper.Processor):
         ctx = world.step_context
         t_table, v_table = self._tables = world.table(Transform), world.table(Velocity)
         if self._dt_f != world.dt:
-            self._dt, self._dt_f = np.array(float(world.dt)), world.dt
+            self._set_dt(world.dt)
+        if self._free_flight is None and self._plan:
+            # (imported here, not at the top: numba is loaded when a world first has a body to move)
+            from driftframe.framework.free_flight import free_flight
+            self._free_flight = free_flight
         ctx.prepare(t_table, v_table)
         self._views = self._views_of(ctx)
+        ff = self._free_flight
+        for x0, v0, a, x1, _, rows in self._views:
+            if rows is None and a is None and hasattr(ff, "compile"):   # (a plain function under NUMBA_DISABLE_JIT)
+                # loaded (or compiled) now, not at the first step: the types the step will pass
+                ff.compile(tuple(ff.typeof_pyval(z) for z in (x0, v0, self._dt_x, x1)))
         # one group without an Acceleration over rows 0..size of the Transform table: its prediction is
         # every row of the context's positions, so the step need not copy them in first
         rows = self._plan[0][0] if len(self._plan) == 1 and len(self._plan[0]) == 2 else None
         self._whole = isinstance(rows, slice) and not rows.start and rows.stop == t_table.size \
             and rows.step in (None, 1)
+
+    def _set_dt(self, dt: float) -> None:
+        self._dt, self._dt_f, self._dt_x = np.array(float(dt)), dt, float(dt)
 
     def _views_of(self, ctx) -> tuple:
         """Per group of the plan: ``(x0, v0, a, x1, v1)``, views into the tables and the context where the
@@ -117,12 +132,14 @@ class MovementSystem(esper.Processor):
         if key[0] != world.epoch or key[1] is not ctx.position or key[2] is not ctx.velocity_buffer:
             self._views = self._views_of(ctx)
         if self._dt_f != dt:
-            self._dt, self._dt_f = np.array(float(dt)), dt
+            self._set_dt(dt)
         dt0 = self._dt
         for x0, v0, a, x1, v1, rows in self._views:
             if rows is None:                          # contiguous rows: views, nothing gathered or made
-                if a is not None:
-                    ctx.open_velocity()               # the other bodies' velocities copied in (see StepContext)
+                if a is None:                         # free flight: advance()'s update, compiled (the same bits)
+                    self._free_flight(x0, v0, self._dt_x, x1)
+                    continue
+                ctx.open_velocity()                   # the other bodies' velocities copied in (see StepContext)
                 advance(x0, v0, a, dt0, out=(x1, v1))
                 continue
             pos = world.table(Transform).data["position"]
