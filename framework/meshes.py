@@ -504,7 +504,7 @@ def load_model(path, name: str | None = None, *, shading: str = "smooth") -> Loa
     """``(mesh, texture, normal_map)`` from an OBJ / glTF / GLB file: the triangle :class:`Mesh`, recentred
     on its centre of mass, with its texture coordinates, its base-colour texture as an (H, W, 4) uint8
     array (top row first), or None when the file has none, and its normal map likewise (glTF's
-    normalTexture, OBJ's map_bump / norm; the mesh then has :func:`tangent_frames`; glTF's normal
+    normalTexture; trimesh reads none from OBJ; the mesh then has :func:`tangent_frames`; glTF's normal
     ``scale`` is taken as 1). Other material maps are not read.
 
     All the file's geometry is joined into one mesh (node transforms
@@ -536,13 +536,13 @@ def load_model(path, name: str | None = None, *, shading: str = "smooth") -> Loa
 
 def _maps(mesh, path) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """The trimesh mesh's per-vertex UVs, base-colour image (glTF's baseColorTexture, OBJ's map_Kd) and
-    normal map (glTF's normalTexture; OBJ's map_bump / norm), each None where missing (the UVs too when
-    there is no image); the images as (H, W, 4) uint8 (greyscale and RGB made RGBA)."""
+    normal map (glTF's normalTexture), each None where missing (the UVs too when there is no image);
+    the images as (H, W, 4) uint8 (greyscale and RGB made RGBA)."""
     visual = getattr(mesh, "visual", None)
     uv = getattr(visual, "uv", None)
     material = getattr(visual, "material", None)
     images = [getattr(material, "baseColorTexture", None) or getattr(material, "image", None),
-              getattr(material, "normalTexture", None) or getattr(material, "bump", None)]
+              getattr(material, "normalTexture", None)]
     if uv is None or len(uv) != len(mesh.vertices) or all(im is None for im in images):
         return None, None, None
     out = []
