@@ -208,13 +208,18 @@ class State:
         rows ``pi, pj``; see :func:`~driftframe.framework.quiet_step.gather_quiet`: False when a body is not
         valid or none moves). The kernel's arguments are kept while the world's structure epoch, ``dt``
         and the pairs are the same (a small scene's step is little more than this call)."""
+        self.n_bad, self.moving, quiet = gather_quiet(*self.quiet_call(lay, dt, pairs))
+        return quiet
+
+    def quiet_call(self, lay: _Layout, dt: float, pairs: np.ndarray) -> tuple:
+        """The quiet-step kernel's arguments (see :meth:`gather_quiet`), kept while the world's structure
+        epoch, ``dt`` and the pairs are the same."""
         call = self._quiet
         if call is None or self._epoch != self._world.epoch or call[7] != dt or call[12] is not pairs:
             args = self.columns(lay)
             call = self._quiet = args[:6] + (lay.idx, float(dt), self._b3, self._out[2], self._b1, self.live,
                                              pairs)
-        self.n_bad, self.moving, quiet = gather_quiet(*call)
-        return quiet
+        return call
 
     def end_of_step(self, dt: float):
         """x1, v1 of every body in free flight (no contact)."""
@@ -302,6 +307,7 @@ class CollisionSystem(esper.Processor):
         self._stick = False                          # a step jammed: solve with the jam path's variant
         self.stats = dict(_ZERO_STATS)
         self._quiet_stats = -1                       # n of the last quiet step, whose counts stats holds
+        self._quick: tuple | None = None             # the shortest path's call, kept (see _quick_path)
 
     @property
     def requires(self) -> tuple[type, ...]:
@@ -442,29 +448,54 @@ class CollisionSystem(esper.Processor):
 
     def process(self, dt: float) -> None:
         world = self._world
+        quick = self._quick
+        if quick is None or quick[0] != world.epoch or quick[1] != dt or quick[2] is not self.method \
+                or quick[3] is not self.broadphase:
+            quick = self._quick_path(dt)
+            if quick is None:
+                self._process(dt)
+                return
+        # the shortest path, a scene of a few bodies: one compiled call gathers them and finds the step
+        # quiet (no pair meets), and the movement stage's prediction stands
+        st = quick[4]
+        st.n_bad, st.moving, quiet = gather_quiet(*quick[5])
+        if not quiet:
+            self._zero_stats()
+            self._continuous(self._layout, st, dt)
+            return
+        n = quick[6]
+        if self._quiet_stats != n:                           # (the same counts as the last quiet step's)
+            self.stats.update(_ZERO_STATS)
+            self.stats["pairs"] = len(self._pairs[0])        # what the solver would say of a quiet step
+            self._quiet_stats = n
+        if self._bad:
+            self._bad.clear()
+        ctx = world.step_context
+        if ctx.step != world.step_count or not ctx.predicted:
+            self._finish(self._layout, st, self._unchanged(n), dt)   # (no movement stage: free flight here)
+
+    def _quick_path(self, dt: float) -> tuple | None:
+        """What :meth:`process` keeps for the shortest path (a few colliders, all pairs, the continuous
+        method): ``(epoch, dt, method, broadphase, state, the quiet kernel's arguments, n)``, valid while
+        those five are the same; None (and nothing kept) where a step of the current colliders does not
+        take it."""
+        self._quick = None
+        world = self._world
         lay = self._layout                          # (the world has synced its tables before calling this)
         if lay is None or self._layout_epoch != world.epoch:
             lay = self._refresh()
         n = lay.n
-        if n >= 2 and self.method == "continuous" and not self._uses_list(n):
-            # the shortest path, a scene of a few bodies: one compiled call gathers them and finds the step
-            # quiet (no pair meets), and the movement stage's prediction stands
-            st = lay.state or State.of(self._world, lay)
-            if st.gather_quiet(lay, dt, self._pairs if self._pairs_n == n else self._all_pairs(n)):
-                if self._quiet_stats != n:                   # (the same counts as the last quiet step's)
-                    self.stats.update(_ZERO_STATS)
-                    self.stats["pairs"] = len(self._pairs[0])    # what the solver would say of a quiet step
-                    self._quiet_stats = n
-                if self._bad:
-                    self._bad.clear()
-                world = self._world
-                ctx = world.step_context
-                if ctx.step != world.step_count or not ctx.predicted:
-                    self._finish(lay, st, self._unchanged(n), dt)   # (no movement stage: free flight here)
-                return
-            self._zero_stats()
-            self._continuous(lay, st, dt)
-            return
+        if n < 2 or self.method != "continuous" or self._uses_list(n):
+            return None
+        st = lay.state or State.of(world, lay)
+        call = st.quiet_call(lay, dt, self._pairs if self._pairs_n == n else self._all_pairs(n))
+        self._quick = (world.epoch, dt, self.method, self.broadphase, st, call, n)
+        return self._quick
+
+    def _process(self, dt: float) -> None:
+        """A step that does not take the shortest path (see :meth:`process`)."""
+        lay = self._layout
+        n = lay.n
         self._zero_stats()
         if n == 0:
             return
@@ -549,7 +580,7 @@ class CollisionSystem(esper.Processor):
         """Take back :meth:`state` (a load): the layout is rebuilt at the next step and takes the times."""
         self._saved = (state["entities"], state["t_last"])
         self._stick = bool(state["stick"])
-        self._layout = self._t_last_layout = None
+        self._layout = self._t_last_layout = self._quick = None
         self._list_dirty = True
 
     def _unchanged(self, n: int) -> np.ndarray:
