@@ -12,6 +12,13 @@ the same process, interleaved.
 * **Figure-eight** (Chenciner & Montgomery's three equal masses, G = 1, period 6.3259): one period, the
   distance from the start after it against the time taken, driftframe's leapfrog against REBOUND's
   ``leapfrog`` at the same dt (the same drift-kick-drift scheme: equal dt is equal accuracy, checked).
+* **A close encounter** (G = 1; a star of G m = 1 and two planets of 1e-3 that pass 0.02 apart, 0.3 Hill
+  radii, 1.5 time units in: ``tests/test_mercurius.py``'s scene), 3 time units (one pass): the worst
+  relative energy error over 30 outputs and the distance of the final positions from IAS15's, against
+  wall and CPU time (median of interleaved repeats): driftframe's hybrid step (:mod:`framework.mercurius`)
+  and plain democratic-heliocentric WH beside REBOUND's MERCURIUS (the same scheme; its default
+  ``safe_mode = 1``: with 0, REBOUND 5.2.2's ``steps`` then ``synchronize`` loses 2e-2 of the energy on
+  this scene at every dt) at the same dt, and IAS15.
 
 Bars (issue 24): SJS energy error at most WHFast's at the same step; per body-step at 1,000 bodies at
 most 1x WHFast's (safe_mode = 0); the figure-eight within 2x REBOUND's leapfrog in time at equal accuracy.
@@ -26,6 +33,7 @@ import time
 import numpy as np
 
 from benchmarks import common
+from driftframe.framework import mercurius as me
 from driftframe.framework import wisdom_holman as wh
 
 GK = 0.01720209895 ** 2          # G in AU^3 / (Msun day^2)
@@ -91,7 +99,7 @@ def rebound_sim(x, v, gm, integrator, dt, G=GK):
     sim.integrator = integrator
     sim.dt = dt
     if integrator == "whfast":
-        sim.integrator.safe_mode = 0
+        sim.integrator.safe_mode = SAFE
     return sim
 
 
@@ -199,6 +207,85 @@ def fig8(method, steps, repeats):
     return err, statistics.median(walls), max(walls), statistics.median(cpus)
 
 
+# ------------------------------------------------------------------------------------- (d) close encounter
+ENC_T = 3.0
+ENC_OUTPUTS = 30
+SAFE = 1
+ENC_METHODS = ("driftframe hybrid (mercurius)", "driftframe WH (democratic)", "REBOUND MERCURIUS", "REBOUND IAS15")
+
+
+def close_pass(d=0.02):
+    """``(x, v, gm)``, G = 1: two planets of G m = 1e-3 placed ``d`` apart at t = 1.5, taken back along
+    their Kepler orbits (``tests/test_mercurius.py``'s scene)."""
+    gm = np.array([1.0, 1e-3, 1e-3])
+    X = np.array([[1.0, 0.0, 0.0], [1.0 + d, 0.0, 0.3 * d]])
+    V = np.array([[0.0, 1.0, 0.0], [0.2, 1.1, 0.0]])
+    wh.kepler_drift(X, V, 1.0, -1.5)
+    x = np.vstack([[0.0, 0.0, 0.0], X])
+    v = np.vstack([[0.0, 0.0, 0.0], V])
+    x -= (gm[:, None] * x).sum(0) / gm.sum()
+    v -= (gm[:, None] * v).sum(0) / gm.sum()
+    return x, v, gm
+
+
+def encounter_run(method, steps):
+    """One run over ``ENC_T``: (worst |E/E0 - 1| over the outputs, final positions, wall s, CPU s)."""
+    x, v, gm = close_pass()
+    E0 = wh.energy(x, v, gm)
+    per = steps // ENC_OUTPUTS
+    dt = ENC_T / (per * ENC_OUTPUTS)
+    worst = wall = cpu = 0.0
+    if method.startswith("driftframe"):
+        dc = me.critical_radii(x, v, gm, dt)
+        for _ in range(ENC_OUTPUTS):
+            w0, c0 = clocks()
+            if "hybrid" in method:
+                me.mercurius(x, v, gm, dt, per, dcrit=dc)
+            else:
+                wh.wisdom_holman(x, v, gm, dt, per, coordinates="democratic")
+            w1, c1 = clocks()
+            wall += w1 - w0
+            cpu += c1 - c0
+            worst = max(worst, abs(wh.energy(x, v, gm) / E0 - 1.0))
+        return worst, x, wall, cpu
+    sim = rebound_sim(x, v, gm, "mercurius" if "MERCURIUS" in method else "ias15", dt, G=1.0)
+    if "MERCURIUS" in method:
+        sim.integrator.safe_mode = SAFE
+    for k in range(1, ENC_OUTPUTS + 1):
+        w0, c0 = clocks()
+        if "MERCURIUS" in method:
+            sim.steps(per)
+            sim.synchronize()
+        else:
+            sim.integrate(k * ENC_T / ENC_OUTPUTS, exact_finish_time=1)
+        w1, c1 = clocks()
+        wall += w1 - w0
+        cpu += c1 - c0
+        xr, vr = rebound_state(sim)
+        worst = max(worst, abs(wh.energy(xr, vr, gm) / E0 - 1.0))
+    return worst, rebound_state(sim)[0], wall, cpu
+
+
+def encounter(steps_list, repeats, reb):
+    """{(method, steps): (worst energy error, distance from IAS15's end, median wall, median CPU)}."""
+    methods = [m for m in ENC_METHODS if reb or not m.startswith("REBOUND")]
+    for m in methods[:2]:
+        encounter_run(m, 60)                            # compile (or load) before timing
+    out = {}
+    for steps in steps_list:
+        runs = {m: [] for m in methods if not (m == "REBOUND IAS15" and steps != steps_list[0])}
+        for _ in range(repeats):                        # interleaved
+            for m in runs:
+                runs[m].append(encounter_run(m, steps))
+        for m, rs in runs.items():
+            out[(m, steps)] = [rs[0][0], rs[0][1], statistics.median(r[2] for r in rs),
+                               statistics.median(r[3] for r in rs)]
+    ref = out[("REBOUND IAS15", steps_list[0])][1].copy() if reb else None
+    for row in out.values():
+        row[1] = float(np.abs(row[1] - ref).max()) if ref is not None else float("nan")
+    return out
+
+
 # ------------------------------------------------------------------------------------- main
 def main(argv=None) -> int:
     args = common.parser(__doc__.splitlines()[0]).parse_args(argv)
@@ -257,6 +344,19 @@ def main(argv=None) -> int:
                 "time for the period (s):\n")
     body.append(common.table(["method", "steps", "distance from start", "median wall", "worst wall",
                               "median CPU"], rows) + "\n")
+    # (d) close encounter
+    enc_steps = (150, 600) if args.quick else (90, 150, 300, 600, 1_500, 3_000, 6_000)
+    enc = encounter(enc_steps, 3 if args.quick else 7, reb)
+    for (m, steps), (e, dx, w, c) in enc.items():
+        print(f"  encounter {m:30s} {steps:5d} steps: |dE/E| {e:.2e}  |x - IAS15| {dx:.2e}  wall {w:.4f} s", flush=True)
+    rows = [[m, "adaptive" if "IAS15" in m else steps, f"{e:.3g}", f"{dx:.3g}", w, c]
+            for (m, steps), (e, dx, w, c) in enc.items()]
+    body.append(f"**(d) A close encounter**: two planets of 1e-3 star masses pass 0.02 apart (0.3 Hill radii), "
+                f"{ENC_T:.4g} time units (the pass, G = 1; the inner orbit's period is 2 pi), {ENC_OUTPUTS} outputs; worst |E/E0 - 1|, the "
+                "largest coordinate difference of the final positions from REBOUND IAS15's, median wall and CPU "
+                "seconds of the integration alone:\n")
+    body.append(common.table(["method", "steps", "worst energy error", "|x - x_IAS15|", "wall, s", "CPU, s"], rows)
+                + "\n")
     load1 = os.getloadavg()
 
     # bars
@@ -284,12 +384,27 @@ def main(argv=None) -> int:
         bars.append(f"- Figure-eight, driftframe / REBOUND leapfrog time at the same dt (the same scheme; the "
                     f"distances from the start agree to {same:.1e} relative): worst ratio {worst_ratio:.2f} over the "
                     f"step counts. Bar (<= 2): **{'met' if worst_ratio <= 2.0 else 'NOT met'}**.")
+    hy = [enc[("driftframe hybrid (mercurius)", s)] for s in enc_steps]
+    wh_e = [enc[("driftframe WH (democratic)", s)] for s in enc_steps]
+    line = (f"- Close encounter: driftframe's hybrid step keeps the worst energy error at {min(r[0] for r in hy):.1e}–"
+            f"{max(r[0] for r in hy):.1e} over {enc_steps[0]}–{enc_steps[-1]} steps, plain WH "
+            f"{min(r[0] for r in wh_e):.1e}–{max(r[0] for r in wh_e):.1e}")
+    if reb:
+        merc = [enc[("REBOUND MERCURIUS", s)] for s in enc_steps]
+        ratio_e = [a[0] / b[0] for a, b in zip(hy, merc)]
+        ratio_t = [a[2] / b[2] for a, b in zip(hy, merc)]
+        line += (f"; against REBOUND MERCURIUS at the same dt the energy error is {min(ratio_e):.4f}–"
+                 f"{max(ratio_e):.4f}x and the wall time {min(ratio_t):.2f}–{max(ratio_t):.2f}x")
+        ias = enc[("REBOUND IAS15", enc_steps[0])]
+        line += (f". IAS15 keeps these three bodies to {ias[0]:.0e} in {ias[2]:.2g} s: the hybrid pays where many "
+                 "bodies are apart and few meet")
+    bars.append(line + ".")
     bars.append(f"- Load average (1, 5, 15 min) {load0[0]:.1f}/{load0[1]:.1f}/{load0[2]:.1f} at the start, "
                 f"{load1[0]:.1f}/{load1[1]:.1f}/{load1[2]:.1f} at the end (a shared machine: compare ratios).")
     body.append("\n".join(bars) + "\n")
 
     # chart
-    fig, axes = common.figure(1, 3, figsize=(15, 4.4))
+    fig, axes = common.figure(1, 4, figsize=(20, 4.4))
     ax = axes[0]
     for m in methods:
         pts = [(sjs_res[(m, dt)][1], sjs_res[(m, dt)][0]) for dt in dts if (m, dt) in sjs_res]
@@ -319,6 +434,17 @@ def main(argv=None) -> int:
     ax.set_xlabel("wall s per period")
     ax.set_ylabel("distance from the start after one period")
     ax.set_title("Figure-eight")
+    ax.legend(fontsize=7)
+    ax = axes[3]
+    for m in ENC_METHODS:
+        pts = [(enc[(m, s)][2], enc[(m, s)][0]) for s in enc_steps if (m, s) in enc]
+        if pts:
+            ax.plot(*zip(*pts), "o-", label=m)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(f"median wall s for {ENC_T:g} time units")
+    ax.set_ylabel("worst |E/E0 - 1|")
+    ax.set_title("Close encounter (0.3 Hill radii)")
     ax.legend(fontsize=7)
     common.save_chart(fig, "nbody")
     common.write_section("nbody", "n-body: Wisdom–Holman and leapfrog against REBOUND", "\n".join(body),
