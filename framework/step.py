@@ -192,7 +192,10 @@ class StepContext:
         x, v = self._x, self._v
         if x is None or x.table is not t_table or v.table is not v_table:
             x, v = self._x, self._v = _Column(t_table, "position"), _Column(v_table, "linear")
-        x.begin(not whole)
+        if whole and t_table.data["position"] is x._col and len(x.buf) == t_table.size:
+            x._version = t_table.version            # (x.begin(False), inline: a small scene's step)
+        else:
+            x.begin(not whole)
         vt = v.table
         if vt.data["linear"] is not v._col or len(v.buf) != vt.size:
             v.prepare()                             # (the velocities are copied in at their first use)
