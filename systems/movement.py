@@ -128,8 +128,8 @@ class MovementSystem(esper.Processor):
         ctx = world.step_context
         t_table, v_table = self._tables
         ctx.begin(world.step_count, dt, t_table, v_table, self._whole)
-        key = self._views_key
-        if key[0] != world.epoch or key[1] is not ctx.position or key[2] is not ctx.velocity_buffer:
+        key = self._views_key                         # (made at this epoch: prepare() made them both)
+        if key[1] is not ctx.position or key[2] is not ctx.velocity_buffer:
             self._views = self._views_of(ctx)
         if self._dt_f != dt:
             self._set_dt(dt)
