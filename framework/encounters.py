@@ -53,6 +53,14 @@ def changeover(r, rc):
     return y * y * y * (10.0 + y * (-15.0 + 6.0 * y))
 
 
+def changeover_array(r, rc):
+    """:func:`changeover` on arrays (numpy; the same formula): ``r``, ``rc`` broadcast together."""
+    r, rc = np.broadcast_arrays(np.asarray(r, np.float64), np.asarray(rc, np.float64))
+    y = np.clip((r - 0.1 * rc) / (0.9 * rc), 0.0, 1.0)
+    out = y * y * y * (10.0 + y * (-15.0 + 6.0 * y))
+    return np.where(r >= rc, 1.0, out)
+
+
 @kernel(error_model="numpy")
 def _accel(X, gm, dc, gm0, a):
     """The drift's accelerations of the encounter bodies (module docstring), each pair once."""

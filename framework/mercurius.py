@@ -132,6 +132,27 @@ def _closest_squared(Xb, Vb, X, V, i, j, dt):
 
 
 @kernel(error_model="numpy")
+def _flag_pairs(Xb, Vb, X, V, dc, dt, first, flag):
+    """``flag[i]``: whether body ``i`` (rows ``first..``) is in a pair whose least distance over the drift from
+    ``(Xb, Vb)`` to ``(X, V)`` is under ``1.1 max(dc_i, dc_j)`` (:func:`_closest_squared`); returns how many."""
+    n = X.shape[0]
+    count = 0
+    for i in range(n):
+        flag[i] = False
+    for i in range(first, n):
+        for j in range(i + 1, n):
+            rc = 1.1 * max(dc[i], dc[j])
+            if _closest_squared(Xb, Vb, X, V, i, j, dt) < rc * rc:
+                if not flag[i]:
+                    count += 1
+                flag[i] = True
+                if not flag[j]:
+                    count += 1
+                flag[j] = True
+    return count
+
+
+@kernel(error_model="numpy")
 def _drift(X, V, Xb, Vb, gm, dc, m, dt, flag, tolerance):
     """The drift of one step (module docstring): Kepler for every body, then the encounter set again from
     the start (``Xb, Vb``: scratch for it) by the adaptive integrator. Returns whether a set was found, or
@@ -142,19 +163,7 @@ def _drift(X, V, Xb, Vb, gm, dc, m, dt, flag, tolerance):
             Xb[i, k] = X[i, k]
             Vb[i, k] = V[i, k]
         wh._kepler_drift(X, V, i, m, dt)
-    count = 0
-    for i in range(n):
-        flag[i] = False
-    for i in range(1, n):
-        for j in range(i + 1, n):
-            rc = 1.1 * max(dc[i], dc[j])
-            if _closest_squared(Xb, Vb, X, V, i, j, dt) < rc * rc:
-                if not flag[i]:
-                    count += 1
-                flag[i] = True
-                if not flag[j]:
-                    count += 1
-                flag[j] = True
+    count = _flag_pairs(Xb, Vb, X, V, dc, dt, 1, flag)
     if count == 0:
         return 0
     idx = np.empty(count, np.int64)
@@ -252,6 +261,16 @@ def critical_radii(x, v, gm, dt: float, hill: float = 3.0):
     dc = np.maximum(np.sqrt(mu / a) * 0.4 * abs(dt), np.sqrt(v2) * 0.4 * abs(dt))
     dc = np.maximum(dc, hill * a * np.cbrt(gm[1:] / (3.0 * gm[0])))
     return np.concatenate([[0.0], np.where(np.isfinite(dc), dc, 0.0)])
+
+
+def encounter_set(x0, v0, x1, v1, dcrit, dt: float):
+    """Which bodies a drift of ``dt`` from ``(x0, v0)`` to ``(x1, v1)`` brings within reach of a pair's
+    critical radius (``1.1 max(dcrit_i, dcrit_j)``, REBOUND's prediction: module docstring), every pair
+    counted (no central body among the rows): a boolean ``(n,)`` mask."""
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (x0, v0, x1, v1)]
+    flag = np.zeros(arrays[0].shape[0], bool)
+    _flag_pairs(*arrays, np.ascontiguousarray(dcrit, dtype=np.float64), float(dt), np.int64(0), flag)
+    return flag
 
 
 def mercurius(x, v, gm, dt: float, n_steps: int = 1, *, dcrit=None, hill: float = 3.0,

@@ -5,14 +5,25 @@ The drift: about a scene's one root well, a body without a collider whose conic 
 drifts on that conic (Wisdom–Holman: the well's pull is the exact Kepler drift,
 :func:`framework.wisdom_holman.kepler_drift`, the kicks hold only the other bodies' pulls and the thrust;
 symplectic, and exact for a lone body at any step); every other n-body body drifts on the straight line
-(leapfrog), met against the wells' surfaces and, with a collider, in the contact pass."""
+(leapfrog), met against the wells' surfaces and, with a collider, in the contact pass.
+
+Close encounters of bodies on their conics: the hybrid split of :mod:`framework.mercurius` about the fixed
+well (Chambers 1999; Rein et al. 2019's MERCURIUS). Each conic body has a critical radius
+(:func:`framework.mercurius.critical_radii` of its state about the well at the step's start: three Hill
+radii, or the distance a step moves it); a pair of conic bodies nearer than the larger of its two has its
+mutual pull in the kicks weighted by the changeover ``L(r)`` (:func:`framework.encounters.changeover_array`,
+1 beyond it), and the bodies of a pair whose drift brings it within reach
+(:func:`framework.mercurius.encounter_set`) are moved over the step by the adaptive integrator
+(:func:`framework.encounters.bulirsch_stoer`) on the well's pull plus the ``1 - L`` part of their mutual
+pulls, in place of their Kepler drift. Where no pair comes within reach nothing changes (the same bits)."""
 from __future__ import annotations
 
 import numpy as np
 
 from driftframe.components.body import Acceleration, Mass, Transform, Velocity
 from driftframe.components.gravity import G, NBody, SurfaceContact
-from driftframe.framework import kepler
+from driftframe.framework import encounters, kepler
+from driftframe.framework import mercurius as me
 from driftframe.framework import wisdom_holman as wh
 from driftframe.framework.step import advance
 from driftframe.framework.store import to_indices
@@ -62,9 +73,11 @@ class NBodyFlight:
                 ctx.position[t_rows[sel]] = x1
                 ctx.velocity[v_rows[sel]] = v1 + (0.5 * dt) * g[sel]
 
-    def _accel(self, pos, X, gm, on_conic=None):
+    def _accel(self, pos, X, gm, on_conic=None, switch=None):
         """Pull of every well at positions ``pos`` and of the n-body bodies on each other (``G m``); the rows
-        ``on_conic`` (a mask) get no pull of the wells (their drift carries it)."""
+        ``on_conic`` (a mask) get no pull of the wells (their drift carries it); ``switch``: ``(rows,
+        critical radii)`` of the conic bodies, whose mutual pulls are weighted by the changeover
+        (:meth:`_switch`)."""
         w = self._wells
         acc = np.zeros_like(pos)
         for wi in range(len(X)):
@@ -78,7 +91,15 @@ class NBodyFlight:
             d = pos[:, None, :] - pos[None, :, :]
             r2 = np.einsum("ijk,ijk->ij", d, d)
             np.fill_diagonal(r2, np.inf)
-            acc -= np.einsum("ij,ijk->ik", gm[None, :] / (r2 * np.sqrt(r2)), d)
+            w = gm[None, :] / (r2 * np.sqrt(r2))
+            if switch is not None:
+                rows, dc = switch
+                sub = np.ix_(rows, rows)
+                rc = np.maximum(dc[:, None], dc[None, :])
+                near = np.sqrt(r2[sub]) < rc
+                if near.any():
+                    w[sub] = np.where(near, w[sub] * encounters.changeover_array(np.sqrt(r2[sub]), rc), w[sub])
+            acc -= np.einsum("ij,ijk->ik", w, d)
         return acc
 
     def _kick(self, step: GravityStep, sel) -> Drift:
@@ -106,14 +127,55 @@ class NBodyFlight:
                 k = todo[j]
                 p[k], u[k] = self._reflect(step, sel[k], p[k], u[k], int(w_hit[j]), float(t_hit[j]))
         q = p + u * dt
+        switch = None
         if kep.any():                                 # on the conic about the well, from the well's frame
-            r, w = wh.kepler_drift(np.ascontiguousarray(p[kep] - step.X0[0]), np.ascontiguousarray(u[kep] - step.V0[0]),
-                                   float(self._wells.mu[0]), dt)
+            mu = float(self._wells.mu[0])
+            r0 = np.ascontiguousarray(p[kep] - step.X0[0])
+            w0 = np.ascontiguousarray(u[kep] - step.V0[0])
+            switch = self._switch(step, gm, kep, r0, w0)
+            r, w = wh.kepler_drift(r0.copy(), w0.copy(), mu, dt)
+            if switch is not None:
+                self._encounter_drift(switch, sel, gm, mu, dt, r0, w0, r, w)
             q[kep] = r + step.X1[0]
             u[kep] = w + step.V1[0]
-        u = u + 0.5 * dt * (self._accel(q, step.X1, gm, kep if kep.any() else None) + step.a[sel])
+        u = u + 0.5 * dt * (self._accel(q, step.X1, gm, kep if kep.any() else None, switch) + step.a[sel])
         step.x1[sel] = q
         step.v1[sel] = u
+
+    def _switch(self, step: GravityStep, gm, kep, r0, w0):
+        """The close-encounter split of the conic bodies (module docstring): ``(rows, critical radii)``, or
+        None for fewer than two. The first half kick (:meth:`_kick`) gave their pairs the whole pull: the
+        ``1 - L`` part of the pairs nearer than their critical radius is taken back from ``w0`` (in place)."""
+        rows = np.flatnonzero(kep)
+        if rows.size < 2:
+            return None
+        g = gm[rows]
+        dc = me.critical_radii(np.vstack([np.zeros(3), r0]), np.vstack([np.zeros(3), w0]),
+                               np.concatenate([[float(self._wells.mu[0])], g]), step.dt)[1:]
+        d = r0[None, :, :] - r0[:, None, :]            # d[i, j] = r_j - r_i
+        r = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
+        rc = np.maximum(dc[:, None], dc[None, :])
+        np.fill_diagonal(r, np.inf)
+        near = r < rc
+        if near.any():
+            wgt = np.where(near, (1.0 - encounters.changeover_array(r, rc)) / np.where(near, r, 1.0) ** 3, 0.0)
+            w0 -= (0.5 * step.dt) * np.einsum("ij,ijk->ik", wgt * g[None, :], d)
+        return rows, dc
+
+    def _encounter_drift(self, switch, sel, gm, mu, dt, r0, w0, r, w):
+        """The conic bodies whose pair comes within reach over the drift ``(r0, w0) -> (r, w)`` (about the
+        well) moved again from the start by the adaptive integrator (module docstring), into ``r, w``."""
+        rows, dc = switch
+        flag = me.encounter_set(r0, w0, r, w, dc, dt)
+        if not flag.any():
+            return
+        Xe, Ve = np.ascontiguousarray(r0[flag]), np.ascontiguousarray(w0[flag])
+        if encounters.bulirsch_stoer(Xe, Ve, np.ascontiguousarray(gm[rows][flag]), np.ascontiguousarray(dc[flag]),
+                                     mu, dt, me.TOLERANCE) < 0:
+            raise RuntimeError(f"gravity: the close-encounter integrator found no step within its tolerance for "
+                               f"entities {[int(e) for e in self.ents[sel[rows[flag]]]]} (on one point?)")
+        r[flag] = Xe
+        w[flag] = Ve
 
     def _on_conic(self, step: GravityStep, sel, p, u):
         """Which n-body bodies ``sel`` drift on their conic about the well (a mask; module docstring): the
