@@ -6,7 +6,10 @@ carries its ``b2StepContext`` through its solver stages:
 1. **predict** (the ``movement`` stage, :class:`~driftframe.systems.movement.MovementSystem`):
    :meth:`StepContext.begin` copies every body's start-of-step position and
    velocity, and movement writes the free-flight end state of every body that
-   has a ``Velocity`` with :func:`advance`, the one place the update is written.
+   has a ``Velocity`` with :func:`advance`, the one place the update is written
+   (free flight of contiguous rows goes through its compiled twin,
+   :func:`~driftframe.framework.free_flight.free_flight`, the same operations
+   in the same order: tests/test_free_flight.py holds them to the same bits).
 2. **resolve** (gravity, collision): a system that owns a body (the gravity
    system its ``Orbiting`` bodies, the collision system the colliders a
    contact touched) writes that body's end state into the context from the
