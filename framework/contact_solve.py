@@ -24,6 +24,8 @@ from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F
                                                  S_SWEPT, S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
 from driftframe.framework.contact_toi import toi
 from driftframe.framework.kernels import kernel
+from driftframe.framework.static_shapes import (no_outward, no_shapes, no_static_heap, no_static_toi, outward,
+                                                shapes_first, static_heap, static_toi)
 
 _OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
@@ -75,6 +77,10 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
 
     # -- heap of pending contacts --
     H, hn, overlaps, worst, wi_, wj_ = initial_heap(PI, PJ, P, x, u, r, inv, live, spd, dt)
+    # static shapes (the variant that has them: ``lst`` is their table, they are the last bodies, not live)
+    ns = _first_shape(n, lst)
+    if _STATIC:
+        hn = _shape_heap(H, hn, PI, PJ, P, x, u, r, live, spd, dt, lst, ns)
     for k in range((hn >> 1) - 1, -1, -1):
         sift_down(H, k, hn)
     stats[S_OVERLAPS] = overlaps
@@ -134,18 +140,25 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
         while True:
             if cand_ok:
                 i, j = PI[cand_p], PJ[cand_p]
-                wx = u[j, 0] - u[i, 0]
-                wy = u[j, 1] - u[i, 1]
-                wz = u[j, 2] - u[i, 2]
-                dx = x[j, 0] - x[i, 0] + wx * t0
-                dy = x[j, 1] - x[i, 1] + wy * t0
-                dz = x[j, 2] - x[i, 2] + wz * t0
-                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                if dist > 0.0:
-                    nx, ny, nz = dx / dist, dy / dist, dz / dist
-                    vn = nx * wx + ny * wy + nz * wz
+                if _STATIC and j >= ns:
+                    # i to the shape: minus its outward normal; v_n = n . (0 - u_i)
+                    ox, oy, oz, _ = _outward(lst, j - ns, x[i, 0] + u[i, 0] * t0, x[i, 1] + u[i, 1] * t0,
+                                             x[i, 2] + u[i, 2] * t0)
+                    nx, ny, nz = -ox, -oy, -oz
+                    vn = ox * u[i, 0] + oy * u[i, 1] + oz * u[i, 2]
                 else:
-                    nx = ny = nz = vn = 0.0
+                    wx = u[j, 0] - u[i, 0]
+                    wy = u[j, 1] - u[i, 1]
+                    wz = u[j, 2] - u[i, 2]
+                    dx = x[j, 0] - x[i, 0] + wx * t0
+                    dy = x[j, 1] - x[i, 1] + wy * t0
+                    dz = x[j, 2] - x[i, 2] + wz * t0
+                    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                    if dist > 0.0:
+                        nx, ny, nz = dx / dist, dy / dist, dz / dist
+                        vn = nx * wx + ny * wy + nz * wz
+                    else:
+                        nx = ny = nz = vn = 0.0
                 if vn < -APPROACH * (spd[i] + spd[j]):
                     wp[K], wi[K], wj[K] = cand_p, i, j
                     wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
@@ -242,6 +255,8 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 continue
             i, j = wi[k], wj[k]
             for b in (i, j):
+                if _STATIC and b >= ns:
+                    continue                               # a shape keeps no burst, count or last contact
                 if kstamp[b] != waves:
                     kstamp[b] = waves                      # once per body per wave
                     burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
@@ -253,6 +268,9 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 ev_n[ne, d] = wn[k, d]
                 ev_x[ne, d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
                 ev_x[ne, 3 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
+            if _STATIC and j >= ns:
+                for d in range(3):
+                    ev_x[ne, 3 + d] = ev_x[ne, d]          # on the shape's surface: where the sphere touches it
             ne += 1
         # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
         for a in range(nm):
@@ -283,6 +301,15 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 mark[p] = waves
                 ver[p] += 1
                 i, j = PI[p], PJ[p]
+                if _STATIC and j >= ns:
+                    if live[i]:
+                        tp, sl = _shape_toi(x[i, 0], x[i, 1], x[i, 2], u[i, 0], u[i, 1], u[i, 2], r[i], spd[i], lst,
+                                            j - ns, t, dt)
+                        if tp >= 0.0:
+                            heap_push(H, hn, tp, p, ver[p], sl)
+                            hn += 1
+                            stats[S_PUSHED] += 1
+                    continue
                 if not (live[i] and live[j]):
                     continue
                 tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
@@ -301,13 +328,20 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
     return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
 
 
+_PLAIN = dict(_STATIC=False, _first_shape=no_shapes, _shape_heap=no_static_heap, _outward=no_outward,
+              _shape_toi=no_static_toi)
+_SHAPES = dict(_STATIC=True, _first_shape=shapes_first, _shape_heap=static_heap, _outward=outward,
+               _shape_toi=static_toi)
+
+
 def _solver(name, doc, **pieces):
     """A solver compiled from :func:`_solve` with ``pieces`` for its names ``_start``, ``_resweep``,
-    ``_stick_fn``, ``_keep``, ``_put_back``: one compiled unit each, holding only the code its scenes run
+    ``_stick_fn``, ``_keep``, ``_put_back`` (and the static shapes' ``_STATIC``, ``_first_shape``, ``_shape_heap``,
+    ``_outward``, ``_shape_toi``: :data:`_PLAIN` unless given): one compiled unit each, holding only the code its scenes run
     (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
     copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""
     import types
-    scope = dict(globals(), **pieces)
+    scope = dict(globals(), **dict(_PLAIN, **pieces))
     f = types.FunctionType(_solve.__code__, scope, name)
     f.__qualname__ = name
     f.__doc__ = doc
@@ -355,3 +389,14 @@ solve_all_pairs_stick = _solver("solve_all_pairs_stick", ":func:`solve_all_pairs
                                 _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=stick_cluster,
                                 _keep=keep_nothing, _put_back=put_back_nothing)
 
+
+# The static-shape variants (planes, boxes: :mod:`.static_shapes`): every pair a candidate, the shapes the
+# last bodies (immovable, not live) and ``lst`` their table. Compiled only for a scene that has shapes.
+solve_static = _solver("solve_static", """:func:`solve_all_pairs` with static shapes: ``lst`` is their
+    ``(m, SHAPE_COLS)`` table and they are the last ``m`` bodies (:mod:`.static_step` arranges it); with
+    F_AGAIN run :func:`solve_static_stick`.""",
+                       _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=no_stick, _keep=keep_pairs,
+                       _put_back=put_back_pairs, **_SHAPES)
+solve_static_stick = _solver("solve_static_stick", ":func:`solve_static` with the jam path.",
+                             _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=stick_cluster,
+                             _keep=keep_nothing, _put_back=put_back_nothing, **_SHAPES)

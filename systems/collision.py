@@ -53,11 +53,12 @@ import esper
 import numpy as np
 
 from driftframe.components.body import Acceleration, Mass, Transform, Velocity
-from driftframe.components.collision import CollisionEvent, SphereCollider
+from driftframe.components.collision import BoxCollider, CollisionEvent, PlaneCollider, SphereCollider
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact
 from driftframe.framework.quiet_step import gather_quiet, quiet_all_pairs
+from driftframe.framework.static_step import StaticShapes, load, solve_with_shapes
 from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
 
@@ -267,7 +268,7 @@ class CollisionSystem(esper.Processor):
     """
 
     stage = "collision"
-    reads = (Transform, Velocity, Acceleration, Mass, SphereCollider, Orbiting)
+    reads = (Transform, Velocity, Acceleration, Mass, SphereCollider, PlaneCollider, BoxCollider, Orbiting)
     writes = (StepContext, CollisionEvent)
 
     def __init__(self, method: str = "continuous", *, broadphase: str = "auto",
@@ -308,6 +309,7 @@ class CollisionSystem(esper.Processor):
         self.stats = dict(_ZERO_STATS)
         self._quiet_stats = -1                       # n of the last quiet step, whose counts stats holds
         self._quick: tuple | None = None             # the shortest path's call, kept (see _quick_path)
+        self._shapes: StaticShapes | None = None     # static planes and boxes, when the world has any (_refresh)
 
     @property
     def requires(self) -> tuple[type, ...]:
@@ -340,6 +342,8 @@ class CollisionSystem(esper.Processor):
         if lay is None or lay.version != version:
             lay = self._layout = _Layout(_WithoutOrbiting(q, orbiting) if len(orbiting) else q)
         self._layout_epoch = world.epoch
+        shapes = self._shapes or StaticShapes(world)       # (a scene with none: None, and no other cost)
+        self._shapes = shapes if shapes.present() else None
         return lay
 
     def prepare(self) -> None:
@@ -361,7 +365,9 @@ class CollisionSystem(esper.Processor):
             self._build_list(lay, st, dt)
         t_last = self._t_last_of(lay)
         self._unchanged(n)
-        if n >= 2 and st.bad(lay) is None and self.method == "continuous":
+        if self._shapes is not None and st.bad(lay) is None and self.method == "continuous":
+            load(self._inputs(st, t_last, dt, *self._all_pairs(n)), self._shapes.refresh())
+        elif n >= 2 and st.bad(lay) is None and self.method == "continuous":
             self._load_solvers(st, t_last, dt, listed)
             if st.moving and not quiet:
                 self._rehearse(st, t_last, dt, listed)
@@ -485,7 +491,7 @@ class CollisionSystem(esper.Processor):
         if lay is None or self._layout_epoch != world.epoch:
             lay = self._refresh()
         n = lay.n
-        if n < 2 or self.method != "continuous" or self._uses_list(n):
+        if n < 2 or self.method != "continuous" or self._uses_list(n) or self._shapes is not None:
             return None
         st = lay.state or State.of(world, lay)
         call = st.quiet_call(lay, dt, self._pairs if self._pairs_n == n else self._all_pairs(n))
@@ -615,7 +621,8 @@ class CollisionSystem(esper.Processor):
             self.stats["left_out"] = int(bad.sum())
         elif self._bad:
             self._bad.clear()
-        if n < 2 or not st.moving:
+        shapes = self._shapes
+        if (n < 2 and shapes is None) or not st.moving:
             self._finish(lay, st, self._unchanged(n), dt)    # nothing moves relative to anything: no contact
             return
         t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
@@ -623,6 +630,11 @@ class CollisionSystem(esper.Processor):
         now = self._now()
         t_last = self._t_last_of(lay)                      # absolute: the kernel makes it relative to now
 
+        if shapes is not None:
+            res = solve_with_shapes(self._inputs(st, t_last, dt, *self._all_pairs(n)), shapes.refresh(), self._stick)
+            self._stick = res.stick
+            self._result(lay, st, res, dt, [*lay.entities.tolist(), *shapes.entities.tolist()])
+            return
         if not self._uses_list(n):
             pi, pj = self._all_pairs(n)                   # (process made the quiet-step test: not quiet)
             lst = None
@@ -655,6 +667,22 @@ class CollisionSystem(esper.Processor):
         res = contact.solve_step(contact.StepInputs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c,
                                                     self.max_contacts, lst), stick=self._stick)
         self._stick = res.stick                              # after a jam, the variant with the jam path
+        self._result(lay, st, res, dt)
+
+    def _inputs(self, st: State, t_last: np.ndarray, dt: float, pi: np.ndarray, pj: np.ndarray):
+        """A step's inputs on the all-pairs path (the static shapes' step)."""
+        t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
+        bad = st.bad(self._layout)
+        inv, r, e = st.inv, st.r, st.e
+        if bad is not None:                                  # (as _continuous: the kernel never reads them)
+            inv, r, e = np.where(bad, 0.0, inv), np.where(bad, 1.0, r), np.where(bad, 1.0, e)
+        return contact.StepInputs(st.x, st.u, r, inv, e, st.live, t_last, self._now(), pi, pj, float(dt),
+                                  float(t_c), self.max_contacts, None)
+
+    def _result(self, lay: _Layout, st: State, res, dt: float, ents: list | None = None) -> None:
+        """A solved step's stats, flags, end of step and events (``ents``: the entity of each kernel body,
+        when not the layout's: the static shapes' step)."""
+        n = lay.n
         changed, s, flags = res.changed, res.stats, res.flags
         ev, ev_n, ev_x = res.events, res.normals, res.points
         st_ = self.stats
@@ -674,12 +702,12 @@ class CollisionSystem(esper.Processor):
                           f"deepest: entities {int(lay.entities[i])} and {int(lay.entities[j])}, centres "
                           f"{s.worst:.6g} of r_a + r_b apart. Pairs that approach bounce at once, the "
                           f"rest separate (use driftframe.framework.placement to place bodies apart)",
-                          RuntimeWarning, stacklevel=3)
+                          RuntimeWarning, stacklevel=4)
         if not (s.contacts or s.waves or flags):
             changed = self._unchanged(n)                    # no contact, no wave, no flag: nothing changed
         self._finish(lay, st, changed, dt)
         if len(ev) and self.events and self.world is not None:
-            self._emit(lay, ev, ev_n, ev_x)
+            self._emit(lay, ev, ev_n, ev_x, ents)
 
     def _report_bad(self, lay, st, bad):
         now = set()
@@ -708,9 +736,9 @@ class CollisionSystem(esper.Processor):
         if flags & contact.F_LIMIT:
             self._warn_once("limit", "collision: the step's wave limit was reached; contacts left unresolved")
 
-    def _emit(self, lay, ev, ev_n, ev_x):
+    def _emit(self, lay, ev, ev_n, ev_x, ents=None):
         """One CollisionEvent per contact (a Python loop over contacts that happened)."""
-        ents = lay.entity_list
+        ents = lay.entity_list if ents is None else ents
         if ents is None:                                     # (the layout's ids as ints, made at its first event)
             ents = lay.entity_list = lay.entities.tolist()
         for event in kernel_events(ents, ev, ev_n, ev_x, self._now(), self.world.step_count):

@@ -1,0 +1,148 @@
+"""A step of contacts in a scene with static planes and boxes: the shapes' table, and the solver's call.
+
+The world's :class:`~driftframe.components.collision.PlaneCollider` and
+:class:`~driftframe.components.collision.BoxCollider` entities become the rows
+of one float table (:mod:`.static_shapes` gives its layout), in ascending
+entity id across both kinds, so that the result does not depend on the order
+they were made in. The solver's static variant
+(:data:`~.contact_solve.solve_static`) takes them as its last bodies:
+immovable (inverse mass 0), not live (no sphere-sphere code reads them), a
+pair with every sphere after the spheres' own pairs. A scene with no shapes
+never imports the variant (:meth:`StaticShapes.of` is None), so it pays no
+compile time and no time per step for it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from driftframe.components.body import Transform
+from driftframe.components.collision import BoxCollider, PlaneCollider
+from driftframe.framework.contact_params import F_AGAIN
+from driftframe.framework.static_shapes import BOX, PLANE, SHAPE_COLS
+
+
+def rotation(quat: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) rotation matrices (local -> world) of unit quaternions (x, y, z, w), (m, 4)."""
+    x, y, z, w = np.asarray(quat, float).T
+    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+                     np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+                     np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+class StaticShapes:
+    """The world's static shapes as the solver's table (``table``, ``(m, SHAPE_COLS)``), their
+    restitution (``e``) and entity ids (``entities``, ascending), read from the components at each
+    :meth:`refresh` (a shape's Transform may be moved between steps; it does not move within one)."""
+
+    def __init__(self, world):
+        self._world = world
+        self._epoch = -1
+        self.entities = np.empty(0, np.int64)
+        self.table = np.empty((0, SHAPE_COLS))
+        self.e = np.empty(0)
+        self._pairs: tuple | None = None
+
+    def present(self) -> bool:
+        """Whether the world has any static shape (the queries are re-read once per change of entities)."""
+        world = self._world
+        if self._epoch != world.epoch:
+            self._epoch = world.epoch
+            self._queries = [world.query(Transform, T) for T in (PlaneCollider, BoxCollider)]
+            for q in self._queries:
+                q.refresh()
+            self._n = sum(len(q) for q in self._queries)
+            self._pairs = None
+        return self._n > 0
+
+    def refresh(self) -> "StaticShapes":
+        """The table from the components as they are now."""
+        world = self._world
+        tr = world.table(Transform).data
+        ents, rows, es = [], [], []
+        for q, T in zip(self._queries, (PlaneCollider, BoxCollider)):
+            if not len(q):
+                continue
+            col = world.table(T).data
+            ti, ci = np.asarray(q.rows(Transform)), np.asarray(q.rows(T))
+            pos, Q = tr["position"][ti], rotation(tr["orientation"][ti])
+            S = np.zeros((len(ti), SHAPE_COLS))
+            S[:, 1:4] = pos
+            if T is PlaneCollider:
+                n = np.einsum("kab,kb->ka", Q, col["normal"][ci])
+                n /= np.sqrt((n * n).sum(axis=1))[:, None]
+                S[:, 0] = PLANE
+                S[:, 4:7] = n
+                S[:, 13] = (n * pos).sum(axis=1) + col["offset"][ci]
+            else:
+                S[:, 0] = BOX
+                S[:, 4:13] = Q.reshape(-1, 9)
+                S[:, 13:16] = col["half_extents"][ci]
+            ents.append(np.asarray(q.entities, np.int64))
+            rows.append(S)
+            es.append(col["restitution"][ci])
+        ents = np.concatenate(ents)
+        order = np.argsort(ents, kind="stable")
+        self.entities = ents[order]
+        self.table = np.ascontiguousarray(np.concatenate(rows)[order])
+        self.e = np.concatenate(es)[order]
+        return self
+
+    def pairs(self, pi: np.ndarray, pj: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The spheres' pairs ``pi, pj`` followed by every sphere with every shape (sphere-major): the
+        shapes are bodies ``n .. n + m - 1``."""
+        m = len(self.entities)
+        key = (n, m, id(pi), len(pi))
+        if self._pairs is None or self._pairs[0] != key:
+            si = np.repeat(np.arange(n, dtype=np.int64), m)
+            sj = np.tile(np.arange(n, n + m, dtype=np.int64), n)
+            self._pairs = (key, np.concatenate([np.asarray(pi, np.int64), si]),
+                           np.concatenate([np.asarray(pj, np.int64), sj]))
+        return self._pairs[1], self._pairs[2]
+
+
+def _arguments(inputs, shapes: StaticShapes) -> list:
+    """The static solver's arguments: the spheres' ``inputs`` with the shapes appended as bodies."""
+    x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, _ = inputs
+    n, m = len(x), len(shapes.entities)
+    S = shapes.table
+    return [np.concatenate([x, S[:, 1:4]]), np.concatenate([u, np.zeros((m, 3))]), np.concatenate([r, np.zeros(m)]),
+            np.concatenate([inv, np.zeros(m)]), np.concatenate([e, shapes.e]),
+            np.concatenate([live, np.zeros(m, np.bool_)]), np.concatenate([t_last, np.full(m, -math.inf)]),
+            float(now), *shapes.pairs(pi, pj, n), float(dt), float(t_c), int(cap), S]
+
+
+def load(inputs, shapes: StaticShapes) -> None:
+    """Load (from the kernel cache, or compile) the static solver a step of ``inputs`` calls, and its jam
+    variant where a restitution below 1 can jam, without calling them (types only; see the collision
+    system's ``prepare``)."""
+    from driftframe.framework.contact_solve import solve_static, solve_static_stick
+    args = _arguments(inputs, shapes)
+    jam = float(args[4].min(initial=1.0)) < 1.0
+    for solve in (solve_static, solve_static_stick) if jam else (solve_static,):
+        if hasattr(solve, "compile"):                      # (a plain function under NUMBA_DISABLE_JIT)
+            solve.compile(tuple(solve.typeof_pyval(a) for a in args))
+
+
+def solve_with_shapes(inputs, shapes: StaticShapes, stick: bool = False):
+    """One step of contacts of the spheres ``inputs`` (a :class:`~.contact.StepInputs` on the all-pairs
+    path, ``lst`` None) with each other and with ``shapes``: a :class:`~.contact.StepResult`, ``changed``
+    for the spheres only, events whose ``j >= n`` name shape ``j - n``. ``inputs.x``, ``u``, ``t_last``
+    change in place, as with :func:`~.contact.solve_step` (and with F_AGAIN the step is run again with the
+    jam path in the same way)."""
+    from driftframe.framework.contact import StepResult, StepStats
+    from driftframe.framework.contact_solve import solve_static, solve_static_stick
+    x, u, t_last = inputs.x, inputs.u, inputs.t_last
+    n = len(x)
+    args = _arguments(inputs, shapes)
+    X, U, T = args[0], args[1], args[6]
+    out = solve_static_stick(*args) if stick else solve_static(*args)
+    if out[5] & F_AGAIN:
+        stick = True
+        out = solve_static_stick(*args)
+    changed, ev, ev_n, ev_x, stats, flags = out
+    x[:] = X[:n]
+    u[:] = U[:n]
+    t_last[:] = T[:n]
+    return StepResult(changed[:n], ev, ev_n, ev_x, StepStats._make(stats.tolist()), flags, stick)
