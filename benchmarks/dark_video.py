@@ -81,8 +81,8 @@ _BAYER = (np.array([[0, 8, 2, 10], [12, 4, 14, 6], [3, 11, 1, 9], [15, 7, 13, 5]
 
 
 def _frames(demo: str, count: int) -> tuple[list[np.ndarray], list[np.ndarray], float]:
-    """NV12 frames as the recorder makes them, the same with the luma Bayer-dithered, and CPU seconds a
-    frame of step + render + read-back + conversion."""
+    """NV12 frames as the recorder makes them, the same with the luma Bayer-dithered, and the median CPU
+    seconds a frame of step + render + read-back + conversion."""
     from driftframe.app import attach_rendering, make_world
 
     w, h = SIZE
@@ -93,8 +93,11 @@ def _frames(demo: str, count: int) -> tuple[list[np.ndarray], list[np.ndarray], 
     plain, dithered = [], []
     kr, kb = 0.2126, 0.0722
     threshold = np.tile(_BAYER, (h // 4, w // 4))
-    cpu = 0.0
+    cpu = []
     try:
+        world.step()
+        world.render()
+        target.read_raw()                       # warm-up (shaders, buffers, kernels loaded), not a frame
         for _ in range(count):
             c0 = time.process_time()
             for _ in range(STEPS_PER_FRAME):
@@ -102,7 +105,7 @@ def _frames(demo: str, count: int) -> tuple[list[np.ndarray], list[np.ndarray], 
             world.render()
             raw = target.read_raw()
             nv12 = rgba_to_nv12(raw, w, h)
-            cpu += time.process_time() - c0
+            cpu.append(time.process_time() - c0)
             plain.append(nv12)
             rgb = np.frombuffer(raw, np.uint8).reshape(h, w, 4)[::-1, :, :3].astype(np.float64)
             luma = 16 + 219 / 255 * (kr * rgb[..., 0] + (1 - kr - kb) * rgb[..., 1] + kb * rgb[..., 2])
@@ -111,7 +114,7 @@ def _frames(demo: str, count: int) -> tuple[list[np.ndarray], list[np.ndarray], 
             dithered.append(d)
     finally:
         world.close()
-    return plain, dithered, cpu / count
+    return plain, dithered, statistics.median(cpu)
 
 
 def _encode(frames: list[np.ndarray], path: Path, options: dict) -> float:
@@ -189,12 +192,16 @@ def quality(src_luma: np.ndarray, dec: np.ndarray) -> dict:
     dark = src_luma < DARK
     err = dec[dark].astype(np.float64) - src_luma[dark]
     n = len(src_luma)
-    lines = 0
+    lines = np.zeros(n)                                 # a frame's
     for s, d in ((src_luma, dec), (src_luma.transpose(0, 2, 1), dec.transpose(0, 2, 1))):  # columns, then rows
-        hp = _line_errors(s, d)
-        lines += int((np.abs(hp[~np.isnan(hp)]) >= LINE).sum())
+        lines += (np.nan_to_num(np.abs(_line_errors(s, d)), nan=0.0) >= LINE).sum(axis=(1, 2))
+    # a keyframe resets the error a run of P-frames built up: seen as a pulse, the dark RMS jumping at once
+    e2 = np.where(dark, (dec.astype(np.float64) - src_luma) ** 2, 0.0).sum(axis=(1, 2))
+    per_frame = np.sqrt(e2 / np.maximum(dark.sum(axis=(1, 2)), 1))
     return {"rms": float(np.sqrt((err ** 2).mean())), "off4": float((np.abs(err) >= 4).mean()),
-            "lines": lines / n, "edge": streaks(src_luma, dec, 0) / n, "mid": streaks(src_luma, dec, 2) / n}
+            "pulse": float(np.abs(np.diff(per_frame)).max()), "lines": float(lines.mean()),
+            "lines_first": float(lines[:30].mean()), "lines_last": float(lines[-30:].mean()),
+            "edge": streaks(src_luma, dec, 0) / n, "mid": streaks(src_luma, dec, 2) / n}
 
 
 def _crop_at(src_luma: np.ndarray, dec: np.ndarray, cw: int = 80, ch: int = 48) -> tuple[int, int, int]:
@@ -253,7 +260,8 @@ def _measure(plain, dithered, src_luma, rounds: int):
 def throughput(frames: int, rounds: int) -> dict[str, tuple[float, float, float]]:
     """Whole recordings as ``benchmarks.record_throughput`` makes them (asteroids, 1280x720, the recorder's
     defaults) with the x264 settings before and kept, beside the bare loop, interleaved: per mode the median
-    frames/s, the median share of the bare loop's frames/s in the same round, and the CPU a frame."""
+    frames/s, the median, least and most share of the bare loop's frames/s in the same round, and the
+    CPU milliseconds a frame."""
     from benchmarks import record_throughput as rt
 
     ctx = create_context()
@@ -271,9 +279,44 @@ def throughput(frames: int, rounds: int) -> dict[str, tuple[float, float, float]
                 else:
                     fps[m].append(rt.recorded(ctx, frames, Path(tmp) / f"t{r}{m}.mp4", _tuning=modes[m])[0])
                 cpu[m].append((time.process_time() - c0) / frames)
-    return {m: (statistics.median(fps[m]),
-                statistics.median(f / b for f, b in zip(fps[m], fps["bare"])),
+    shares = {m: [f / b for f, b in zip(fps[m], fps["bare"])] for m in modes}
+    return {m: (statistics.median(fps[m]), statistics.median(shares[m]), min(shares[m]), max(shares[m]),
                 statistics.median(cpu[m]) * 1e3) for m in modes}
+
+
+def _verdict(scores: dict, sizes: dict, ms: dict, record_ms: float) -> str:
+    """What the table says, in words, with its figures."""
+    b, k, c = "before: cabac=1:deblock=0,0", "deadzone 6/6 + keyint=60 (kept)", "crf 24 + deadzone 6/6 + keyint=60"
+    d = "Bayer 4x4 dither of luma"
+    tunes = [(t, f"tune {t} ({o})") for t, o in (("film", "deblock -1,-1"), ("grain", "deblock -2,-2"),
+                                                  ("stillimage", "deblock -3,-3"))]
+
+    def fig(v):
+        q = scores[v]
+        return (f"lines {q['lines']:.0f}, dark RMS {q['rms']:.2f}, off by 4+ {q['off4']:.1%}, "
+                f"{sizes[v] / sizes[b]:.2f}x the bytes, {(ms[v] - ms[b]) / record_ms:+.1%} CPU")
+
+    return ("**Kept** (`record_sinks.X264_TUNING`): x264's quantiser deadzone down to 6 (from 21 inter, 11 "
+            "intra; `--tune grain`'s value: ultrafast has no trellis, so the deadzone alone decides which small "
+            "coefficients are dropped, and on black those are the corrections) and a keyframe every 60 frames "
+            "(from 250): the error that P-frames pile up in dark areas, speckle in columns and rows (the "
+            f"before row's *lines*: {scores[b]['lines_first']:.0f} a frame over the first 30 frames, "
+            f"{scores[b]['lines_last']:.0f} over the last 30), is cleared each second. Before: {fig(b)}; "
+            f"kept: {fig(k)}. Deblocking was on already (`deblock=0,0` turns it on at offsets 0; x264's SEI "
+            "reads `deblock=1:0:0`): off, the block-edge steps rise "
+            f"{scores['no deblocking']['edge'] / scores[b]['edge']:.0f}-fold. Of the `--tune` presets film and "
+            "stillimage change only the deblocking offsets under ultrafast (their psy settings need subme 6 or "
+            "trellis, which ultrafast lacks: x264's SEI); grain also sets the deadzone to 6, turns off DCT "
+            "decimation and sets qcomp 0.8 and ip-ratio 1.1. Their lines: "
+            + ", ".join(f"{t} {scores[v]['lines']:.0f}" for t, v in tunes) + f" (before: {scores[b]['lines']:.0f}). "
+            f"The Bayer dither of the luma: {sizes[d] / sizes[b]:.3f}x the bytes, lines {scores[d]['lines']:.0f} "
+            "(x264 drops a +/-1 "
+            "pattern at crf 26), and the galactic band's 8-bit steps are in the RGBA already, where a dither of "
+            "the conversion cannot reach. What remains with the kept settings: faint speckle late in each "
+            f"1 s run of P-frames (8x, levels stretched), and a keyframe's reset (pulse {scores[k]['pulse']:.2f} "
+            f"levels of dark RMS; keyint alone {scores['keyint=60 (1 s)']['pulse']:.2f}). crf 24 on top would "
+            f"take the lines down again ({fig(c)}) at a crf that issue 11 chose for the bytes; left for a "
+            "decision.")
 
 
 #: The variants shown in the picture beside the source.
@@ -305,7 +348,7 @@ def main(argv=None) -> None:
         cost = (ms[label] - ms[base]) / record_ms
         rows.append([label, f"{ms[label]:.2f}", f"{cost:+.1%}" + (" (over the bar)" if cost > COST_BAR else ""),
                      f"{sizes[label] / count / 1024:.2f} KiB", f"{q['rms']:.2f}", f"{q['off4']:.1%}",
-                     f"{q['lines']:.1f}", f"{q['edge']:.1f} ({q['mid']:.1f})"])
+                     f"{q['pulse']:.2f}", f"{q['lines']:.1f}", f"{q['edge']:.1f} ({q['mid']:.1f})"])
     tp = throughput(20 if args.quick else 240, 1 if args.quick else 5)
     fi, y, x = _crop_at(src_luma, decoded[base])
     crop = np.s_[fi, y:y + 48, x:x + 80]
@@ -320,20 +363,24 @@ def main(argv=None) -> None:
             f"(`time.process_time`; load average {load0:.1f} at the start, {load1:.1f} at the end). Dark: source "
             f"luma under {DARK} (of 16-235). *Cost*: x264 CPU beyond the first row's, as a share of a "
             f"recording's CPU a frame here ({record_ms:.1f} ms: step, render, read-back and NV12 "
-            f"{frame_cpu * 1e3:.1f} ms + x264 {ms[base]:.2f} ms). *Lines*: 16-pixel runs of a column (or row) "
+            f"{frame_cpu * 1e3:.1f} ms + x264 {ms[base]:.2f} ms). *Pulse*: the largest change of the dark RMS "
+            "from one frame to the next (a keyframe's reset shows). *Lines*: 16-pixel runs of a column (or row) "
             f"whose mean error differs by {LINE:g} level or more from its two neighbours', all dark, a frame "
             "(streaks). *Block-edge steps*: 4-pixel runs of a decoded step of 2+ levels where the source is flat, "
             "on 4x4 block edges, a frame; in brackets the same count half a block away, where no edge is.\n\n"
             + table(["variant", "x264 CPU a frame, ms", "cost", "size a frame", "dark RMS, levels", "off by 4+",
-                     "lines", "block-edge steps"], rows)
+                     "pulse", "lines", "block-edge steps"], rows)
+            + "\n\n" + _verdict(scores, sizes, ms, record_ms)
             + "\n\n**Throughput** (the bar: under 5 % lost). Whole recordings as `benchmarks.record_throughput` "
             f"makes them (asteroids, 1280x720, {20 if args.quick else 240} frames, the recorder's defaults but for "
             "the x264 settings), interleaved with the bare step + render + read-back loop, "
             f"{1 if args.quick else 5} rounds, medians; CPU a frame includes building the world.\n\n"
-            + table(["x264 settings", "frames/s", "share of bare", "CPU a frame, ms"],
-                    [[k, f"{v[0]:.1f}", f"{v[1]:.2f}", f"{v[2]:.1f}"] for k, v in
+            + table(["x264 settings", "frames/s", "share of bare (rounds' range)", "CPU a frame, ms"],
+                    [[k, f"{v[0]:.1f}", f"{v[1]:.2f} ({v[2]:.2f}-{v[3]:.2f})", f"{v[4]:.1f}"] for k, v in
                      (("none (bare loop)", tp["bare"]), (_BEFORE + " (before)", tp["before"]),
                       (_KEPT + " (kept)", tp["kept"]))])
+            + f"\n\nThe kept settings' CPU a frame: {tp['kept'][4] / tp['before'][4] - 1:+.1%} of before's (what "
+            "bounds the rate on 2 shared cores; the frames/s move with other work on the machine, both ways)."
             + f"\n\nThe picture: frame {fi}, x {x}-{x + 79}, y {y}-{y + 47} (where the first row has the most "
             "lines), magnified 8x, luma 16-56 stretched to black-white: the source, then the decoded video.")
     write_section(NAME, "Dark areas in the recorded video (issue 25)", body, quick=args.quick, started=started)
