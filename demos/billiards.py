@@ -3,7 +3,7 @@ import numpy as np
 
 from driftframe.components.body import Transform
 from driftframe.components.camera import Camera
-from driftframe.components.collision import SphereCollider
+from driftframe.components.collision import BoxCollider
 from driftframe.components.render import ModelRef
 from driftframe.demos.parts import balls
 from driftframe.framework.input import Track
@@ -17,11 +17,11 @@ R = 0.5            # ball radius, m
 SPEED = 12.0       # cue ball speed, m/s
 TABLE = (28.0, 15.0)   # felt, x by z, m: the overhead view's width
 CENTRE = (1.5, 0.0)    # the felt's centre, x and z, m
-#: The cushions: rows of fixed spheres (a collider without a Velocity is immovable) of radius CUSHION_R m,
-#: SPACING m apart, just outside the felt, so that only a sliver of each stands over the table's edge: the
-#: rail is flat to within CUSHION_R - sqrt(CUSHION_R^2 - SPACING^2 / 4) = 5 mm, and a ball bounces off it
-#: elastically (e = 1) like any contact, continuous and order-independent.
-CUSHION_R, SPACING = 4.0, 0.4
+#: The cushions: four static boxes (BoxCollider), each the rail that is drawn, its inner face on the felt's
+#: edge: RAIL m deep, RAIL_H m high, the long ones running past the corners so that no ball finds a gap.
+#: A ball meets a cushion at the exact time of impact, like any contact; e = CUSHION_E (1: elastic).
+RAIL, RAIL_H = 0.8, 0.65
+CUSHION_E = 1.0
 #: The break's angle varies with the seed: the cue ball's heading is turned by up to this, degrees.
 BREAK_SPREAD = 1.5
 
@@ -35,15 +35,16 @@ def rack(radius: float = R) -> np.ndarray:
     return np.array(rows)
 
 
-def cushion_centres() -> np.ndarray:
-    """Centres of the cushions' fixed spheres: four rows, each sphere's inner surface on the felt's edge."""
+def cushions() -> list[tuple[tuple, tuple]]:
+    """The four cushions as (centre, size) boxes, m: each inner face on the felt's edge, the top
+    0.65 of a ball's height above the felt (y = -R), as a table's cushions are."""
     hx, hz = TABLE[0] / 2, TABLE[1] / 2
     cx, cz = CENTRE
-    xs = cx + np.arange(-hx, hx + 1e-9, SPACING)
-    zs = cz + np.arange(-hz, hz + 1e-9, SPACING)
-    rows = [np.column_stack([xs, np.zeros_like(xs), np.full_like(xs, cz + side * (hz + CUSHION_R))]) for side in (-1, 1)]
-    rows += [np.column_stack([np.full_like(zs, cx + side * (hx + CUSHION_R)), np.zeros_like(zs), zs]) for side in (-1, 1)]
-    return np.vstack(rows)
+    y = -R + RAIL_H / 2
+    long = (TABLE[0] + 2 * RAIL, RAIL_H, RAIL)
+    short = (RAIL, RAIL_H, TABLE[1])
+    return [((cx, y, cz + side * (hz + RAIL / 2)), long) for side in (-1, 1)] + \
+           [((cx + side * (hx + RAIL / 2), y, cz), short) for side in (-1, 1)]
 
 
 def build(world, rng):
@@ -52,17 +53,12 @@ def build(world, rng):
     angle = np.radians(rng.uniform(-BREAK_SPREAD, BREAK_SPREAD))
     balls(world, [(-8.0, 0.0, 0.0)], [(SPEED * np.cos(angle), 0.0, SPEED * np.sin(angle))], R,
           colour=(0.95, 0.95, 0.92), model="sphere")
-    centres = cushion_centres()
-    world.create_entities(Transform.bulk(len(centres), position=centres),
-                          SphereCollider.bulk(len(centres), radius=np.full(len(centres), CUSHION_R)))
-    # what the cushions look like: four rails over the felt's edges (the spheres themselves are not drawn)
-    # (their tops 0.65 of a ball's height above the felt, as a table's cushions are)
-    for name, size, at in (("rail_x", (TABLE[0] + 1.6, 0.65, 0.8), [(0.0, 1.0), (0.0, -1.0)]),
-                           ("rail_z", (0.8, 0.65, TABLE[1]), [(1.0, 0.0), (-1.0, 0.0)])):
-        rail = declare_variant(world, name, "box", scale=size, colour=(0.05, 0.3, 0.14))
-        for sx, sz in at:
-            world.create_entity(Transform((CENTRE[0] + sx * (TABLE[0] / 2 + 0.4), -R + 0.325,
-                                           CENTRE[1] + sz * (TABLE[1] / 2 + 0.4))), ModelRef(rail))
+    # the cushions: what is drawn is what the balls bounce off
+    for centre, size in cushions():
+        rail = declare_variant(world, "rail_x" if size[0] > size[2] else "rail_z", "box", scale=size,
+                               colour=(0.05, 0.3, 0.14))
+        world.create_entity(Transform(centre), ModelRef(rail),
+                            BoxCollider(half_extents=np.array(size) / 2, restitution=CUSHION_E))
     # the table: a felt slab whose top is where the balls touch it (y = -R), on a wider wooden frame
     felt = declare_variant(world, "felt", "box", scale=(TABLE[0], 0.2, TABLE[1]), colour=(0.08, 0.42, 0.2))
     frame = declare_variant(world, "table_frame", "box", scale=(TABLE[0] + 1.6, 0.6, TABLE[1] + 1.6),

@@ -21,6 +21,7 @@ from driftframe.components.body import Transform
 from driftframe.components.collision import BoxCollider, PlaneCollider
 from driftframe.framework.contact_params import F_AGAIN
 from driftframe.framework.static_shapes import BOX, PLANE, SHAPE_COLS
+from driftframe.framework.store import to_indices
 
 
 def rotation(quat: np.ndarray) -> np.ndarray:
@@ -65,7 +66,7 @@ class StaticShapes:
             if not len(q):
                 continue
             col = world.table(T).data
-            ti, ci = np.asarray(q.rows(Transform)), np.asarray(q.rows(T))
+            ti, ci = to_indices(q.rows(Transform)), to_indices(q.rows(T))
             pos, Q = tr["position"][ti], rotation(tr["orientation"][ti])
             S = np.zeros((len(ti), SHAPE_COLS))
             S[:, 1:4] = pos
