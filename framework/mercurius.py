@@ -105,7 +105,8 @@ def _jump(X, V, gm, t):
 def _closest_squared(Xb, Vb, X, V, i, j, dt):
     """The least squared distance of the pair ``i, j`` over a drift from ``(Xb, Vb)`` to ``(X, V)``: the
     cubic Hermite interpolant in ``s = t/dt`` of ``q = r^2`` from its values and rates ``q' = 2 d.w`` at
-    both ends, minimised where its derivative ``a s^2 + b s + c`` vanishes inside (0, 1)."""
+    both ends, minimised where its derivative ``a s^2 + b s + c`` vanishes inside (0, 1) (REBOUND's
+    prediction, which divides by ``a`` and so misses the minimum when ``a = 0``)."""
     qo = 0.0
     qn = 0.0
     ro = 0.0
@@ -121,9 +122,11 @@ def _closest_squared(Xb, Vb, X, V, i, j, dt):
     a = 6.0 * (qo - qn) + 3.0 * dt * (ro + rn)
     b = 6.0 * (qn - qo) - 2.0 * dt * (2.0 * ro + rn)
     c = dt * ro
-    sq = np.sqrt(max(b * b - 4.0 * a * c, 0.0))
-    for sgn in (1.0, -1.0):
-        s = (-b + sgn * sq) / (2.0 * a)
+    # the roots as q/a and c/q, q = -(b + sign(b) sqrt(disc))/2: no cancellation, and a = 0 (q(s) a
+    # quadratic, as for two straight lines) gives its one root c/q = -c/b
+    q_ = -0.5 * (b + np.copysign(np.sqrt(max(b * b - 4.0 * a * c, 0.0)), b))
+    for k in range(2):
+        s = (q_ / a if a != 0.0 else -1.0) if k == 0 else (c / q_ if q_ != 0.0 else -1.0)
         if s > 0.0 and s < 1.0:
             u = 1.0 - s
             q = u * u * (1.0 + 2.0 * s) * qo + s * s * (3.0 - 2.0 * s) * qn + s * u * u * dt * ro - s * s * u * dt * rn

@@ -169,3 +169,23 @@ def test_bad_input_is_a_clear_error():
         me.mercurius(x, v, np.array([0.0, 1.0, 1.0]), 0.03)
     with pytest.raises(ValueError, match="dt"):
         me.mercurius(x, v, gm, 0.0)
+
+
+def test_the_array_changeover_is_the_kernels():
+    rc = np.array([1.0, 2.0, 3.0])
+    r = np.linspace(0.0, 4.0, 97)
+    got = encounters.changeover_array(r[:, None], rc[None, :])
+    want = np.array([[encounters.changeover(a, b) for b in rc] for a in r])
+    assert np.array_equal(got, want)
+
+
+def test_the_encounter_set_is_the_bodies_of_pairs_that_come_within_reach():
+    """Three bodies on straight lines over a drift of 1: a and b pass 0.5 apart in mid-step (both ends 2.1
+    apart: only the cubic through the ends' rates sees it), c stays 10 away."""
+    x0 = np.array([[-1.0, 0.25, 0.0], [1.0, -0.25, 0.0], [0.0, 10.0, 0.0]])
+    v0 = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    x1 = x0 + v0
+    mask = me.encounter_set(x0, v0, x1, v0, np.array([0.5, 0.5, 0.5]), 1.0)      # reach 0.55 > 0.5
+    assert mask.tolist() == [True, True, False]
+    mask = me.encounter_set(x0, v0, x1, v0, np.array([0.4, 0.4, 0.4]), 1.0)      # reach 0.44 < 0.5
+    assert mask.tolist() == [False, False, False]

@@ -124,3 +124,49 @@ def test_nbody_colliders_without_a_well_fall_together_collide_and_keep_momentum(
         x_now = w.columns(Transform, [a, b]).position
         assert x_now[1, 0] - x_now[0, 0] >= 2.0 - 1e-9              # never inside each other
         assert v[0, 0] < 0.0 < v[1, 0]                               # bounced: moving apart
+
+
+@pytest.mark.parametrize("dt", [10.0, 600.0])
+def test_a_lone_nbody_collider_about_a_well_drifts_on_its_exact_conic(dt):
+    """An NBody body with a collider and nothing to meet (no other collider, no obstacle; its conic clears
+    the surface): on its exact conic, as one without a collider, beside a body on rails."""
+    mu, r0 = 3.986004418e14, 7.0e6
+    v0 = (0.0, math.sqrt(mu / r0) * 1.1, 300.0)
+    with World(dt=dt) as w:
+        w.add_system(GravitySystem())
+        w.add_system(MovementSystem())
+        w.add_system(CollisionSystem())
+        w.create_entity(Transform(), GravityWell(mu=mu, radius=6.371e6))
+        a = w.create_entity(Transform((r0, 0.0, 0.0)), Velocity(v0), Mass(1e3), NBody(), SphereCollider(radius=5.0))
+        b = w.create_entity(Transform((r0, 0.0, 0.0)), Velocity(v0))           # on rails: exact Kepler
+        w.step(20)
+        x = w.columns(Transform, [a, b]).position
+        v = w.columns(Velocity, [a, b]).linear
+        assert np.linalg.norm(x[0] - x[1]) <= 1e-9 * r0
+        assert np.linalg.norm(v[0] - v[1]) <= 1e-9 * np.linalg.norm(v0)
+
+
+def test_nbody_colliders_that_may_meet_drift_on_the_leapfrogs_line():
+    """Two NBody colliders about a well (a contact pass every step): each drifts on the straight line where
+    the pass finds contacts exactly, so a lone pair's orbit is the leapfrog's, not the exact conic (its
+    error shrinks as dt^2); the same bodies without colliders are on their conics."""
+    mu, r0 = 3.986004418e14, 7.0e6
+    vc = math.sqrt(mu / r0)
+
+    def gap(dt, colliders):
+        with World(dt=dt) as w:
+            w.add_system(GravitySystem())
+            w.add_system(MovementSystem())
+            w.add_system(CollisionSystem())
+            w.create_entity(Transform(), GravityWell(mu=mu, radius=6.371e6))
+            def extra():
+                return (SphereCollider(radius=5.0),) if colliders else ()
+            a = w.create_entity(Transform((r0, 0.0, 0.0)), Velocity((0.0, vc, 0.0)), Mass(1.0), NBody(), *extra())
+            w.create_entity(Transform((-r0, 0.0, 0.0)), Velocity((0.0, -vc, 0.0)), Mass(1.0), NBody(), *extra())
+            rails = w.create_entity(Transform((r0, 0.0, 0.0)), Velocity((0.0, vc, 0.0)))
+            w.step(int(round(600.0 / dt)))
+            x = w.columns(Transform, [a, rails]).position
+            return float(np.linalg.norm(x[0] - x[1]))
+    coarse, fine = gap(20.0, True), gap(10.0, True)
+    assert coarse > 1.0 and 3.5 < coarse / fine < 4.5
+    assert gap(20.0, False) < 1e-6

@@ -64,10 +64,16 @@ step, and one after a surface bounce in the same step at the next step's start.
 * *n-body* (opt-in, :class:`~components.gravity.NBody`): kick-drift-kick
   (symplectic, second order) in the pull of every well and of every other
   ``NBody`` body's :class:`~components.body.Mass` (``G m``, pairwise,
-  O(n^2)). About a scene's one root well, a body without a collider whose
-  conic clears the surface drifts on that conic (Wisdom–Holman,
-  :mod:`framework.wisdom_holman`: exact for a lone body at any step); the
-  others drift on straight lines (leapfrog).
+  O(n^2)). About a scene's one root well, a body whose conic clears the
+  surface drifts on that conic (Wisdom–Holman,
+  :mod:`framework.wisdom_holman`: exact for a lone body at any step) unless
+  it has a collider in a step with a contact pass (another collider or an
+  obstacle in the scene): those, and every n-body body in a scene of
+  several wells, drift on straight lines (leapfrog), where sphere contacts
+  are found exactly. Two bodies on their conics that pass close (within a
+  few Hill radii) switch smoothly to an adaptive integrator for the pass
+  (:mod:`framework.mercurius`, REBOUND's MERCURIUS scheme). Without a well,
+  ``NBody`` bodies pull each other on a drift-kick-drift leapfrog.
 
 **Surfaces.** A body on rails that reaches a well's surface sphere within the
 step is found exactly on its conic (:func:`framework.kepler.time_to_radius`;

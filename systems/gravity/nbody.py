@@ -1,8 +1,9 @@
 """n-body bodies (:class:`~components.gravity.NBody`): kick-drift-kick in the pull of every well and of
 each other; and the plain mutual pull of ``NBody`` bodies in a scene without a well.
 
-The drift: about a scene's one root well, a body without a collider whose conic stays above the surface
-drifts on that conic (Wisdom–Holman: the well's pull is the exact Kepler drift,
+The drift: about a scene's one root well, a body without a collider (or with one, in a step where no
+sphere contact can happen: no other collider, no obstacle) whose conic stays above the surface drifts on
+that conic (Wisdom–Holman: the well's pull is the exact Kepler drift,
 :func:`framework.wisdom_holman.kepler_drift`, the kicks hold only the other bodies' pulls and the thrust;
 symplectic, and exact for a lone body at any step); every other n-body body drifts on the straight line
 (leapfrog), met against the wells' surfaces and, with a collider, in the contact pass.
@@ -180,12 +181,15 @@ class NBodyFlight:
     def _on_conic(self, step: GravityStep, sel, p, u):
         """Which n-body bodies ``sel`` drift on their conic about the well (a mask; module docstring): the
         scene's one well is a root, the body has no collider and its conic never reaches the surface
-        (periapsis above the radius). ``u`` of those rows loses the well's half kick (in place)."""
+        (periapsis above the radius). ``u`` of those rows loses the well's half kick (in place). A body with a
+        collider counts as one without in a step with no contact pass (no other collider and no obstacle: it
+        can meet nothing but the surface, which its conic clears); with one it drifts on the straight line,
+        where the pass finds its contacts exactly."""
         wells = self._wells
         kep = np.zeros(sel.size, bool)
         if len(wells) != 1 or wells.parent[0] >= 0:
             return kep
-        cand = np.flatnonzero(self.nb_c_rows[sel] < 0)
+        cand = np.flatnonzero(self.nb_c_rows[sel] < 0) if self._spheres_may_meet else np.arange(sel.size)
         if not cand.size:
             return kep
         mu, R = wells.mu[0], wells.radius[0]

@@ -80,6 +80,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         self._n_col = 0
         self._n_nb_col = 0
         self._n_ob = 0                                    # colliders gravity does not move (obstacles)
+        self._spheres_may_meet = False                    # a contact pass this step (2 colliders, or 1 and an obstacle)
         self._ob_version = None
         self._warned: set = set()
         self._last_step: GravityStep | None = None       # (the look-ahead evaluates from the last step)
@@ -272,6 +273,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         # sphere contacts are looked for where two or more colliders move, or one and an obstacle
         movers = self._n_col + self._n_nb_col
         look = movers >= 2 or (movers and self._n_ob)
+        self._spheres_may_meet = bool(look)               # (else an n-body collider may drift on its conic)
         done = crossed = None
         if W > 1 and (wells.parent >= 0).any():
             # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
