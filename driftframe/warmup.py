@@ -62,6 +62,21 @@ def workload() -> None:
             world.step()
         finally:
             world.close()
+    # the static-shape solvers (planes, boxes; billiards' cushions reach them too): a ball against a plane
+    # and a box, without and with the jam path
+    from driftframe.components.collision import BoxCollider, PlaneCollider
+    for stick in (False, True):
+        world = World(dt=1.0 / 60.0)
+        try:
+            world.add_system(MovementSystem())
+            collision = world.add_system(CollisionSystem())
+            collision._stick = stick
+            world.create_entity(Transform((0.0, -0.5, 0.0)), PlaneCollider(normal=(0.0, 1.0, 0.0)))
+            world.create_entity(Transform((1.0, 0.0, 0.0)), BoxCollider(half_extents=(0.5, 0.5, 0.5)))
+            world.create_entity(Transform((0.0, 0.0, 0.0)), Velocity((1.0, -1.0, 0.0)), SphereCollider(0.5))
+            world.step()
+        finally:
+            world.close()
     n = kepler.COMPILED_MIN
     angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1
