@@ -352,7 +352,8 @@ def main(argv=None) -> int:
     rows = [[m, "adaptive" if "IAS15" in m else steps, f"{e:.3g}", f"{dx:.3g}", w, c]
             for (m, steps), (e, dx, w, c) in enc.items()]
     body.append(f"**(d) A close encounter**: two planets of 1e-3 star masses pass 0.02 apart (0.3 Hill radii), "
-                f"{ENC_T:.4g} time units (the pass, G = 1; the inner orbit's period is 2 pi), {ENC_OUTPUTS} outputs; worst |E/E0 - 1|, the "
+                f"{ENC_T:.4g} time units (the pass, G = 1; the inner orbit's period is 2 pi), {ENC_OUTPUTS} outputs; "
+                "worst |E/E0 - 1|, the "
                 "largest coordinate difference of the final positions from REBOUND IAS15's, median wall and CPU "
                 "seconds of the integration alone:\n")
     body.append(common.table(["method", "steps", "worst energy error", "|x - x_IAS15|", "wall, s", "CPU, s"], rows)
@@ -386,7 +387,8 @@ def main(argv=None) -> int:
                     f"step counts. Bar (<= 2): **{'met' if worst_ratio <= 2.0 else 'NOT met'}**.")
     hy = [enc[("driftframe hybrid (mercurius)", s)] for s in enc_steps]
     wh_e = [enc[("driftframe WH (democratic)", s)] for s in enc_steps]
-    line = (f"- Close encounter: driftframe's hybrid step keeps the worst energy error at {min(r[0] for r in hy):.1e}–"
+    line = (f"- Close encounter: driftframe's hybrid step keeps the worst energy error at "
+            f"{min(r[0] for r in hy):.1e}–"
             f"{max(r[0] for r in hy):.1e} over {enc_steps[0]}–{enc_steps[-1]} steps, plain WH "
             f"{min(r[0] for r in wh_e):.1e}–{max(r[0] for r in wh_e):.1e}")
     if reb:

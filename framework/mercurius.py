@@ -166,7 +166,7 @@ def _drift(X, V, Xb, Vb, gm, dc, m, dt, flag, tolerance):
             Xb[i, k] = X[i, k]
             Vb[i, k] = V[i, k]
         wh._kepler_drift(X, V, i, m, dt)
-    count = _flag_pairs(Xb, Vb, X, V, dc, dt, 1, flag)
+    count = _flag_pairs(Xb, Vb, X, V, dc, dt, np.int64(1), flag)     # (np.int64: no literal compile)
     if count == 0:
         return 0
     idx = np.empty(count, np.int64)
@@ -264,6 +264,40 @@ def critical_radii(x, v, gm, dt: float, hill: float = 3.0):
     dc = np.maximum(np.sqrt(mu / a) * 0.4 * abs(dt), np.sqrt(v2) * 0.4 * abs(dt))
     dc = np.maximum(dc, hill * a * np.cbrt(gm[1:] / (3.0 * gm[0])))
     return np.concatenate([[0.0], np.where(np.isfinite(dc), dc, 0.0)])
+
+
+@kernel(error_model="numpy")
+def _near_pairs(x, dc, fill, ii, jj):
+    """The pairs ``i < j`` nearer than ``max(dc_i, dc_j)`` (squared distances compared: no root): their
+    count, and (``fill``) their rows into ``ii, jj``."""
+    n = x.shape[0]
+    count = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            d0 = x[j, 0] - x[i, 0]
+            d1 = x[j, 1] - x[i, 1]
+            d2 = x[j, 2] - x[i, 2]
+            rc = max(dc[i], dc[j])
+            if d0 * d0 + d1 * d1 + d2 * d2 < rc * rc:
+                if fill:
+                    ii[count] = i
+                    jj[count] = j
+                count += 1
+    return count
+
+
+def near_pairs(x, dcrit):
+    """The pairs of rows of ``x`` (``(n, 3)``) nearer than the larger of their critical radii: ``(i, j)``
+    index arrays, ``i < j`` (the pairs whose pull the changeover splits)."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    dc = np.ascontiguousarray(dcrit, dtype=np.float64)
+    none = np.empty(0, np.int64)
+    count = _near_pairs(x, dc, np.bool_(False), none, none)
+    ii = np.empty(count, np.int64)
+    jj = np.empty(count, np.int64)
+    if count:
+        _near_pairs(x, dc, np.bool_(True), ii, jj)
+    return ii, jj
 
 
 def encounter_set(x0, v0, x1, v1, dcrit, dt: float):

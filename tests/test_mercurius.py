@@ -189,3 +189,13 @@ def test_the_encounter_set_is_the_bodies_of_pairs_that_come_within_reach():
     assert mask.tolist() == [True, True, False]
     mask = me.encounter_set(x0, v0, x1, v0, np.array([0.4, 0.4, 0.4]), 1.0)      # reach 0.44 < 0.5
     assert mask.tolist() == [False, False, False]
+
+
+def test_near_pairs_are_the_pairs_inside_the_larger_critical_radius():
+    rng = np.random.default_rng(2)
+    x = rng.uniform(0.0, 10.0, (60, 3))
+    dc = rng.uniform(0.0, 2.0, 60)
+    ii, jj = me.near_pairs(x, dc)
+    want = [(i, j) for i in range(60) for j in range(i + 1, 60)
+            if np.linalg.norm(x[j] - x[i]) < max(dc[i], dc[j])]
+    assert list(zip(ii.tolist(), jj.tolist())) == want and len(want) > 10

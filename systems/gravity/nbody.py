@@ -95,11 +95,12 @@ class NBodyFlight:
             w = gm[None, :] / (r2 * np.sqrt(r2))
             if switch is not None:
                 rows, dc = switch
-                sub = np.ix_(rows, rows)
-                rc = np.maximum(dc[:, None], dc[None, :])
-                near = np.sqrt(r2[sub]) < rc
-                if near.any():
-                    w[sub] = np.where(near, w[sub] * encounters.changeover_array(np.sqrt(r2[sub]), rc), w[sub])
+                ii, jj = me.near_pairs(pos[rows], dc)
+                if ii.size:
+                    a, b = rows[ii], rows[jj]
+                    L = encounters.changeover_array(np.sqrt(r2[a, b]), np.maximum(dc[ii], dc[jj]))
+                    w[a, b] *= L
+                    w[b, a] *= L
             acc -= np.einsum("ij,ijk->ik", w, d)
         return acc
 
@@ -153,14 +154,13 @@ class NBodyFlight:
         g = gm[rows]
         dc = me.critical_radii(np.vstack([np.zeros(3), r0]), np.vstack([np.zeros(3), w0]),
                                np.concatenate([[float(self._wells.mu[0])], g]), step.dt)[1:]
-        d = r0[None, :, :] - r0[:, None, :]            # d[i, j] = r_j - r_i
-        r = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
-        rc = np.maximum(dc[:, None], dc[None, :])
-        np.fill_diagonal(r, np.inf)
-        near = r < rc
-        if near.any():
-            wgt = np.where(near, (1.0 - encounters.changeover_array(r, rc)) / np.where(near, r, 1.0) ** 3, 0.0)
-            w0 -= (0.5 * step.dt) * np.einsum("ij,ijk->ik", wgt * g[None, :], d)
+        ii, jj = me.near_pairs(r0, dc)
+        if ii.size:
+            d = r0[jj] - r0[ii]                          # from i to j
+            r = np.sqrt(np.einsum("ij,ij->i", d, d))
+            k = ((1.0 - encounters.changeover_array(r, np.maximum(dc[ii], dc[jj]))) / r ** 3)[:, None] * d
+            np.add.at(w0, ii, -(0.5 * step.dt) * g[jj][:, None] * k)
+            np.add.at(w0, jj, (0.5 * step.dt) * g[ii][:, None] * k)
         return rows, dc
 
     def _encounter_drift(self, switch, sel, gm, mu, dt, r0, w0, r, w):
