@@ -91,6 +91,7 @@ def workload() -> None:
     from driftframe.framework import mercurius       # the hybrid step, with a pair close enough to switch
     mercurius.mercurius(np.array([[0.0, 0, 0], [1, 0, 0], [1.01, 0, 0]]),
                         np.array([[0.0, 0, 0], [0, 1, 0], [0, 1.05, 0]]), np.array([1.0, 1e-3, 1e-3]), 0.01, 2)
+    mercurius.near_pairs(r[:3].copy(), np.ones(3))   # (the gravity system's n-body switch)
     wh.kepler_drift(r[:2].copy(), v[:2].copy(), 1.0, 0.1)
     rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
 
