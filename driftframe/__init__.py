@@ -56,6 +56,7 @@ _HOMES = {
     "Acceleration": "components.body", "AngularVelocity": "components.body", "Mass": "components.body",
     "Transform": "components.body", "Velocity": "components.body",
     "Camera": "components.camera", "CollisionEvent": "components.collision", "SphereCollider": "components.collision",
+    "PlaneCollider": "components.collision", "BoxCollider": "components.collision",
     "FlightControl": "components.control", "FlightInput": "components.control", "Player": "components.control",
     "RotationAssist": "components.control",
     "GravityWell": "components.gravity", "NBody": "components.gravity", "SurfaceContact": "components.gravity",
@@ -95,7 +96,7 @@ def __dir__() -> list[str]:
 __all__ = [
     "__version__", "World", "FixedStepLoop", "Hold", "Press", "Track",
     "Transform", "Velocity", "AngularVelocity", "Acceleration", "Mass", "SphereCollider", "CollisionEvent",
-    "Camera", "ModelRef", "Player", "FlightInput", "FlightControl", "RotationAssist",
+    "PlaneCollider", "BoxCollider", "Camera", "ModelRef", "Player", "FlightInput", "FlightControl", "RotationAssist",
     "InputSystem", "ControlSystem", "RotationAssistSystem", "MovementSystem", "SpinSystem",
     "CollisionSystem", "CameraSystem", "GravityWell", "NBody", "SurfaceContact", "GravitySystem",
     "simulation_systems", "attach_rendering", "make_world", "load_scene", "declare_variant", "declare_model_file",
