@@ -25,7 +25,7 @@ from benchmarks import common
 #: The benchmarks, in the order they run and appear in docs/BENCHMARKS.md.
 ORDER = ["spin_accuracy", "thrust_accuracy", "step_scaling", "collision_accuracy", "collision_scaling",
          "collision_stress", "small_scenes", "orbit_accuracy", "orbit_contacts", "nbody", "render_lod",
-         "record_throughput", "play_rate", "batch_scaling", "startup"]
+         "record_throughput", "dark_video", "play_rate", "batch_scaling", "startup"]
 
 INTRO = """# driftframe benchmarks
 
