@@ -6,6 +6,7 @@ import esper
 import numpy as np
 
 from driftframe.components.body import Acceleration, Transform, Velocity
+from driftframe.framework import kernels
 from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
 
@@ -87,12 +88,7 @@ class MovementSystem(esper.Processor):
             from driftframe.framework.free_flight import free_flight
             self._free_flight = free_flight
         ctx.prepare(t_table, v_table)
-        self._views = self._views_of(ctx)
-        ff = self._free_flight
-        for x0, v0, a, x1, _, rows in self._views:
-            if rows is None and a is None and hasattr(ff, "compile"):   # (a plain function under NUMBA_DISABLE_JIT)
-                # loaded (or compiled) now, not at the first step: the types the step will pass
-                ff.compile(tuple(ff.typeof_pyval(z) for z in (x0, v0, self._dt_x, x1)))
+        self._views = self._views_of(ctx)           # (free flight's kernel loaded there, not at the first step)
         # one group without an Acceleration over rows 0..size of the Transform table: its prediction is
         # every row of the context's positions, so the step need not copy them in first
         rows = self._plan[0][0] if len(self._plan) == 1 and len(self._plan[0]) == 2 else None
@@ -103,8 +99,11 @@ class MovementSystem(esper.Processor):
         self._dt, self._dt_f, self._dt_x = np.array(float(dt)), dt, float(dt)
 
     def _views_of(self, ctx) -> tuple:
-        """Per group of the plan: ``(x0, v0, a, x1, v1)``, views into the tables and the context where the
-        rows are contiguous (kept until the structure or the context's buffers change), else the rows."""
+        """Per group of the plan: ``(x0, v0, a, x1, v1, rows, run)``: ``x0 .. v1`` views into the tables and
+        the context where the rows are contiguous (kept until the structure or the context's buffers
+        change; ``rows`` None), else ``rows``; ``run``: for contiguous free flight (no ``a``), the compiled
+        free flight's entry point for these views' types (kernels.entry: the views and ``float(dt)`` are
+        what every call passes), else None."""
         world = self.world
         pos, vel = world.table(Transform).data["position"], world.table(Velocity).data["linear"]
         acc = world.table(Acceleration).data["linear"] if any(len(g) == 3 for g in self._plan) else None
@@ -113,10 +112,12 @@ class MovementSystem(esper.Processor):
             t_rows, v_rows = rows[0], rows[1]
             a_rows = rows[2] if len(rows) == 3 else None
             if isinstance(t_rows, slice) and isinstance(v_rows, slice):
-                out.append((pos[t_rows], vel[v_rows], None if a_rows is None else acc[a_rows],
-                            ctx.position[t_rows], ctx.velocity_buffer[v_rows], None))
+                x0, v0, x1 = pos[t_rows], vel[v_rows], ctx.position[t_rows]
+                run = kernels.entry(self._free_flight, (x0, v0, self._dt_x, x1)) if a_rows is None else None
+                out.append((x0, v0, None if a_rows is None else acc[a_rows], x1, ctx.velocity_buffer[v_rows],
+                            None, run))
             else:
-                out.append((None, None, None, None, None, rows))
+                out.append((None, None, None, None, None, rows, None))
         self._views_key = (world.epoch, ctx.position, ctx.velocity_buffer)
         return tuple(out)
 
@@ -134,11 +135,11 @@ class MovementSystem(esper.Processor):
         if self._dt_f != dt:
             self._set_dt(dt)
         dt0 = self._dt
-        for x0, v0, a, x1, v1, rows in self._views:
+        for x0, v0, a, x1, v1, rows, run in self._views:
+            if run is not None:                       # free flight: advance()'s update, compiled (the same bits)
+                run(x0, v0, self._dt_x, x1)
+                continue
             if rows is None:                          # contiguous rows: views, nothing gathered or made
-                if a is None:                         # free flight: advance()'s update, compiled (the same bits)
-                    self._free_flight(x0, v0, self._dt_x, x1)
-                    continue
                 ctx.open_velocity()                   # the other bodies' velocities copied in (see StepContext)
                 advance(x0, v0, a, dt0, out=(x1, v1))
                 continue

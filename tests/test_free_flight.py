@@ -55,3 +55,20 @@ def test_free_flight_writes_every_row_of_a_view_and_nothing_else():
     buf = np.full((4, 3), -1.0)
     free_flight(x0, v0, 0.5, buf[:3])
     assert (buf[:3] == v0 * 0.5).all() and (buf[3] == -1.0).all()
+
+
+def test_the_entry_point_is_the_kernel_for_those_types_and_a_plain_function_is_its_own():
+    from driftframe.framework import kernels
+    x0, v0 = _cases(100, seed=3)
+    run = kernels.entry(free_flight, (x0, v0, 0.25, np.empty_like(x0)))
+    assert run is not free_flight and callable(run)
+    a, b = np.empty_like(x0), np.empty_like(x0)
+    with np.errstate(all="ignore"):
+        run(x0, v0, 0.25, a)
+        free_flight(x0, v0, 0.25, b)
+    assert (_bits(a) == _bits(b)).all()
+    assert kernels.entry(free_flight, (x0, v0, 0.25, a)) is run       # found, not compiled again
+
+    def plain(x):
+        return x
+    assert kernels.entry(plain, (1.0,)) is plain                      # (NUMBA_DISABLE_JIT: no dispatcher)
