@@ -8,7 +8,8 @@ the same process, interleaved.
   corrector) beside WHFast (``safe_mode = 0``, Jacobi, no corrector) and IAS15 (adaptive).
 * **Cost per body-step** at 100 and 1,000 bodies (all massive, ``1e-9`` to ``1e-7`` solar masses each, on
   orbits from 1 to 30 AU about one solar mass, dt = 5 days), 20 steps per call, driftframe WH against
-  WHFast ``safe_mode = 0``; median and worst of interleaved repeats, wall and CPU time.
+  WHFast ``safe_mode = 0``, and driftframe's hybrid step (no encounter in this swarm) against REBOUND
+  MERCURIUS ``safe_mode = 0``; median and worst of interleaved repeats, wall and CPU time.
 * **Figure-eight** (Chenciner & Montgomery's three equal masses, G = 1, period 6.3259): one period, the
   distance from the start after it against the time taken, driftframe's leapfrog against REBOUND's
   ``leapfrog`` at the same dt (the same drift-kick-drift scheme: equal dt is equal accuracy, checked).
@@ -168,6 +169,15 @@ def cost(n, repeats, steps=20, dt=5.0):
         sim = rebound_sim(x, v, gm, "whfast", dt)
         sim.steps(1)
         fns["REBOUND WHFast (safe_mode=0)"] = lambda: sim.steps(steps)
+    # the hybrid step with nobody near (its encounter prediction on every pair every step) beside REBOUND's
+    xm, vm = x.copy(), v.copy()
+    dc = me.critical_radii(x, v, gm, dt)
+    fns["driftframe hybrid (mercurius)"] = lambda: me.mercurius(xm, vm, gm, dt, steps, dcrit=dc)
+    if have_rebound():
+        simm = rebound_sim(x, v, gm, "mercurius", dt)
+        simm.integrator.safe_mode = 0
+        simm.steps(1)
+        fns["REBOUND MERCURIUS (safe_mode=0)"] = lambda: simm.steps(steps)
     for fn in fns.values():
         fn()
     wall = {k: [] for k in fns}
@@ -378,6 +388,12 @@ def main(argv=None) -> int:
         bars.append(f"- Per body-step at 1,000 bodies, driftframe / WHFast (safe_mode=0): {r1k:.2f} wall, "
                     f"{r1k_cpu:.2f} CPU (100 bodies: {r100:.2f}). Bar (<= 1): "
                     f"**{'met' if r1k <= 1.0 else 'NOT met'}**.")
+        hy1k = costs[1_000]["driftframe hybrid (mercurius)"]
+        hy100 = costs[100]["driftframe hybrid (mercurius)"][2] / costs[100]["REBOUND MERCURIUS (safe_mode=0)"][2]
+        bars.append(f"- The hybrid step with no encounter, per body-step at 1,000 bodies: "
+                    f"{hy1k[2] / costs[1_000]['driftframe WH'][2]:.2f}x driftframe WH's CPU time (its encounter "
+                    f"prediction on every pair), {hy1k[2] / costs[1_000]['REBOUND MERCURIUS (safe_mode=0)'][2]:.2f}x "
+                    f"REBOUND MERCURIUS's (100 bodies: {hy100:.2f}x).")
         worst_ratio = max(fig_res[("driftframe leapfrog", s)][1] / fig_res[("REBOUND leapfrog", s)][1]
                           for s in steps_list)
         same = max(abs(fig_res[("driftframe leapfrog", s)][0] / fig_res[("REBOUND leapfrog", s)][0] - 1)
@@ -419,9 +435,10 @@ def main(argv=None) -> int:
     ax.legend(fontsize=7)
     ax = axes[1]
     names = list(costs[100])
+    width = 0.8 / len(names)
     for k, m in enumerate(names):
-        ax.bar(np.arange(2) + 0.38 * k, [costs[n][m][2] for n in (100, 1_000)], 0.38, label=m)
-    ax.set_xticks(np.arange(2) + 0.19, ["100 bodies", "1,000 bodies"])
+        ax.bar(np.arange(2) + width * k, [costs[n][m][2] for n in (100, 1_000)], width, label=m)
+    ax.set_xticks(np.arange(2) + 0.4 - width / 2, ["100 bodies", "1,000 bodies"])
     ax.set_yscale("log")
     ax.set_ylabel("ns per body-step (median CPU; wall in the table)")
     ax.set_title("Cost per body-step")

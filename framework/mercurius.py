@@ -145,6 +145,21 @@ def _flag_pairs(Xb, Vb, X, V, dc, dt, first, flag):
     for i in range(first, n):
         for j in range(i + 1, n):
             rc = 1.1 * max(dc[i], dc[j])
+            # first a lower bound of the cubic with no root and no division: its weights of qo, qn are >= 0
+            # and sum to 1, those of dt q'o, dt q'n lie in [0, 4/27] and [-4/27, 0]
+            qo = 0.0
+            qn = 0.0
+            ro = 0.0
+            rn = 0.0
+            for k in range(3):
+                do = Xb[j, k] - Xb[i, k]
+                dn = X[j, k] - X[i, k]
+                qo += do * do
+                qn += dn * dn
+                ro += do * (Vb[j, k] - Vb[i, k])
+                rn += dn * (V[j, k] - V[i, k])
+            if min(qo, qn) - (8.0 / 27.0) * (max(-dt * ro, 0.0) + max(dt * rn, 0.0)) >= rc * rc:
+                continue
             if _closest_squared(Xb, Vb, X, V, i, j, dt) < rc * rc:
                 if not flag[i]:
                     count += 1

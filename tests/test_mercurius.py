@@ -199,3 +199,24 @@ def test_near_pairs_are_the_pairs_inside_the_larger_critical_radius():
     want = [(i, j) for i in range(60) for j in range(i + 1, 60)
             if np.linalg.norm(x[j] - x[i]) < max(dc[i], dc[j])]
     assert list(zip(ii.tolist(), jj.tolist())) == want and len(want) > 10
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_cheap_bound_never_drops_a_pair_the_cubic_flags(sign):
+    """The prediction's first test (a lower bound of the cubic) only skips pairs the cubic itself would not
+    flag: random drifts, forwards and backwards, flagged alike with and without it."""
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        x0 = rng.normal(0.0, 1.0, (6, 3))
+        v0 = rng.normal(0.0, 1.0, (6, 3))
+        x1 = x0 + sign * 0.5 * v0 + rng.normal(0.0, 0.05, (6, 3))
+        v1 = v0 + rng.normal(0.0, 0.2, (6, 3))
+        dc = rng.uniform(0.0, 0.8, 6)
+        got = me.encounter_set(x0, v0, x1, v1, dc, sign * 0.5)
+        want = np.zeros(6, bool)
+        for i in range(6):
+            for j in range(i + 1, 6):
+                rc = 1.1 * max(dc[i], dc[j])
+                if me._closest_squared(x0, v0, x1, v1, i, j, sign * 0.5) < rc * rc:
+                    want[i] = want[j] = True
+        assert np.array_equal(got, want)
