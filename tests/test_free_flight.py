@@ -1,4 +1,4 @@
-"""The compiled free flight (framework/free_flight.py) gives advance()'s bits, and would not with a fused multiply-add."""
+"""The compiled free flight (framework/free_flight.py) gives advance()'s bits; a fused multiply-add would not."""
 from fractions import Fraction
 
 import numpy as np
