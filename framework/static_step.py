@@ -44,6 +44,8 @@ class StaticShapes:
         self.table = np.empty((0, SHAPE_COLS))
         self.e = np.empty(0)
         self._pairs: tuple | None = None
+        self._raw = b""                             # the components' values the table was made from
+        self._buffers: tuple | None = None          # the solver's arrays (see _arguments), for one (n, m)
 
     def present(self) -> bool:
         """Whether the world has any static shape (the queries are re-read once per change of entities)."""
@@ -58,9 +60,25 @@ class StaticShapes:
         return self._n > 0
 
     def refresh(self) -> "StaticShapes":
-        """The table from the components as they are now."""
+        """The table from the components as they are now (made again only when one of the values it is
+        made from changed: a step of a table whose shapes stay put reads them and compares bytes)."""
         world = self._world
         tr = world.table(Transform).data
+        fields = (("normal", "offset", "restitution"), ("half_extents", "restitution"))
+        raw = []
+        for q, T, names in zip(self._queries, (PlaneCollider, BoxCollider), fields):
+            if len(q):
+                ti, ci, col = q.rows(Transform), q.rows(T), world.table(T).data
+                raw += [tr["position"][ti].tobytes(), tr["orientation"][ti].tobytes()]
+                raw += [col[f][ci].tobytes() for f in names]
+        raw = b"".join(raw)
+        if raw != self._raw:
+            self._make(tr)
+            self._raw = raw
+        return self
+
+    def _make(self, tr) -> None:
+        world = self._world
         ents, rows, es = [], [], []
         for q, T in zip(self._queries, (PlaneCollider, BoxCollider)):
             if not len(q):
@@ -88,13 +106,12 @@ class StaticShapes:
         self.entities = ents[order]
         self.table = np.ascontiguousarray(np.concatenate(rows)[order])
         self.e = np.concatenate(es)[order]
-        return self
 
     def pairs(self, pi: np.ndarray, pj: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The spheres' pairs ``pi, pj`` followed by every sphere with every shape (sphere-major): the
         shapes are bodies ``n .. n + m - 1``."""
         m = len(self.entities)
-        key = (n, m, id(pi), len(pi))
+        key = (n, m, len(pi))                       # (the all-pairs path: pi, pj are every pair of n)
         if self._pairs is None or self._pairs[0] != key:
             si = np.repeat(np.arange(n, dtype=np.int64), m)
             sj = np.tile(np.arange(n, n + m, dtype=np.int64), n)
@@ -104,14 +121,28 @@ class StaticShapes:
 
 
 def _arguments(inputs, shapes: StaticShapes) -> list:
-    """The static solver's arguments: the spheres' ``inputs`` with the shapes appended as bodies."""
+    """The static solver's arguments: the spheres' ``inputs`` with the shapes appended as bodies (at rest,
+    radius 0, inverse mass 0, not live, no last contact), in arrays kept for this many spheres and shapes."""
     x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, _ = inputs
     n, m = len(x), len(shapes.entities)
     S = shapes.table
-    return [np.concatenate([x, S[:, 1:4]]), np.concatenate([u, np.zeros((m, 3))]), np.concatenate([r, np.zeros(m)]),
-            np.concatenate([inv, np.zeros(m)]), np.concatenate([e, shapes.e]),
-            np.concatenate([live, np.zeros(m, np.bool_)]), np.concatenate([t_last, np.full(m, -math.inf)]),
-            float(now), *shapes.pairs(pi, pj, n), float(dt), float(t_c), int(cap), S]
+    buf = shapes._buffers
+    if buf is None or buf[0] != (n, m):
+        buf = shapes._buffers = ((n, m), np.empty((n + m, 3)), np.zeros((n + m, 3)), np.zeros(n + m),
+                                 np.zeros(n + m), np.empty(n + m), np.zeros(n + m, np.bool_), np.empty(n + m))
+    _, X, U, R, W, E, L, T = buf
+    X[:n] = x
+    X[n:] = S[:, 1:4]
+    U[:n] = u
+    U[n:] = 0.0
+    R[:n] = r
+    W[:n] = inv
+    E[:n] = e
+    E[n:] = shapes.e
+    L[:n] = live
+    T[:n] = t_last
+    T[n:] = -math.inf
+    return [X, U, R, W, E, L, T, float(now), *shapes.pairs(pi, pj, n), float(dt), float(t_c), int(cap), S]
 
 
 def load(inputs, shapes: StaticShapes) -> None:

@@ -212,3 +212,16 @@ def test_billiards_cushions_keep_every_ball_on_the_table_for_30_s():
         assert all(ev.impulse > 0 for ev in off_cushions)
     finally:
         world.close()
+
+
+def test_a_shape_moved_between_steps_is_met_where_it_is_now(world):
+    systems(world)
+    wall = world.create_entity(Transform((10.0, 0.0, 0.0)), PlaneCollider(normal=(-1.0, 0.0, 0.0)))
+    b = ball(world, (0.0, 0.0, 0.0), (6.0, 0.0, 0.0))
+    seen = hits(world)
+    world.step(30)                                  # at x = 3 at 0.5 s
+    esper.component_for_entity(wall, Transform).position = (4.0, 0.0, 0.0)
+    world.step(30)
+    (ev,) = seen
+    assert ev.time == pytest.approx(0.5 + 0.5 / 6.0, abs=1e-13)    # the face now at x = 4: the centre at 3.5
+    assert vel(b)[0] == -6.0
