@@ -84,7 +84,10 @@ restitution, islands and impulses), :mod:`.contact_jam` (the jam path),
 :mod:`.contact_pairs` (the candidate pairs, all of them or the neighbour
 list's), :mod:`.contact_again` (running a step again from its inputs),
 :mod:`.contact_solve` (the event loop and the four solvers compiled from it),
-:mod:`.contact_bodies` (gathering the colliders' state). This module names
+:mod:`.contact_bodies` (gathering the colliders' state), :mod:`.static_shapes` (a sphere against a
+static plane or box: time of impact and normal) and :mod:`.static_step` (a step with such shapes: they
+join the event loop as the last bodies, immovable, in :func:`~.contact_solve.solve_static`, a variant
+compiled only for scenes that have them). This module names
 a step's inputs and outputs (:class:`StepInputs`, :class:`StepResult`,
 :class:`StepStats`) and runs one (:func:`solve_step`).
 """
