@@ -6,7 +6,7 @@ passes. Formulas and tolerances are those of the numpy path: Stumpff's series fo
 ``|psi| <= 1`` (12 terms, Horner), the half-angle closed forms beyond; Laguerre
 (n = 5) from the guess, bracketed, Newton after 8 iterations; f, g from chi, or for
 conics from e = 0.1 (ellipses) and 1.01 (hyperbolas) on the focal frame (``_focal1``,
-``_focal_hyp1``, ``_focal_dd``). The
+``_focal_dd``, ``_focal_dd_hyp``). The
 series' coefficients live here (the kernels read them at compile time; the numpy
 path imports them from here).
 """
@@ -187,26 +187,56 @@ def _dd_dot2(xh, xl, p, p_lo, yh, yl, q, q_lo):
 
 
 @_both
-def _focal_hyp1(a, ome, sh0, ch0, hn, mu, alpha, chi):
-    """``kepler_universal._focal_state_hyp``'s scalars ``x, y, vx, vy`` for one body (``A = -a``,
-    ``em1 = -ome``), same order. Scalars in and out: a compiled call that takes arrays pays numba's
-    reference counting on each (measured: ~100 ns a body for ten arrays)."""
-    A = -a
-    em1 = -ome
+def _hyp_half(sh0, ch0, alpha, chi):
+    """``sinh(H/2)`` at ``H = H0 + sqrt(-alpha) chi`` from ``sinh(H0/2), cosh(H0/2)``."""
     half = 0.5 * np.sqrt(-alpha) * chi
-    sd = np.sinh(half)
-    cd = np.cosh(half)
-    s = sh0 * cd + ch0 * sd
-    s2 = s * s
-    c = np.sqrt(1.0 + s2)
-    sinh_h = 2.0 * s * c
-    cosh_h = 1.0 + 2.0 * s2
-    x = A * (em1 - 2.0 * s2)
-    y = A * np.sqrt(em1 * (2.0 + em1)) * sinh_h
-    rn = A * (em1 + 2.0 * s2 + 2.0 * em1 * s2)
-    vx = -(np.sqrt(mu * A) / rn) * sinh_h
-    vy = (hn / rn) * cosh_h
-    return x, y, vx, vy
+    return sh0 * np.cosh(half) + ch0 * np.sinh(half)
+
+
+@_both
+def _focal_dd_hyp(A, em1, b_h, b_l, sq_h, sq_l, h_h, h_l, s):
+    """A hyperbola's focal state ``A (e - cosh H), b sinh H, -sqrt(mu A) sinh H / |r|, h cosh H / |r|``
+    (``kepler_universal._focal_state_hyp``) as double-doubles from ``s = sinh(H/2)`` (``A = -a``, ``em1 = e - 1``;
+    ``b, sqrt(mu A), h`` double-doubles of the double ``A, em1``: :func:`_focal_dd_constants_hyp`). Why: far
+    out ``x vy - y vx`` is ``h`` only through ``cosh^2 - sinh^2 = 1`` between terms ``~ s^4`` times larger, so
+    each rounding of the scalars is ``~ s^2`` roundings of ``h``; in double-double, rounded once into the
+    state (:func:`_dd_dot2`), what is left is the rounding of the state itself."""
+    s2h, s2l = _two_prod(s, s)
+    c2h, c2l = _two_sum(1.0, s2h)
+    c2h, c2l = _fast_two_sum(c2h, c2l + s2l)                         # cosh^2(H/2) = 1 + s^2
+    ch, cl = _dd_sqrt(c2h, c2l)
+    shh, shl = _dd_mul_d(ch, cl, s)
+    shh, shl = 2.0 * shh, 2.0 * shl                                  # sinh H
+    chh, chl = _two_sum(1.0, 2.0 * s2h)
+    chh, chl = _fast_two_sum(chh, chl + 2.0 * s2l)                   # cosh H = 1 + 2 s^2
+    th, tl = _two_sum(em1, -2.0 * s2h)
+    th, tl = _two_sum(th, tl - 2.0 * s2l)                           # e - cosh H = em1 - 2 s^2
+    xh, xl = _dd_mul_d(th, tl, A)
+    eh, el = _two_sum(1.0, em1)                                      # e
+    uh, ul = _two_prod(2.0 * s2h, eh)
+    ul = ul + 2.0 * s2h * el + 2.0 * s2l * eh
+    wh, wl = _two_sum(em1, uh)
+    wh, wl = _two_sum(wh, wl + ul)                                   # em1 + 2 e s^2 (> 0)
+    rh, rl = _dd_mul_d(wh, wl, A)                                    # |r|
+    yh, yl = _dd_mul(shh, shl, b_h, b_l)                            # b sinh H
+    nh, nl = _dd_mul(shh, shl, sq_h, sq_l)                          # sqrt(mu A) sinh H
+    vxh, vxl = _dd_div(-nh, -nl, rh, rl)
+    mh, ml = _dd_mul(chh, chl, h_h, h_l)                            # h cosh H
+    vyh, vyl = _dd_div(mh, ml, rh, rl)
+    return xh, xl, yh, yl, vxh, vxl, vyh, vyl
+
+
+def _focal_dd_constants_hyp(A, em1, mu):
+    """``(n, 6)``: ``b = A sqrt(em1 (2 + em1)), sqrt(mu A), h = sqrt(mu A em1 (2 + em1))`` as hi, lo pairs."""
+    th, tl = _two_sum(2.0, em1)
+    qh, ql = _dd_mul_d(th, tl, em1)                                   # em1 (2 + em1) = e^2 - 1
+    bh, bl = _dd_sqrt(qh, ql)
+    bh, bl = _dd_mul_d(bh, bl, A)
+    mh, ml = _two_prod(mu, A)
+    sh, sl = _dd_sqrt(mh, ml)
+    hh, hl = _dd_mul(mh, ml, qh, ql)
+    hh, hl = _dd_sqrt(hh, hl)
+    return np.stack([bh, bl, sh, sl, hh, hl], axis=1)
 
 
 @_both
@@ -304,17 +334,20 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
         gd = 1.0 - chi2 * c2 / fp
         if t == 0.0:
             f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
-        if focal[i] and t != 0.0:                        # eccentric conics: from the focal frame
-            if al < 0:
-                x, y, vx, vy = _focal_hyp1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
-                s = c = 0.0
+        if focal[i] and t != 0.0 and al < 0:             # a hyperbola: its focal state in double-double
+            xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd_hyp(-a[i], -ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
+                                                           ddc[i, 3], ddc[i, 4], ddc[i, 5],
+                                                           _hyp_half(sh0[i], ch0[i], al, chi))
+            for k in range(3):
+                out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
+                out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
+        elif focal[i] and t != 0.0:                      # eccentric conics: from the focal frame
+            if chi_half == chi and s_half == s_half:        # the solver's sin(x/2), cos(x/2) at this chi
+                x, y, vx, vy, s, c = _focal1_sc(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i],
+                                                np.copysign(s_half, chi), c_half)
             else:
-                if chi_half == chi and s_half == s_half:    # the solver's sin(x/2), cos(x/2) at this chi
-                    x, y, vx, vy, s, c = _focal1_sc(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i],
-                                                    np.copysign(s_half, chi), c_half)
-                else:
-                    x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
-            if al > 0 and ome[i] < dd_ome:
+                x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
+            if ome[i] < dd_ome:
                 xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
                                                            ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
                 for k in range(3):

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_dot2, _focal_dd,
-                                                 _dd_div, _dd_sqrt, _fast_two_sum, _focal1,
-                                                 _focal_dd_constants, _focal_hyp1, _next_chi_compiled, _two_prod,
-                                                 _two_sum)
+from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_div, _dd_dot2,
+                                                 _dd_sqrt, _fast_two_sum, _focal1, _focal_dd, _focal_dd_constants,
+                                                 _focal_dd_constants_hyp, _focal_dd_hyp, _hyp_half,
+                                                 _next_chi_compiled, _two_prod, _two_sum)
 
 TWO_PI = 2.0 * np.pi
 _EPS = np.finfo(np.float64).eps
@@ -464,6 +464,10 @@ def _focal_frame(r0, v0, mu, r0n, alpha, sigma0):
     if k.size:
         Pl[k], Ql[k] = _unit_frame_lo(P[k], Q[k])
         ddc[k] = _focal_dd_constants(a[k], ome[k], mu[k])
+    k = np.flatnonzero(use & (alpha < 0))                           # every hyperbola (_focal_state_hyp)
+    if k.size:
+        Pl[k], Ql[k] = _unit_frame_lo(P[k], Q[k])
+        ddc[k] = _focal_dd_constants_hyp(-a[k], -ome[k], mu[k])
     return use, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc
 
 
@@ -500,7 +504,7 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi):
     are double-doubles, rounded once (``kepler_kernels._focal_dd``): 0.8-1x the floor. The scalar
     formulas are ``kepler_kernels._focal1``, one source for numpy and the compiled loop."""
     if (alpha < 0).all():
-        return _focal_state_hyp(-a, -ome, P, Q, sh0, ch0, hn, mu, alpha, chi)
+        return _focal_state_hyp(-a, -ome, P, Q, sh0, ch0, Pl, Ql, ddc, alpha, chi)
     if (alpha < 0).any():
         r = np.empty(P.shape)
         v = np.empty(P.shape)
@@ -519,16 +523,17 @@ def _focal_state(a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, mu, alpha, chi):
     return r, v
 
 
-def _focal_state_hyp(A, em1, P, Q, sh0, ch0, hn, mu, alpha, chi):
+def _focal_state_hyp(A, em1, P, Q, sh0, ch0, Pl, Ql, ddc, alpha, chi):
     """:func:`_focal_state` for a hyperbola, ``A = -a``, ``em1 = e - 1``, at ``H = H0 + sqrt(-alpha) chi``:
     ``r = A (e - cosh H) P + b sinh H Q``, ``e - cosh H = em1 - 2 sh^2``, ``|r| = A (em1 + 2 e sh^2)``,
-    ``sh = sinh(H/2)``, ``cosh(H/2) = sqrt(1 + sh^2)`` (so ``cosh^2 - sinh^2 = 1`` to rounding),
-    ``b = A sqrt(em1 (2 + em1))``. Why: ``f r0 + g v0`` lets ``h`` drift as ``|chi|`` grows (1e-9 of
-    h after 1e10 s); here ``h`` is a few roundings at any time."""
-    x, y, vx, vy = _focal_hyp1(-A, -em1, sh0, ch0, hn, mu, alpha, chi)
-    r = x[:, None] * P + y[:, None] * Q
-    v = vx[:, None] * P + vy[:, None] * Q
-    return r, v
+    ``sh = sinh(H/2)``, ``cosh(H/2) = sqrt(1 + sh^2)``, ``b = A sqrt(em1 (2 + em1))``, the scalars and
+    the sums in double-double and rounded once (``kepler_kernels._focal_dd_hyp``). Why: ``f r0 + g v0`` lets
+    ``h`` drift as ``|chi|`` grows (1e-9 of h after 1e10 s); the focal scalars in doubles keep it to a
+    few roundings of ``h`` times ``sh^2`` (``x vy - y vx`` cancels terms ~ ``sh^4`` larger: 2-5x the
+    double-rounding floor at 1e8-1e10 s); in double-double what is left is the state's own rounding."""
+    s = _hyp_half(sh0, ch0, alpha, chi)
+    xh, xl, yh, yl, uh, ul, wh, wl = (q[:, None] for q in _focal_dd_hyp(A, em1, *ddc.T, s))
+    return _dd_dot2(xh, xl, P, Pl, yh, yl, Q, Ql), _dd_dot2(uh, ul, P, Pl, wh, wl, Q, Ql)
 
 
 def propagate(r0, v0, mu, dt, *, chi=None, return_chi: bool = False):
