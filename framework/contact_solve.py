@@ -24,8 +24,8 @@ from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F
                                                  S_SWEPT, S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
 from driftframe.framework.contact_toi import toi
 from driftframe.framework.kernels import kernel
-from driftframe.framework.static_shapes import (no_outward, no_shapes, no_static_heap, no_static_toi, outward,
-                                                shapes_first, static_heap, static_toi)
+from driftframe.framework.static_shapes import (no_shape_contact, no_shape_point, no_shape_push, no_shapes_start,
+                                                shape_contact, shape_point, shape_push, shapes_start)
 
 _OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
@@ -77,10 +77,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
 
     # -- heap of pending contacts --
     H, hn, overlaps, worst, wi_, wj_ = initial_heap(PI, PJ, P, x, u, r, inv, live, spd, dt)
-    # static shapes (the variant that has them: ``lst`` is their table, they are the last bodies, not live)
-    ns = _first_shape(n, lst)
-    if _STATIC:
-        hn = _shape_heap(H, hn, PI, PJ, P, x, u, r, live, spd, dt, lst, ns)
+    ns, hn = _shapes_start(H, hn, PI, PJ, P, x, u, r, live, spd, dt, lst, n)   # shapes: bodies ns.., lst their table
     for k in range((hn >> 1) - 1, -1, -1):
         sift_down(H, k, hn)
     stats[S_OVERLAPS] = overlaps
@@ -141,11 +138,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
             if cand_ok:
                 i, j = PI[cand_p], PJ[cand_p]
                 if _STATIC and j >= ns:
-                    # i to the shape: minus its outward normal; v_n = n . (0 - u_i)
-                    ox, oy, oz, _ = _outward(lst, j - ns, x[i, 0] + u[i, 0] * t0, x[i, 1] + u[i, 1] * t0,
-                                             x[i, 2] + u[i, 2] * t0)
-                    nx, ny, nz = -ox, -oy, -oz
-                    vn = ox * u[i, 0] + oy * u[i, 1] + oz * u[i, 2]
+                    nx, ny, nz, vn = _shape_contact(lst, j - ns, x, u, i, t0)
                 else:
                     wx = u[j, 0] - u[i, 0]
                     wy = u[j, 1] - u[i, 1]
@@ -255,9 +248,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 continue
             i, j = wi[k], wj[k]
             for b in (i, j):
-                if _STATIC and b >= ns:
-                    continue                               # a shape keeps no burst, count or last contact
-                if kstamp[b] != waves:
+                if kstamp[b] != waves and not (_STATIC and b >= ns):      # (a shape keeps no burst or count)
                     kstamp[b] = waves                      # once per body per wave
                     burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
                     t_last[b] = t
@@ -268,9 +259,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 ev_n[ne, d] = wn[k, d]
                 ev_x[ne, d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
                 ev_x[ne, 3 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
-            if _STATIC and j >= ns:
-                for d in range(3):
-                    ev_x[ne, 3 + d] = ev_x[ne, d]          # on the shape's surface: where the sphere touches it
+            _shape_point(ev_x, np.int64(ne), j, ns)        # a shape's point: where the sphere touches it
             ne += 1
         # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
         for a in range(nm):
@@ -302,13 +291,7 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 ver[p] += 1
                 i, j = PI[p], PJ[p]
                 if _STATIC and j >= ns:
-                    if live[i]:
-                        tp, sl = _shape_toi(x[i, 0], x[i, 1], x[i, 2], u[i, 0], u[i, 1], u[i, 2], r[i], spd[i], lst,
-                                            j - ns, t, dt)
-                        if tp >= 0.0:
-                            heap_push(H, hn, tp, p, ver[p], sl)
-                            hn += 1
-                            stats[S_PUSHED] += 1
+                    hn = _shape_push(H, hn, p, ver[p], x, u, r, spd, live, lst, i, j - ns, t, dt, stats)
                     continue
                 if not (live[i] and live[j]):
                     continue
@@ -328,16 +311,17 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
     return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
 
 
-_PLAIN = dict(_STATIC=False, _first_shape=no_shapes, _shape_heap=no_static_heap, _outward=no_outward,
-              _shape_toi=no_static_toi)
-_SHAPES = dict(_STATIC=True, _first_shape=shapes_first, _shape_heap=static_heap, _outward=outward,
-               _shape_toi=static_toi)
+_PLAIN = dict(_STATIC=False, _shapes_start=no_shapes_start, _shape_contact=no_shape_contact,
+              _shape_push=no_shape_push, _shape_point=no_shape_point)
+_SHAPES = dict(_STATIC=True, _shapes_start=shapes_start, _shape_contact=shape_contact, _shape_push=shape_push,
+               _shape_point=shape_point)
 
 
 def _solver(name, doc, **pieces):
     """A solver compiled from :func:`_solve` with ``pieces`` for its names ``_start``, ``_resweep``,
-    ``_stick_fn``, ``_keep``, ``_put_back`` (and the static shapes' ``_STATIC``, ``_first_shape``, ``_shape_heap``,
-    ``_outward``, ``_shape_toi``: :data:`_PLAIN` unless given): one compiled unit each, holding only the code its scenes run
+    ``_stick_fn``, ``_keep``, ``_put_back`` (and the static shapes' ``_STATIC``, ``_shapes_start``,
+    ``_shape_contact``, ``_shape_push``, ``_shape_point``: :data:`_PLAIN` unless given): one compiled unit
+    each, holding only the code its scenes run
     (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
     copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""
     import types

@@ -33,7 +33,8 @@ from __future__ import annotations
 
 import math
 
-from driftframe.framework.contact_params import APPROACH, SLACK_MAX, TOUCH
+from driftframe.framework.contact_heap import heap_push
+from driftframe.framework.contact_params import APPROACH, S_PUSHED, SLACK_MAX, TOUCH
 from driftframe.framework.kernels import kernel
 
 _OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
@@ -209,28 +210,60 @@ def static_heap(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, ns):
     return hn
 
 
-# The plain solvers' stand-ins (they have no shapes: ``ns = n`` and no pair reaches these).
+# The solver's pieces (:mod:`.contact_solve`): the static variant's, and the plain solvers' stand-ins (they
+# have no shapes: ``ns = n``, and no pair reaches the others).
 @kernel(**_OPTS)
-def no_shapes(n, lst):
-    return n
-
-
-@kernel(**_OPTS)
-def shapes_first(n, S):
-    """The first shape's body index: the shapes are the last ``len(S)`` bodies."""
-    return n - S.shape[0]
+def shapes_start(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, n):
+    """``(ns, hn)``: the first shape's body index (the shapes are the last ``len(S)`` bodies), and the
+    heap's rows with every sphere-shape pair's first contact added (:func:`static_heap`)."""
+    ns = n - S.shape[0]
+    return ns, static_heap(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, ns)
 
 
 @kernel(**_OPTS)
-def no_static_toi(px, py, pz, ux, uy, uz, r, spd, S, k, t, dt):
-    return -1.0, 0.0
+def no_shapes_start(H, hn, PI, PJ, P, x, u, r, live, spd, dt, lst, n):
+    return n, hn
 
 
 @kernel(**_OPTS)
-def no_outward(S, k, px, py, pz):
+def shape_contact(S, k, x, u, i, t):
+    """The contact normal from sphere ``i`` to shape ``k`` at ``t`` (minus the shape's outward normal)
+    and the normal relative velocity ``n . (0 - u_i)`` (< 0: approaching)."""
+    ox, oy, oz, _ = outward(S, k, x[i, 0] + u[i, 0] * t, x[i, 1] + u[i, 1] * t, x[i, 2] + u[i, 2] * t)
+    return -ox, -oy, -oz, ox * u[i, 0] + oy * u[i, 1] + oz * u[i, 2]
+
+
+@kernel(**_OPTS)
+def no_shape_contact(S, k, x, u, i, t):
     return 0.0, 0.0, 0.0, 0.0
 
 
 @kernel(**_OPTS)
-def no_static_heap(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, ns):
+def shape_push(H, hn, p, v, x, u, r, spd, live, S, i, k, t, dt, stats):
+    """Push pair ``p`` (version ``v``: sphere ``i``, shape ``k``) with its next contact from ``t``, if any
+    (``H`` has room); returns the heap's rows."""
+    if live[i]:
+        tp, sl = static_toi(x[i, 0], x[i, 1], x[i, 2], u[i, 0], u[i, 1], u[i, 2], r[i], spd[i], S, k, t, dt)
+        if tp >= 0.0:
+            heap_push(H, hn, tp, p, v, sl)
+            hn += 1
+            stats[S_PUSHED] += 1
     return hn
+
+
+@kernel(**_OPTS)
+def no_shape_push(H, hn, p, v, x, u, r, spd, live, S, i, k, t, dt, stats):
+    return hn
+
+
+@kernel(**_OPTS)
+def shape_point(ev_x, k, j, ns):
+    """Event ``k``'s point on body ``j``, when it is a shape (``j >= ns``): where the sphere touches it."""
+    if j >= ns:
+        for d in range(3):
+            ev_x[k, 3 + d] = ev_x[k, d]
+
+
+@kernel(**_OPTS)
+def no_shape_point(ev_x, k, j, ns):
+    pass
