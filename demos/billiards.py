@@ -1,4 +1,5 @@
-"""billiards — a break: the cue ball into a triangle of fifteen touching balls, on a table with cushions, from above."""
+"""billiards — a break: the cue ball into a triangle of fifteen touching balls, on a table with cushions (static
+boxes), from above."""
 import numpy as np
 
 from driftframe.components.body import Transform

@@ -225,7 +225,7 @@ def test_billiards_is_seen_from_an_overhead_camera_above_a_table_under_every_bal
         assert slabs, "no table"
         top = max(p[1] + s[1] / 2 for p, s in slabs)
         balls = np.array([esper.component_for_entity(e, Transform).position for e, _ in esper.get_component(SphereCollider)
-                          if esper.has_component(e, Velocity)])            # (the cushions' spheres are fixed)
+                          if esper.has_component(e, Velocity)])            # (the balls: what moves)
         assert len(balls) == 16
         np.testing.assert_allclose(top, balls[:, 1].min() - demo.R, atol=1e-12)       # the balls rest on it
         (p, s), = [(p, s) for p, s in slabs if np.isclose(p[1] + s[1] / 2, top)]

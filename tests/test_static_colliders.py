@@ -166,9 +166,11 @@ def test_shuffled_entity_order_gives_the_same_bits():
 def test_bad_shapes_are_refused_naming_the_value():
     with pytest.raises(ValueError, match=r"PlaneCollider\.normal must be a non-zero vector, got \[0\.0, 0\.0, 0\.0\]"):
         PlaneCollider(normal=(0.0, 0.0, 0.0))
-    with pytest.raises(ValueError, match=r"BoxCollider\.half_extents must be three numbers > 0.*got \[1\.0, -2\.0, 1\.0\]"):
+    with pytest.raises(ValueError,
+                       match=r"BoxCollider\.half_extents must be three numbers > 0.*got \[1\.0, -2\.0, 1\.0\]"):
         BoxCollider(half_extents=(1.0, -2.0, 1.0))
-    with pytest.raises(ValueError, match=r"BoxCollider\.half_extents\[1\] must be three numbers > 0.*\[1\.0, 0\.0, 1\.0\]"):
+    with pytest.raises(ValueError,
+                       match=r"BoxCollider\.half_extents\[1\] must be three numbers > 0.*\[1\.0, 0\.0, 1\.0\]"):
         BoxCollider.bulk(2, half_extents=[(1.0, 1.0, 1.0), (1.0, 0.0, 1.0)])
     with pytest.raises(ValueError, match=r"PlaneCollider\.restitution must be in \[0, 1\], got 1\.5"):
         PlaneCollider(restitution=1.5)
