@@ -8,7 +8,8 @@
   (``solve_all_pairs``: two balls), each alone; and the demo's first step (``make_world`` then one
   ``step``), which with box cushions always calls the solver (no quiet-step test for shapes).
 
-Run: ``python -m benchmarks.static_shapes`` (prints a table; docs/bench/static_shapes.md has figures).
+Run: ``python -m benchmarks.static_shapes`` (``--quick``: one run of each, not three; prints a table;
+docs/bench/static_shapes.md has figures).
 """
 from __future__ import annotations
 
@@ -119,5 +120,5 @@ def main(repeats: int = 3) -> None:
 
 if __name__ == "__main__":
     t0 = time.perf_counter()
-    main()
+    main(1 if "--quick" in sys.argv[1:] else 3)               # --quick: one run of each
     print(f"({time.perf_counter() - t0:.0f} s)")
