@@ -129,7 +129,10 @@ class CollisionEvent:
     ``a``'s surface (world frame, m). ``impulse`` (N s, >= 0) is the size of
     the impulse along ``normal``: ``b`` received ``+impulse * normal`` and
     ``a`` ``-impulse * normal``, so ``b``'s velocity changed by
-    ``impulse * normal / m_b``. ``method`` names the method that resolved it;
+    ``impulse * normal / m_b``. With a static shape (:class:`PlaneCollider`, :class:`BoxCollider`) the
+    normal is the shape's surface normal at the contact (pointing from ``a`` towards ``b``), ``point``
+    where the sphere touches the shape, and the shape's velocity does not change (it is immovable).
+    ``method`` names the method that resolved it;
     ``step`` is the index of the fixed step it happened in. The world keeps
     the events of every step since the last rendered frame (``world.events``)
     and calls subscribers at once (``world.subscribe(CollisionEvent, fn)``).
