@@ -227,3 +227,24 @@ def test_a_shape_moved_between_steps_is_met_where_it_is_now(world):
     (ev,) = seen
     assert ev.time == pytest.approx(0.5 + 0.5 / 6.0, abs=1e-13)    # the face now at x = 4: the centre at 3.5
     assert vel(b)[0] == -6.0
+
+
+def test_prepare_loads_the_static_solver_and_changes_nothing():
+    from driftframe.framework import contact_solve
+    from driftframe.framework.world import World
+
+    hashes = []
+    for prepare in (False, True):
+        world = World()
+        systems(world)
+        world.create_entity(Transform((0.0, 0.0, 0.0)), BoxCollider(half_extents=(0.2, 3.0, 3.0)))
+        world.create_entity(Transform((3.0, 0.0, 0.0)), PlaneCollider(normal=(-1.0, 0.0, 0.0)))
+        for k in range(4):
+            ball(world, (1.0 + 0.4 * k, 0.1 * k, 0.0), (5.0 - 3.0 * k, 0.5, 0.0), r=0.15, e=0.8)
+        if prepare:
+            world.prepare()
+            assert contact_solve.solve_static.signatures and contact_solve.solve_static_stick.signatures
+        world.step(90)
+        hashes.append(world.state_hash())
+        world.close()
+    assert hashes[0] == hashes[1]
