@@ -65,7 +65,7 @@ inp = contact.StepInputs(x, u, np.full(2, 0.5), np.ones(2), np.ones(2), np.ones(
 t = time.process_time()
 if {static}:
     from driftframe.framework.static_shapes import PLANE, SHAPE_COLS
-    from driftframe.framework.static_step import solve_with_shapes
+    from driftframe.systems.static_step import solve_with_shapes
     class Shapes:
         table = np.zeros((1, SHAPE_COLS)); e = np.ones(1); entities = np.array([9]); _buffers = None
         def pairs(self, pi, pj, n):

@@ -85,7 +85,7 @@ restitution, islands and impulses), :mod:`.contact_jam` (the jam path),
 list's), :mod:`.contact_again` (running a step again from its inputs),
 :mod:`.contact_solve` (the event loop and the four solvers compiled from it),
 :mod:`.contact_bodies` (gathering the colliders' state), :mod:`.static_shapes` (a sphere against a
-static plane or box: time of impact and normal) and :mod:`.static_step` (a step with such shapes: they
+static plane or box: time of impact and normal) and :mod:`driftframe.systems.static_step` (a step with such shapes: they
 join the event loop as the last bodies, immovable, in :func:`~.contact_solve.solve_static`, a variant
 compiled only for scenes that have them). This module names
 a step's inputs and outputs (:class:`StepInputs`, :class:`StepResult`,

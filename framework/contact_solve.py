@@ -377,7 +377,7 @@ solve_all_pairs_stick = _solver("solve_all_pairs_stick", ":func:`solve_all_pairs
 # The static-shape variants (planes, boxes: :mod:`.static_shapes`): every pair a candidate, the shapes the
 # last bodies (immovable, not live) and ``lst`` their table. Compiled only for a scene that has shapes.
 solve_static = _solver("solve_static", """:func:`solve_all_pairs` with static shapes: ``lst`` is their
-    ``(m, SHAPE_COLS)`` table and they are the last ``m`` bodies (:mod:`.static_step` arranges it); with
+    ``(m, SHAPE_COLS)`` table and they are the last ``m`` bodies (:mod:`driftframe.systems.static_step` arranges it); with
     F_AGAIN run :func:`solve_static_stick`.""",
                        _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=no_stick, _keep=keep_pairs,
                        _put_back=put_back_pairs, **_SHAPES)

@@ -1,7 +1,7 @@
 """Static planes and boxes against spheres: time of impact, contact normal (compiled kernels).
 
 The solver's static-shape variant (:data:`.contact_solve.solve_static`) takes the shapes as one
-``(m, SHAPE_COLS)`` float table ``S`` (built by :mod:`.static_step`), row ``k``:
+``(m, SHAPE_COLS)`` float table ``S`` (built by :mod:`driftframe.systems.static_step`), row ``k``:
 
 * ``S[k, KIND]``: :data:`PLANE` or :data:`BOX`;
 * ``S[k, 1:4]``: the box's centre (m, world);

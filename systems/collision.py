@@ -58,7 +58,7 @@ from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact, kernels
 from driftframe.framework.quiet_step import gather_quiet, quiet_all_pairs
-from driftframe.framework.static_step import StaticShapes, load, solve_with_shapes
+from driftframe.systems.static_step import StaticShapes, load, solve_with_shapes
 from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
 

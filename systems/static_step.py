@@ -2,10 +2,10 @@
 
 The world's :class:`~driftframe.components.collision.PlaneCollider` and
 :class:`~driftframe.components.collision.BoxCollider` entities become the rows
-of one float table (:mod:`.static_shapes` gives its layout), in ascending
+of one float table (:mod:`driftframe.framework.static_shapes` gives its layout), in ascending
 entity id across both kinds, so that the result does not depend on the order
 they were made in. The solver's static variant
-(:data:`~.contact_solve.solve_static`) takes them as its last bodies:
+(:data:`~driftframe.framework.contact_solve.solve_static`) takes them as its last bodies:
 immovable (inverse mass 0), not live (no sphere-sphere code reads them), a
 pair with every sphere after the spheres' own pairs. A scene with no shapes
 never imports the variant (:meth:`StaticShapes.of` is None), so it pays no
