@@ -214,7 +214,6 @@ def record(world: World, path: str | os.PathLike[str], *, frames: int, fps: floa
         except BaseException:
             sink.abort()
             raise
-        world.prepare()                         # the first step's one-time work before the first frame (no state)
         t0 = time.perf_counter()
         try:
             done, stopped_by, final = _write(world, plan, sink, tmp, grab, stop, before_step=before_step,
