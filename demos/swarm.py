@@ -1,4 +1,10 @@
 """swarm — thousands of colliding asteroids around the ship: the scale the framework holds."""
+import dataclasses
+
+import esper
+
+from driftframe.components.camera import Camera
+from driftframe.components.collision import SphereCollider
 from driftframe.demos.parts import asteroid_field, chase_camera, ship
 from driftframe.framework.input import Hold, Press, Track
 
@@ -17,5 +23,10 @@ SCRIPT = Track((
 
 def build(world, rng):
     me = ship(world, mode="momentum")
-    chase_camera(world, me, mode="chase", fov=50.0, overhead_height=150.0)   # see asteroids.py
-    asteroid_field(world, rng, COUNT, inner=10.0, outer=160.0, radii=(0.4, 2.5), speed=2.0)
+    cam = chase_camera(world, me, mode="chase", fov=50.0, overhead_height=150.0)   # see asteroids.py
+    rocks = asteroid_field(world, rng, COUNT, inner=10.0, outer=160.0, radii=(0.4, 2.5), speed=2.0)
+    # from overhead (--camera overhead) the eye stands over the ship and the whole field, as asteroids.py's
+    # does (the camera is made first, so the bodies' entity ids, and the physics, stay as they were)
+    radii = world.columns(SphereCollider, rocks).radius
+    view = esper.component_for_entity(cam, Camera)
+    world.add_component(cam, dataclasses.replace(view, frame=tuple(zip(rocks, radii.tolist()))))

@@ -253,3 +253,47 @@ def test_billiards_frame_shows_felt_between_the_balls(ctx):
         assert render.stats["levels"].get("box[0]") == 6          # the felt, the frame, four rails: one box mesh
     finally:
         world.close()
+
+
+def _spheres_in_picture(eye: Transform, cam: Camera, centres, radii, size) -> tuple[np.ndarray, float]:
+    """Which spheres lie wholly inside the picture of ``size`` seen from ``eye`` (between its four side planes,
+    beyond the near plane), and the largest share of the half-height any of them reaches.
+
+    In the eye's axes (x right, y up, z forward) the top plane is y = t z (t = tan(fov / 2)): a sphere of
+    radius r is inside it when (t z - y) / sqrt(1 + t^2) >= r; the sides likewise with t times the aspect.
+    """
+    local = (np.asarray(centres) - eye.position) @ fr.quat_to_matrix(eye.orientation)
+    t_y = np.tan(np.radians(cam.fov) / 2)
+    t_x = t_y * size[0] / size[1]
+    inside = local[:, 2] - radii > cam.near
+    for k, t in ((0, t_x), (1, t_y)):
+        inside &= (t * local[:, 2] - np.abs(local[:, k])) / np.sqrt(1 + t * t) >= radii
+    reach = float(np.max((np.abs(local[:, 1]) + radii) / (t_y * local[:, 2])))
+    return inside, reach
+
+
+def test_swarm_overhead_camera_keeps_the_ship_and_all_3000_rocks_in_the_picture():
+    """As the asteroids' overhead view (Camera.frame): the eye stands over the whole field, looking straight
+    down, near enough that the field fills most of the picture's height; at 150 m over the ship (before) it
+    stood inside the field, rocks behind it and beside it."""
+    world, demo = make_world("swarm", seed=0)
+    try:
+        world.activate()
+        (cam_ent, cam), = esper.get_component(Camera)
+        ids = [e for e, _ in cam.frame]
+        assert len(ids) == demo.COUNT and cam.target not in ids
+        done = 0
+        for seconds in (0.0, 4.0, 8.0, 11.9):         # the ship's burn, turn and second burn (it leaves the field)
+            world.step(round(seconds / world.dt) - done)
+            done = round(seconds / world.dt)
+            cs.switch_camera(world, "overhead", camera=cam_ent)
+            eye = esper.component_for_entity(cam_ent, Transform)
+            np.testing.assert_allclose(fr.rotate(eye.orientation, fr.FORWARD), [0.0, -1.0, 0.0], atol=1e-12)
+            centres = np.vstack([world.columns(Transform, ids).position,
+                                 esper.component_for_entity(cam.target, Transform).position])
+            radii = np.append(world.columns(SphereCollider, ids).radius, 0.0)
+            inside, reach = _spheres_in_picture(eye, cam, centres, radii, (640, 360))
+            assert inside.all(), f"{(~inside).sum()} of {len(inside)} bodies out of the picture at {seconds} s"
+            assert reach > 0.6, f"the field fills only {reach:.0%} of the half-height at {seconds} s: too far"
+    finally:
+        world.close()
