@@ -61,3 +61,26 @@ def gather_quiet(pos, vel, acc, kg, rad, rest, idx, dt, b3, a, b1, live, pairs):
     if bad == 0 and moving:
         quiet = quiet_all_pairs(x, u, r, inv, live, pairs[0], pairs[1], dt)
     return bad, moving, quiet
+
+
+@kernel(error_model="numpy", no_cfunc_wrapper=True)
+def write_changed(changed, t_idx, v_idx, x, u, a, dt, pos, vel):
+    """The end of the step of each body ``k`` a contact changed (``changed[k]``) that has a Velocity
+    (``v_idx[k] >= 0``), into the step context: ``pos[t_idx[k]] = x[k] + u[k] dt`` (m) and
+    ``vel[v_idx[k]] = u[k] + (dt/2) a[k]`` (m/s; ``u[k]`` where ``a`` has no rows: no body accelerates),
+    the same operations in the same order as numpy's on those rows, so the same bits. The contact step of
+    a small scene otherwise spends more in numpy's fancy indexing (eight calls, each tens of microseconds
+    with cold caches) than in its solver. Returns how many bodies it wrote."""
+    h = 0.5 * dt
+    has_a = a.shape[0] > 0
+    done = 0
+    for k in range(changed.shape[0]):
+        if not changed[k] or v_idx[k] < 0:
+            continue
+        t, v = t_idx[k], v_idx[k]
+        for c in range(3):
+            uc = u[k, c]
+            pos[t, c] = x[k, c] + uc * dt
+            vel[v, c] = uc + h * a[k, c] if has_a else uc
+        done += 1
+    return done

@@ -57,7 +57,7 @@ from driftframe.components.collision import BoxCollider, CollisionEvent, PlaneCo
 from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact, kernels
-from driftframe.framework.quiet_step import gather_quiet, quiet_all_pairs
+from driftframe.framework.quiet_step import gather_quiet, quiet_all_pairs, write_changed
 from driftframe.systems.static_step import StaticShapes, load, solve_with_shapes
 from driftframe.framework.step import StepContext, advance
 from driftframe.framework.store import as_index, in_sorted, to_indices
@@ -365,7 +365,10 @@ class CollisionSystem(esper.Processor):
         elif n >= 2 and st.bad(lay) is None:
             self._build_list(lay, st, dt)
         t_last = self._t_last_of(lay)
-        self._unchanged(n)
+        # the contact step's end-of-step writer, loaded now (numba loads a kernel at its first call); all
+        # False: it writes nothing
+        write_changed(self._unchanged(n), lay.t_idx, lay.v_idx, st.x, st.u, st.a if st.a is not None else _NO_N3,
+                      float(dt), _NO_N3, _NO_N3)
         if self._shapes is not None and st.bad(lay) is None and self.method == "continuous":
             load(self._inputs(st, t_last, dt, *self._all_pairs(n)), self._shapes.refresh())
         elif n >= 2 and st.bad(lay) is None and self.method == "continuous":
@@ -557,12 +560,10 @@ class CollisionSystem(esper.Processor):
             self._write(lay, x1, v1, dt)
         if changed is self._none_changed:
             return
-        k = np.flatnonzero(changed & (lay.v_idx >= 0))
-        if not len(k):
-            return
-        u = st.u[k]
-        ctx.position[lay.t_idx[k]] = st.x[k] + u * dt
-        ctx.velocity[lay.v_idx[k]] = u + (0.5 * dt) * st.a[k] if st.a is not None else u
+        # one compiled pass over the changed bodies (quiet_step.write_changed: numpy's fancy indexing was
+        # most of a small scene's contact step); the velocities are opened first, as a write to them does
+        write_changed(changed, lay.t_idx, lay.v_idx, st.x, st.u, st.a if st.a is not None else _NO_N3, float(dt),
+                      ctx.position, ctx.open_velocity())
 
     def _t_last_of(self, lay: _Layout) -> np.ndarray:
         """The last contact of each body of the layout (absolute time, s; -inf: none yet), kept across
