@@ -309,6 +309,7 @@ class CollisionSystem(esper.Processor):
         self.stats = dict(_ZERO_STATS)
         self._quiet_stats = -1                       # n of the last quiet step, whose counts stats holds
         self._quick: tuple | None = None             # the shortest path's call, kept (see _quick_path)
+        self._solver_entry = None                    # the all-pairs solver's entry point (_all_pairs_solver)
         self._shapes: StaticShapes | None = None     # static planes and boxes, when the world has any (_refresh)
 
     @property
@@ -424,6 +425,8 @@ class CollisionSystem(esper.Processor):
         for solve in solvers if float(st.e.min()) < 1.0 else solvers[:1]:
             if hasattr(solve, "compile"):                  # (a plain function under NUMBA_DISABLE_JIT)
                 solve.compile(tuple(solve.typeof_pyval(a) for a in args))
+        if not listed:
+            self._solver_entry = kernels.entry(solvers[0], args)     # (typing 14 arguments: not in a step)
 
     def _uses_list(self, n: int) -> bool:
         """Whether a step of ``n`` colliders takes its candidate pairs from the neighbour list."""
@@ -635,8 +638,9 @@ class CollisionSystem(esper.Processor):
         now = self._now()
         t_last = self._t_last_of(lay)                      # absolute: the kernel makes it relative to now
 
-        if shapes is not None:
-            res = solve_with_shapes(self._inputs(st, t_last, dt, *self._all_pairs(n)), shapes.refresh(), self._stick)
+        if shapes is not None:       # spheres overlapping a shape at spawn: reported once (static_step)
+            shapes.refresh().report_overlaps(lay.entities, x, r, live & (inv > 0.0), now)
+            res = solve_with_shapes(self._inputs(st, t_last, dt, *self._all_pairs(n)), shapes, self._stick)
             self._stick = res.stick
             self._result(lay, st, res, dt, [*lay.entities.tolist(), *shapes.entities.tolist()])
             return
@@ -669,10 +673,30 @@ class CollisionSystem(esper.Processor):
                 lst = self._lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order,
                                                        lo_x, float(width), int(nl.budget), self._tosweep,
                                                        self._newlo, self._newhi)
-        res = contact.solve_step(contact.StepInputs(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c,
-                                                    self.max_contacts, lst), stick=self._stick)
+        inputs = contact.StepInputs(x, u, r, inv, e, live, t_last, float(now), pi, pj, float(dt), float(t_c),
+                                    self.max_contacts, lst)
+        if lst is None and not self._stick:
+            out = self._all_pairs_solver(inputs)(*inputs)
+            if not out[5] & contact.F_AGAIN:
+                self._result(lay, st, out, dt)
+                return
+            res = contact.solve_step(inputs, stick=True)     # (as solve_step does: the inputs came back as they were)
+        else:
+            res = contact.solve_step(inputs, stick=self._stick)
         self._stick = res.stick                              # after a jam, the variant with the jam path
         self._result(lay, st, res, dt)
+
+    def _all_pairs_solver(self, inputs: contact.StepInputs):
+        """The all-pairs solver's compiled entry point (kernels.entry), made at its first call: the few bodies'
+        contact step calls it past numba's dispatch and past :func:`contact.solve_step`'s result records
+        (with cold caches, as a contact step among quiet ones runs, the dispatch of its 14 arguments and the
+        records cost about 40 us, the solver itself about 45). Its arguments always have these types: the
+        state's float64 and bool arrays (C order), the pairs' int64 rows, ``now``, ``dt``, ``t_c`` as floats
+        (made so in :meth:`_continuous`), ``cap`` an int, ``lst`` None."""
+        entry = self._solver_entry
+        if entry is None:
+            entry = self._solver_entry = kernels.entry(contact.solvers(False)[0], tuple(inputs))
+        return entry
 
     def _inputs(self, st: State, t_last: np.ndarray, dt: float, pi: np.ndarray, pj: np.ndarray):
         """A step's inputs on the all-pairs path (the static shapes' step)."""
@@ -686,29 +710,32 @@ class CollisionSystem(esper.Processor):
 
     def _result(self, lay: _Layout, st: State, res, dt: float, ents: list | None = None) -> None:
         """A solved step's stats, flags, end of step and events (``ents``: the entity of each kernel body,
-        when not the layout's: the static shapes' step)."""
+        when not the layout's: the static shapes' step). ``res``: a :class:`contact.StepResult`, or the
+        solver's own 6-tuple (the same first six fields, the stats as the solver's array)."""
         n = lay.n
-        changed, s, flags = res.changed, res.stats, res.flags
-        ev, ev_n, ev_x = res.events, res.normals, res.points
+        changed, ev, ev_n, ev_x, s, flags = res[:6]
+        if not isinstance(s, tuple):
+            s = s.tolist()                                   # (indexed by contact.S_*: StepStats's order)
         st_ = self.stats
-        st_["pairs"], st_["contacts"], st_["waves"] = int(s.pairs), int(s.contacts), int(s.waves)
-        if s.swept:
-            st_["swept"] += int(s.swept)
-        if s.overlaps or s.sequential:
-            st_["overlaps"], st_["sequential"] = int(s.overlaps), int(s.sequential)
+        contacts, waves, overlaps = s[contact.S_CONTACTS], s[contact.S_WAVES], s[contact.S_OVERLAPS]
+        st_["pairs"], st_["contacts"], st_["waves"] = int(s[contact.S_PAIRS]), int(contacts), int(waves)
+        if s[contact.S_SWEPT]:
+            st_["swept"] += int(s[contact.S_SWEPT])
+        if overlaps or s[contact.S_SEQUENTIAL]:
+            st_["overlaps"], st_["sequential"] = int(overlaps), int(s[contact.S_SEQUENTIAL])
         if flags:
             if flags & contact.F_REBUILD:
                 self._list_dirty = True
             self._flags(flags, lay)
-        if s.overlaps and self._reported_overlap is not lay:
+        if overlaps and self._reported_overlap is not lay:
             self._reported_overlap = lay
-            i, j = int(s.worst_i), int(s.worst_j)
-            warnings.warn(f"collision: {int(s.overlaps)} pairs of spheres overlap at t = {self._now()!r} s; the "
+            i, j = int(s[contact.S_WORST_I]), int(s[contact.S_WORST_J])
+            warnings.warn(f"collision: {int(overlaps)} pairs of spheres overlap at t = {self._now()!r} s; the "
                           f"deepest: entities {int(lay.entities[i])} and {int(lay.entities[j])}, centres "
-                          f"{s.worst:.6g} of r_a + r_b apart. Pairs that approach bounce at once, the "
+                          f"{s[contact.S_WORST]:.6g} of r_a + r_b apart. Pairs that approach bounce at once, the "
                           f"rest separate (use driftframe.framework.placement to place bodies apart)",
                           RuntimeWarning, stacklevel=4)
-        if not (s.contacts or s.waves or flags):
+        if not (contacts or waves or flags):
             changed = self._unchanged(n)                    # no contact, no wave, no flag: nothing changed
         self._finish(lay, st, changed, dt)
         if len(ev) and self.events and self.world is not None:
