@@ -410,10 +410,7 @@ class CollisionSystem(esper.Processor):
         kernel at its first call, and the jam variant's first call came in the step that first jams
         (about 15 ms there). Types only: nothing is solved."""
         if listed:
-            nl = self._list
-            centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
-            lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width),
-                                       int(nl.budget), self._tosweep, self._newlo, self._newhi)
+            lst = self._listed()                             # (made here, not in the first step that needs it)
             pi, pj = self._pi, self._pj
         else:
             lst = None
@@ -427,6 +424,16 @@ class CollisionSystem(esper.Processor):
                 solve.compile(tuple(solve.typeof_pyval(a) for a in args))
         if not listed:
             self._solver_entry = kernels.entry(solvers[0], args)     # (typing 14 arguments: not in a step)
+
+    def _listed(self) -> contact.ListedArrays:
+        """The neighbour list's arrays a listed step's solver takes (:class:`contact.ListedArrays`): made once
+        a build, kept until the next."""
+        if self._lst is None:
+            nl = self._list
+            centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
+            self._lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order, lo_x,
+                                             float(width), int(nl.budget), self._tosweep, self._newlo, self._newhi)
+        return self._lst
 
     def _uses_list(self, n: int) -> bool:
         """Whether a step of ``n`` colliders takes its candidate pairs from the neighbour list."""
@@ -449,7 +456,7 @@ class CollisionSystem(esper.Processor):
         self._tosweep = np.empty(n, np.int64)               # the kernel's scratch for bodies swept mid-step
         self._newlo = np.empty((n, 3))
         self._newhi = np.empty((n, 3))
-        self._lst = None                                    # ListedArrays of this build (made at its first step)
+        self._lst = None                                    # ListedArrays of this build (made at its first use)
 
     def _now(self) -> float:
         return self.world.time if self.world is not None else 0.0
@@ -667,12 +674,7 @@ class CollisionSystem(esper.Processor):
                 self.stats["pairs"] = len(pi)
                 self._finish(lay, st, self._unchanged(n), dt)
                 return
-            lst = self._lst
-            if lst is None:                                  # the list's arrays: the same until its next build
-                centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
-                lst = self._lst = contact.ListedArrays(nl.swept, self._blo, self._bhi, centre, skin, reach, order,
-                                                       lo_x, float(width), int(nl.budget), self._tosweep,
-                                                       self._newlo, self._newhi)
+            lst = self._lst or self._listed()
         inputs = contact.StepInputs(x, u, r, inv, e, live, t_last, float(now), pi, pj, float(dt), float(t_c),
                                     self.max_contacts, lst)
         if lst is None and not self._stick:
