@@ -101,6 +101,9 @@ class Drift:
                                SphereCollider.bulk(n, radius=r, restitution=e))
         self.w.prepare()
         self.step = self.w.step
+        from driftframe.systems.collision import CollisionSystem
+        (cs,) = [s for stage in self.w.systems.values() for s in stage if isinstance(s, CollisionSystem)]
+        self.contacts = lambda: cs.stats["contacts"]     # (read after a step, outside its timing)
 
     def close(self):
         self.w.close()
@@ -126,11 +129,25 @@ def clock_cost(n: int = 20000) -> tuple[int, int]:
     return int(statistics.median(c)), int(statistics.median(w))
 
 
-def timed_steps(step, k: int, cpu_out: list, wall_out: list, cost: tuple[int, int]) -> None:
-    """``k`` calls of ``step``, each one's CPU and wall nanoseconds (less the clocks' own cost) appended."""
+#: collections of Python's cyclic garbage collector so far (counted by _count_gc once main() has hooked it)
+GC_RUNS = [0]
+
+
+def _count_gc(phase: str, info: dict) -> None:
+    if phase == "stop":
+        GC_RUNS[0] += 1
+
+
+def timed_steps(step, k: int, cpu_out: list, wall_out: list, cost: tuple[int, int], gc_out: list | None = None,
+                contacts=None) -> None:
+    """``k`` calls of ``step``, each one's CPU and wall nanoseconds (less the clocks' own cost) appended, and to
+    ``gc_out`` whether the garbage collector ran during it and ``contacts()`` after it (-1: no ``contacts``),
+    both read outside the timed span."""
     cpu, wall = time.thread_time_ns, time.perf_counter_ns
     c0, w0 = cost
+    runs = GC_RUNS
     for _ in range(k):
+        g = runs[0]
         c = cpu()
         w = wall()
         step()
@@ -138,22 +155,25 @@ def timed_steps(step, k: int, cpu_out: list, wall_out: list, cost: tuple[int, in
         c = cpu() - c
         cpu_out.append(max(c - c0, 0))
         wall_out.append(max(w - w0, 0))
+        if gc_out is not None:
+            gc_out.append((runs[0] != g, contacts() if contacts is not None else -1))
 
 
 def run_scene(make, steps: int, rounds: int, block: int, engines: list[str], cost) -> dict:
     """The rounds of one scene (see the module docstring): per engine, per-step CPU and wall (ns)."""
-    out = {k: {"cpu": [], "wall": [], "first_cpu": [], "first_wall": [], "mean_cpu": [], "mean_wall": []}
+    out = {k: {"cpu": [], "wall": [], "gc": [], "first_cpu": [], "first_wall": [], "mean_cpu": [], "mean_wall": []}
            for k in engines}
     for rnd in range(rounds):
         scene = make()
         order = engines if rnd % 2 == 0 else engines[::-1]
         sims = {k: (Drift if k == "driftframe" else Bullet)(scene) for k in order}
         run = {k: ([], []) for k in order}
+        gcs = {k: [] for k in order}
         done = 0
         while done < steps:
             k_steps = min(block, steps - done)
             for k in order:
-                timed_steps(sims[k].step, k_steps, *run[k], cost)
+                timed_steps(sims[k].step, k_steps, *run[k], cost, gcs[k], getattr(sims[k], "contacts", None))
             done += k_steps
         for k in order:
             cpu, wall = run[k]
@@ -162,12 +182,16 @@ def run_scene(make, steps: int, rounds: int, block: int, engines: list[str], cos
             o["first_wall"].append(wall[0])
             o["cpu"] += cpu[1:]
             o["wall"] += wall[1:]
+            o["gc"] += gcs[k][1:]
             o["mean_cpu"].append(sum(cpu) / len(cpu))
             o["mean_wall"].append(sum(wall) / len(wall))
             sims[k].close()
     res = {}
     for k, o in out.items():
-        res[k] = {"median_cpu": statistics.median(o["cpu"]), "worst_cpu": max(o["cpu"]),
+        worst = max(range(len(o["cpu"])), key=o["cpu"].__getitem__)
+        res[k] = {"median_cpu": statistics.median(o["cpu"]), "worst_cpu": o["cpu"][worst],
+                  "gc_steps": sum(g for g, _ in o["gc"]), "steps": len(o["gc"]), "worst_gc": o["gc"][worst][0],
+                  "worst_contacts": o["gc"][worst][1],
                   "median_wall": statistics.median(o["wall"]), "worst_wall": max(o["wall"]),
                   "first_cpu": statistics.median(o["first_cpu"]), "first_wall": statistics.median(o["first_wall"]),
                   "mean_cpu": statistics.median(o["mean_cpu"]), "mean_wall": statistics.median(o["mean_wall"])}
@@ -219,6 +243,8 @@ def main(argv=None) -> int:
     engines = ["driftframe"] + (["pybullet"] if bullet else [])
     rounds = 2 if args.quick else 9
     load = [os.getloadavg()]
+    import gc
+    gc.callbacks.append(_count_gc)
     warnings.simplefilter("ignore", RuntimeWarning)    # (the cradle's and the rack's touching balls)
     # load every kernel a small scene runs before timing (the cold start is startup's question, not this one)
     for _, _, make, _ in SCENES:
@@ -273,6 +299,18 @@ def report(res, bullet, cost, rounds, load, quick, started) -> None:
     table = common.table(["scene", "driftframe us CPU: median / worst / first / mean (first included)",
                           "pybullet us CPU: the same", "median wall us: driftframe / pybullet",
                           "CPU ratio: median", "mean (first included)", "first"], rows)
+    # what each scene's worst step was (issue 24): a step with contacts or a quiet one, and whether Python's
+    # cyclic garbage collector ran in it; and how many timed steps of each engine it ran in
+    worst_lines = []
+    for key, label, _, _ in SCENES:
+        d = res[key]["driftframe"]
+        p = res[key].get("pybullet")
+        kind = f"a step with {d['worst_contacts']} contact{'s' if d['worst_contacts'] != 1 else ''}" \
+            if d["worst_contacts"] > 0 else "a step without contact"
+        worst_lines.append(f"{label}: driftframe's worst ({_us(d['worst_cpu'])} us) was {kind}"
+                           f"{', with a collection' if d['worst_gc'] else ', no collection in it'}; the collector "
+                           f"ran in {d['gc_steps']} of its {d['steps']} timed steps"
+                           + (f", in {p['gc_steps']} of pybullet's {p['steps']}" if p else ""))
     st = dict(res["stages"])
     whole = st.pop("step")
     empty_ns, empty_called = res["empty"]
@@ -293,6 +331,23 @@ same run) is taken off every step. Load average (1, 5, 15 min) before -> after: 
 {table}
 
 {chr(10).join('- ' + v for v in verdicts)}
+
+The worst steps (issue 24's question: what is a small scene's worst step made of?):
+
+{chr(10).join('- ' + v for v in worst_lines)}
+
+A small scene's worst step is its contact step (the solver's one call among quiet steps): its code and data
+are out of the CPU's caches when it comes, after pybullet's block and many steps that do not run it. In a
+probe (the head-on pair's contact step, CPU time, one process): about 25 us when the same step has just run,
+about 160-260 us after pybullet's 5 steps or after touching 64 MB of other data; no page fault (getrusage) and no
+collection in it (gc.callbacks). That step's numpy fancy indexing (the changed bodies' end of step) and the
+solver's dispatch and result records were most of the difference and are compiled calls now (quiet_step.
+write_changed, the solver's entry point); the solver's own code (about 45 us cold) remains. A quiet step
+costs 80-95 us after the same eviction: every step pays for cold caches, the contact step most. Python's
+garbage collector: a step of these scenes makes no lasting object (1,000 quiet steps: 4 net container
+allocations), so the collector runs in a step only when work outside the steps (building and closing the
+rounds' worlds, 100-150 objects in reference cycles each) has filled its first generation; then that step
+pays for it (86-284 us measured). The lines above say whether it happened in this run.
 
 Where a step of the head-on pair goes (wall time, us, median of {STAGE_STEPS} steps after the first):
 `world.step()` {whole:.3g}, of which {where} (the profile's lines of the systems that ran: those with
