@@ -42,6 +42,13 @@ from benchmarks import common
 from benchmarks import stress_scenes as S
 
 DT = 1.0 / 60.0
+#: collections of Python's cyclic garbage collector so far (counted once main() has hooked _count_gc)
+GC_RUNS = [0]
+
+
+def _count_gc(phase: str, info: dict) -> None:
+    if phase == "stop":
+        GC_RUNS[0] += 1
 
 
 class Drift:
@@ -71,11 +78,13 @@ class Drift:
     def step(self):
         with warnings.catch_warnings(record=True) as rec:
             warnings.simplefilter("always")
+            g = GC_RUNS[0]
             c = time.thread_time()
             t = time.perf_counter()
             self.w.step()
             el = time.perf_counter() - t
             self.cpu = time.thread_time() - c
+            self.gc = GC_RUNS[0] != g              # (whether the garbage collector ran in the step)
         self.warnings += rec
         self.contacts.append(self.cs.stats["contacts"])
         self.most = max(self.most, self.cs.stats["contacts"])
@@ -101,11 +110,13 @@ class Bullet:
         self.r = r
 
     def step(self):
+        g = GC_RUNS[0]
         c = time.thread_time()
         t = time.perf_counter()
         self.pb.stepSimulation(physicsClientId=self.cid)
         el = time.perf_counter() - t
         self.cpu = time.thread_time() - c
+        self.gc = GC_RUNS[0] != g
         return el
 
     def velocities(self):
@@ -153,6 +164,7 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
     most = 0
     contacts = []                           # driftframe's contacts of each step, per run
     rise, change, over = {}, {}, {}
+    tags = {}                               # per step: (the garbage collector ran in it, driftframe's contacts)
     for rep in range(repeats):
         scene = make()
         # pybullet's world is built first, so driftframe's first step follows its world.prepare() as in a
@@ -178,6 +190,7 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
                 for _ in range(min(block, steps - done)):
                     run_t[k].append(s.step())
                     cpu.setdefault(k, []).append(s.cpu)
+                    tags.setdefault(k, []).append((s.gc, s.contacts[-1] if k == "driftframe" else -1))
                     if energy:
                         e = kinetic(s)
                         rise[k] = max(rise.get(k, 0.0), (e - last[k]) / k0[k] if k0[k] else 0.0)
@@ -205,7 +218,9 @@ def run_scene(make, steps, *, bullet=True, block=10, energy=False, overlap=False
                "p99": float(np.percentile(t, 99)), "first": float(t[0]),
                "first_med": float(np.median(firsts[k])), "first_worst": float(np.max(firsts[k])),
                "cpu_mean": float(np.mean(cpu[k])), "cpu_worst": float(np.max(cpu[k])),
-               "cpu_first": float(np.median(cpu_first[k]))} for k, t in times.items()}
+               "cpu_first": float(np.median(cpu_first[k])),
+               "gc_steps": sum(g for g, _ in tags[k]), "worst_tag": tags[k][int(np.argmax(cpu[k]))]}
+           for k, t in times.items()}
     for k in times:
         if energy:
             out[k]["rise"] = rise[k]
@@ -384,7 +399,7 @@ def only(keys: list, rows: dict) -> int:
         d, p = r["driftframe"], r.get("pybullet", {})
         print(f"{key}: median {_ms(d['median'])} ms, mean {_ms(d['mean'])}, first {_ms(d['first_med'])} "
               f"({d['first_med'] / d['median']:.2f}x the median; contacts {d['contacts_first']:g} against "
-              f"{d['contacts_median']:g}), worst CPU {_ms(d['cpu_worst'])}; pybullet mean "
+              f"{d['contacts_median']:g}), worst CPU {_ms(d['cpu_worst'])} ({_tag(d['worst_tag'])}); pybullet mean "
               f"{_ms(p.get('mean', math.nan))}, worst CPU {_ms(p.get('cpu_worst', math.nan))}: worst "
               f"{d['cpu_worst'] / p.get('cpu_worst', math.nan):.2f}x pybullet's")
     return 0
@@ -396,6 +411,8 @@ def main(argv=None) -> int:
                         "(no report): gas0.3, gas0.45, conv0.0, conv0.5, field50 ... field100000, head_on, struck, "
                         "fast, jammed, mixed, tunnel, graze, break16, rebuild1000")
     args = parser.parse_args(argv)
+    import gc
+    gc.callbacks.append(_count_gc)
     q = args.quick
     started = time.perf_counter()
     bullet = common.have_pybullet()
@@ -442,6 +459,13 @@ def main(argv=None) -> int:
 
 def _ms(x):
     return f"{x * 1e3:.3g}"
+
+
+def _tag(tag) -> str:
+    """A step's ``(collector ran, contacts)`` (run_scene's ``worst_tag``) in words."""
+    ran, contacts = tag
+    what = "" if contacts < 0 else (f"{contacts} contact{'s' if contacts != 1 else ''}" if contacts else "no contact")
+    return ", ".join(x for x in (what, "a collection in it" if ran else "no collection") if x)
 
 
 def report(res, quick, bullet, started):
@@ -579,7 +603,9 @@ def report(res, quick, bullet, started):
         row = [name, f"{_ms(d['cpu_worst'])} / {_ms(d['worst'])}", f"{_ms(d['cpu_mean'])} / {_ms(d['mean'])}",
                _ms(d["cpu_first"]), f"{_ms(p.get('cpu_worst', math.nan))} / {_ms(p.get('worst', math.nan))}",
                f"{_ms(p.get('cpu_mean', math.nan))} / {_ms(p.get('mean', math.nan))}",
-               _ms(p.get("cpu_first", math.nan)), f"{ratio:.2f}", bar(f"worst step {name}", ratio <= 2.0, text)]
+               _ms(p.get("cpu_first", math.nan)), f"{ratio:.2f}",
+               f"{_tag(d['worst_tag'])}; {d['gc_steps']} / {p.get('gc_steps', 0)}",
+               bar(f"worst step {name}", ratio <= 2.0, text)]
         if key == "jammed":                        # first contact steps: at most 2x pybullet's first step
             fr = d["cpu_first"] / p.get("cpu_first", math.nan)
             row[-1] += "; first step " + bar("first step of the jammed clump", fr <= 2.0,
@@ -587,7 +613,9 @@ def report(res, quick, bullet, started):
         worst_rows.append(row)
     worst_table = common.table(["scene", "driftframe worst ms: CPU / wall", "mean: CPU / wall", "first, CPU",
                                 "pybullet worst: CPU / wall", "mean: CPU / wall", "first, CPU",
-                                "worst / pybullet's worst (CPU)", "worst <= 2x pybullet's"], worst_rows)
+                                "worst / pybullet's worst (CPU)",
+                                "driftframe's worst step; steps with a collection: driftframe / pybullet",
+                                "worst <= 2x pybullet's"], worst_rows)
     first_table = common.table(["scene", "first step ms (median of the runs)", "worst first step", "median step ms",
                                 "first / median", "contacts: first step / median step", "first <= 2x median"],
                                first_rows)
@@ -612,7 +640,11 @@ the step itself cost).
 
 The worst cases (issue 24): scenes of each class the outside measurement found slow, each run
 {reps} times interleaved with pybullet; worst and mean step over all the runs, the first step the median
-of the runs. The bar is on the worst step in CPU time (the machine is shared).
+of the runs. The bar is on the worst step in CPU time (the machine is shared). Beside it, what driftframe's
+worst step was (its contacts, and whether Python's cyclic garbage collector ran in it) and in how many
+steps of each engine the collector ran (gc.callbacks, read outside the timed span). The small rows' worst
+step is their contact step, the solver's one call among quiet steps, run with its code and data out of the
+CPU's caches (after pybullet's block); small_scenes.md gives the probe's figures.
 
 {worst_table}
 
@@ -624,9 +656,14 @@ sparse grid's cells are found in a hash table with a bitmap of occupied cells, n
 
 First step after `world.prepare()` (issue 20): the first step of each run from a fresh scene (the world
 prepared as a game does when a level has loaded, then stepped at once), the median over the runs, against the
-scene's median step. prepare() builds the list and rehearses the first step's solver on copies, so what is
-left is cold CPU caches for the step's code and data (a tiny step's fixed cost: a few microseconds of cache
-misses is 2-4x its median) and the scene's own work: a gas starts with its busiest steps (the contacts column).
+scene's median step. prepare() builds the list and its solver's arrays, loads the kernels and rehearses the
+first step's solver on copies, so the first step does no work the second does not: sys.setprofile over a
+prepared world's first three steps finds the same calls in each (the head-on pair: 25, 23, 23, the two more a
+len and a dict update; the 200 converging: the same calls). What is left is cold CPU caches for the step's
+code and data: no page fault (getrusage) and no collection in it, and any step run after 64 MB of other data
+costs as much as the first (the head-on pair: 84-95 us, against 4.5 us warm and 23 us first after
+prepare()); a tiny step's few microseconds make that 2-7x its median. And the scene's own work: a gas starts
+with its busiest steps (the contacts column).
 
 {first_table}
 
