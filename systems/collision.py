@@ -675,26 +675,27 @@ class CollisionSystem(esper.Processor):
                 self._finish(lay, st, self._unchanged(n), dt)
                 return
             lst = self._lst or self._listed()
-        inputs = contact.StepInputs(x, u, r, inv, e, live, t_last, float(now), pi, pj, float(dt), float(t_c),
-                                    self.max_contacts, lst)
+        args = (x, u, r, inv, e, live, t_last, float(now), pi, pj, float(dt), float(t_c), self.max_contacts, lst)
         if lst is None and not self._stick:
-            out = self._all_pairs_solver(inputs)(*inputs)
+            out = self._all_pairs_solver(args)(*args)
             if not out[5] & contact.F_AGAIN:
                 self._result(lay, st, out, dt)
                 return
-            res = contact.solve_step(inputs, stick=True)     # (as solve_step does: the inputs came back as they were)
+            # (as solve_step does: the step again with the jam path; its inputs came back as they were)
+            res = contact.solve_step(contact.StepInputs(*args), stick=True)
         else:
-            res = contact.solve_step(inputs, stick=self._stick)
+            res = contact.solve_step(contact.StepInputs(*args), stick=self._stick)
         self._stick = res.stick                              # after a jam, the variant with the jam path
         self._result(lay, st, res, dt)
 
-    def _all_pairs_solver(self, inputs: contact.StepInputs):
-        """The all-pairs solver's compiled entry point (kernels.entry), made at its first call: the few bodies'
-        contact step calls it past numba's dispatch and past :func:`contact.solve_step`'s result records
+    def _all_pairs_solver(self, inputs: tuple):
+        """The all-pairs solver's compiled entry point (kernels.entry), made in prepare() or at its first call:
+        the few bodies' contact step calls it past numba's dispatch and past :func:`contact.solve_step`'s records
         (with cold caches, as a contact step among quiet ones runs, the dispatch of its 14 arguments and the
         records cost about 40 us, the solver itself about 45). Its arguments always have these types: the
         state's float64 and bool arrays (C order), the pairs' int64 rows, ``now``, ``dt``, ``t_c`` as floats
-        (made so in :meth:`_continuous`), ``cap`` an int, ``lst`` None."""
+        (made so in :meth:`_continuous`), ``cap`` an int, ``lst`` None (``inputs``: :class:`contact.StepInputs`'s
+        fields, in its order)."""
         entry = self._solver_entry
         if entry is None:
             entry = self._solver_entry = kernels.entry(contact.solvers(False)[0], tuple(inputs))
