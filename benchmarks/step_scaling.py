@@ -228,9 +228,9 @@ def time_interleaved(worlds: dict[str, World], repeats: dict[str, int], min_samp
 
     Each sample runs enough steps to last about ``min_sample`` seconds (at least one), as long as a warm
     step took; the two steps before (the first warms, the second is timed for that) are not counted.
-    Returns {variant: {field: seconds}} with the fields of :data:`FIELDS`: the median over the samples of each sample's mean step (wall, CPU, and the movement
-    and spin stages), the worst single step of all samples (wall, CPU) and the garbage collector's CPU
-    time inside the worst CPU step.
+    Returns {variant: {field: seconds}} with the fields of :data:`FIELDS`: the median over the samples
+    of each sample's mean step (wall, CPU, and the movement and spin stages), the worst single step of
+    all samples (wall, CPU) and the garbage collector's CPU time inside the worst CPU step.
     """
     number = {}
     for v, world in worlds.items():
