@@ -201,14 +201,14 @@ def _grid_build(c, reach, swept, n_slow, scratch):
         return None
     # a dense table of cells when they are few; a hash table of the occupied cells when the scene is
     # sparse: 2^bits >= 2 m buckets, and beside them a bitmap of 32 bits a bucket, so that a look at an
-    # empty cell (most of a sparse scene's) reads one bit of a table the size of m int64 (radius ratio
-    # 1,000, 4,000 bodies: the grid build 153 us; 236 with 8 m buckets and no bitmap, 460 with 2 m)
+    # empty cell (most of a sparse scene's) reads one bit of a table the size of m int64 (the sizes
+    # measured against each other: docs/design/broadphase.md)
     dense = float(nx) * float(ny) * float(nz) <= 8.0 * n_slow + 4096
     bits = max(6, (2 * n_slow - 1).bit_length())
     nt = nx * ny * nz if dense else 1 << bits
     n = reach.shape[0]
     wi, wf = scratch
-    # kept from build to build: fresh memory each build cost its page faults (~100 a build at 4,000 bodies)
+    # kept from build to build: fresh memory each build cost its page faults
     need = 2 * n + nt + 1 + 2 * n_slow + (0 if dense else nt >> 1)
     if wi.shape[0] < need:
         wi = np.empty(need + n // 4, np.int64)
@@ -276,9 +276,29 @@ def _cell_index(v, base, h):
     return int((v - base) / h) + 1
 
 
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+def _cell_key(ix, iy, iz, ny, nz):
+    """One integer per cell (or per offset between cells), in (x, y, z) order: ``(ix ny + iy) nz + iz``."""
+    return (ix * ny + iy) * nz + iz
+
+
 #: Fibonacci hashing's multiplier (2^64 / golden ratio, odd), as a signed int64: a sparse scene's cell key
 #: times it, top bits, picks the cell's bucket (Knuth, TAOCP 3, 6.4).
 _HASH = -7046029254386353131
+
+
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+def _cell_slot(q, dense, shift, nt):
+    """The cell lookup of :func:`_grid_pairs`: where cell key ``q``'s bodies are filed, ``(slot, word,
+    bit)``. Dense: the slot is the key itself (word and bit unused). Sparse: the bucket is the top bits
+    of ``q * _HASH`` (``64 - shift`` of them: ``nt`` buckets), and the cell's bit of the occupancy
+    bitmap is bit ``bit`` of int64 ``word``, the 5 bits below the bucket's picking one of its 32.
+    Scalars in and out, so that it costs the caller no reference counting of the table's arrays."""
+    if dense:
+        return q, 0, 0
+    hv = q * _HASH
+    bt = (hv >> (shift - 5)) & (32 * nt - 1)
+    return (hv >> shift) & (nt - 1), bt >> 6, bt & 63
 
 
 @kernel(no_cfunc_wrapper=True)
@@ -291,7 +311,8 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
     buckets (the caller's power of two >= 2 m; m the bodies filed), a bucket holding the bodies of the
     cells that hash to it, and a bitmap of the occupied cells' hashes (32 bits a bucket: a look at an
     empty cell reads one bit). No sort, no binary search: a radius ratio of 1,000 has a million cells
-    for 4,000 bodies, and sorting their keys then searching 14 cells per body cost 7x a step. Each
+    for 4,000 bodies, and a sort of their keys then a search of 14 cells per body cost several steps'
+    work (docs/design/broadphase.md). Each
     ordinary body tests the later ordinary bodies of its own cell and those of the 13 cells of a half
     stencil; a body read from a bucket counts only when it is in the cell looked for, so each pair is
     found once. A large body (reach > ``hh``) tests every body in the block of cells its reach plus the
@@ -301,9 +322,9 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
     bits. ``wi``, ``wf``: int64 and float64 scratch, at least ``2 n + nt + 1 + 2 m`` (and ``nt / 2`` more
     for the bitmap, sparse) and ``4 m`` long.
 
-    The lookup of a cell's bodies (``start``, dense or hashed) is written out at its two places: as
-    a helper taking those arrays, inlined or not, numba counted a reference to each array at every
-    call, and the build of a field of 500 took 285 us instead of 31 (measured at 747099f).
+    A cell's key is :func:`_cell_key` and its slot in the table (and bit of the bitmap) is
+    :func:`_cell_slot`, everywhere; both take and give scalars only: a helper taking the table's
+    arrays made numba count references at every call (docs/design/broadphase.md).
 
     Writes the pairs into ``oi``, ``oj`` as far as they hold and returns how many there are (the
     caller gives larger arrays and calls again when they did not hold them all: growing arrays
@@ -328,26 +349,23 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
     sy = wf[m:2 * m]
     sz = wf[2 * m:3 * m]
     sr = wf[3 * m:4 * m]
-    mask = nt - 1
     big = 0.0
     for k in range(n):
         cell[k] = -1
         if swept[k]:
             continue
         big = max(big, reach[k])
-        cell[k] = (_cell_index(c[0, k], bx, h) * ny + _cell_index(c[1, k], by, h)) * nz + _cell_index(c[2, k], bz, h)
+        cell[k] = _cell_key(_cell_index(c[0, k], bx, h), _cell_index(c[1, k], by, h), _cell_index(c[2, k], bz, h),
+                            ny, nz)
     # counting sort: counts, their running sum (the end of each run), then each body placed from the
     # last, so that every run ends up at its start and holds its bodies in index order
     for q in range(nt + 1):
         start[q] = 0
     for k in range(n):
-        q = cell[k]
-        if q >= 0:
+        if cell[k] >= 0:
+            q, word, bit = _cell_slot(cell[k], dense, shift, nt)
             if not dense:
-                hv = q * _HASH
-                bt = (hv >> (shift - 5)) & (32 * nt - 1)
-                occ[bt >> 6] |= np.int64(1) << (bt & 63)
-                q = (hv >> shift) & mask
+                occ[word] |= np.int64(1) << bit
             slot[k] = q
             start[q] += 1
     for q in range(nt):
@@ -372,7 +390,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
         for dy in range(-1, 2):
             for dz in range(-1, 2):
                 if dx > 0 or (dx == 0 and (dy > 0 or (dy == 0 and dz > 0))):
-                    offs[o] = (dx * ny + dy) * nz + dz
+                    offs[o] = _cell_key(dx, dy, dz, ny, nz)
                     o += 1
     cap = oi.shape[0]
     p = 0
@@ -387,14 +405,9 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
         az = sz[s]
         for t in range(14):
             qq = q + offs[t]
-            if dense:
-                w0 = qq
-            else:
-                hv = qq * _HASH
-                bt = (hv >> (shift - 5)) & (32 * nt - 1)
-                if not (occ[bt >> 6] >> (bt & 63)) & 1:
-                    continue                              # an empty cell (most, in a sparse scene)
-                w0 = (hv >> shift) & mask
+            w0, word, bit = _cell_slot(qq, dense, shift, nt)
+            if not dense and not (occ[word] >> bit) & 1:
+                continue                                  # an empty cell (most, in a sparse scene)
             b0 = s + 1 if t == 0 else start[w0]           # own cell: the later bodies of its run
             b1 = start[w0 + 1]
             for u in range(b0, b1):
@@ -434,12 +447,14 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
         for gx in range(gx0, gx1 + 1):
             for gy in range(gy0, gy1 + 1):
                 for gz in range(gz0, gz1 + 1):
-                    qq = (gx * ny + gy) * nz + gz
+                    qq = _cell_key(gx, gy, gz, ny, nz)
                     if flat:
                         b0 = 0
                         b1 = m
                     else:
-                        w0 = qq if dense else ((qq * _HASH) >> shift) & mask
+                        w0, word, bit = _cell_slot(qq, dense, shift, nt)
+                        if not dense and not (occ[word] >> bit) & 1:
+                            continue                      # an empty cell
                         b0 = start[w0]
                         b1 = start[w0 + 1]
                     for u in range(b0, b1):
@@ -462,7 +477,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
 def step_lengths(u, dt):
     """Each body's displacement in one step, ``|u_k| dt`` (m; ``u``: (n, 3) m/s), for
     :meth:`NeighbourList.build`: ``np.sqrt((u * u).sum(axis=1)) * dt`` bit for bit (numpy sums the three
-    squares left to right), in one pass (numpy's four took 80-100 us at 4,000 bodies, a sixth of a build)."""
+    squares left to right), in one pass instead of numpy's four (docs/design/broadphase.md)."""
     n = u.shape[0]
     out = np.empty(n)
     for k in range(n):
