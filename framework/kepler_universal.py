@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_div, _dd_dot2,
+                                                 _rails_compiled,
                                                  _dd_sqrt, _fast_two_sum, _focal1, _focal_dd, _focal_dd_constants,
                                                  _focal_dd_constants_hyp, _focal_dd_hyp, _hyp_half,
                                                  _next_chi_compiled, _two_prod, _two_sum)
@@ -287,7 +288,8 @@ def _long_guess(r0n, sigma0, alpha, mu, dt):
 
 
 #: Bodies from which Epoch.at with a guess uses the compiled loop (below: numpy, whose per-call
-#: overhead is smaller than numba's dispatch for a handful of bodies... and equal results either way).
+#: overhead is smaller than numba's dispatch for a handful of bodies). The two agree to a few ulp, not bit
+#: for bit (numpy's Stumpff series takes as many terms as the largest |psi| needs, the loop 12).
 COMPILED_MIN = 64
 
 
@@ -324,6 +326,29 @@ class Epoch:
                               np.sqrt(1.0 / np.abs(self.alpha)))
         self._focal = None
 
+    def _columns(self) -> tuple:
+        """The compiled loops' inputs: contiguous copies, made once per epoch."""
+        c = self._compiled
+        if c is None:
+            c = self._compiled = tuple(np.ascontiguousarray(a) for a in (
+                self.r0, self.v0, self.mu, self.sqmu, self.r0n, self.alpha, self.sigma0, self.period,
+                self.chi_turn, self.span_rate[0], self.span_rate[1], *self.focal))
+        return c
+
+    def step_from(self, t1, t_epoch, chi, x, v, well, mu, step, out_x, out_v) -> None:
+        """The state at ``t1`` (s) of bodies that were at ``x, v`` one ``step`` (s) before, their epochs
+        taken at ``t_epoch`` (s, ``(n,)``) about a well of ``mu`` at ``well = (X0, V0, X1, V1)`` (its
+        centre and velocity before and after the step, ``(4, 3)``; ``x, v`` are in the same frame),
+        in one compiled pass: the same bits as ``at(t1 - t_epoch, next_chi(chi, x, v, mu, step,
+        origin=(X0, V0)))`` moved to the well at ``t1``, written into ``out_x, out_v`` (``(n, 3)``);
+        ``chi`` (``(n,)``: the last step's) takes the new ``chi`` in place. From :data:`COMPILED_MIN`
+        bodies only (below, ``at`` takes the numpy path, whose last bits differ)."""
+        if self.r0.shape[0] < COMPILED_MIN:
+            raise ValueError(f"Epoch.step_from: {self.r0.shape[0]} bodies; the compiled pass is for "
+                             f"{COMPILED_MIN} or more (Epoch.at takes the numpy path below that)")
+        _rails_compiled(*self._columns(), FOCAL_DD_OME, float(t1), t_epoch, chi, np.ascontiguousarray(x),
+                        np.ascontiguousarray(v), well, float(mu), float(step), out_x, out_v)
+
     def at(self, dt, chi=None):
         """``r, v, chi`` after ``dt`` s (scalar or ``(n,)``); ``chi``: a first guess (:func:`next_chi`).
 
@@ -337,12 +362,7 @@ class Epoch:
             out_r = np.empty((n, 3))
             out_v = np.empty((n, 3))
             out_chi = np.empty(n)
-            c = self._compiled
-            if c is None:                                  # contiguous copies, made once per epoch
-                c = self._compiled = tuple(np.ascontiguousarray(a) for a in (
-                    self.r0, self.v0, self.mu, self.sqmu, self.r0n, self.alpha, self.sigma0, self.period,
-                    self.chi_turn, self.span_rate[0], self.span_rate[1], *self.focal))
-            _at_compiled(*c, FOCAL_DD_OME, dt, guess, out_r, out_v, out_chi)
+            _at_compiled(*self._columns(), FOCAL_DD_OME, dt, guess, out_r, out_v, out_chi)
             return out_r, out_v, out_chi
         dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
         guess = None if chi is None else np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)

@@ -40,6 +40,26 @@ class Rails:
             self.ep_contact[k] = t0 + kepler.time_to_radius(self.ep_r[k], self.ep_v[k], mu, R, np.inf)
             self.ep_chi[k] = 0.0
 
+    def _quiet(self, step: GravityStep) -> bool:
+        """The usual step of one root well's bodies on rails in one compiled pass (``Epoch.step_from``:
+        the guess, the solution and the move to the well's frame at ``t1`` per body), into ``step.x1,
+        step.v1``; False (nothing done) unless it is a step in which the stages would do only that: one
+        well, no n-body body, at least ``COMPILED_MIN`` bodies (below, the numpy path's bits), no sphere
+        contact looked for (the caller's test), no thrust, no body moved by another system, every epoch
+        about the well and no surface contact due by ``t1``. The same bits as the stages (tests/
+        test_gravity_step.py). Why: the stages' numpy passes around the compiled loop cost ~40 % of it at
+        10,000 bodies (a (3,)-vector added to an (n, 3) array runs numpy's inner loop n times)."""
+        n = self._n
+        if (len(self._wells) != 1 or n < kepler.COMPILED_MIN or self._n_nb or step.thrust.any()
+                or step.edited.any() or (self.ep_well != 0).any() or (self.ep_contact <= step.t1).any()):
+            return False
+        self.ep_cross = None
+        mu = self._wells.mu[0]
+        well = np.concatenate([step.X0, step.V0, step.X1, step.V1])           # (4, 3): one well
+        self._epoch(0, self._every, mu).step_from(step.t1, self.ep_t, self.ep_chi, step.x, step.v, well, mu,
+                                                  step.dt, step.x1, step.v1)
+        return True
+
     def _rails(self, step: GravityStep, sel, wi: int, look: bool, done=None, crossed=None) -> RailsEnd:
         """Bodies ``sel`` on rails about well ``wi``: their epochs for the step, the surface contacts of
         those whose contacts are not looked for in :meth:`_contacts` (there the colliders meet the

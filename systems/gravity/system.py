@@ -74,6 +74,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         self._orbits = GravityOrbits(self)
         self._wells = None
         self._n = 0
+        self._n_nb = 0
         self._epoch_version = 0
         self._lookahead: _Kept | None = None              # (the last look at the pairs on rails)
         self._epochs: dict = {}
@@ -124,6 +125,8 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         nb = world.query(NBody)
         nb.refresh()
         self.nbody = np.isin(self.ents, nb.entities)
+        self._n_nb = int(np.count_nonzero(self.nbody))
+        self._every = np.arange(n)                         # (every body: the one well's, in a quiet step)
         # a moon orbits its parent: its well is fixed, never chosen by spheres of influence
         self.moon_parent = np.full(n, -1, np.intp)
         self.well_index = np.full(n, -1, np.intp)        # this body's own well (moons), else -1
@@ -266,14 +269,27 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
             return
         step = self._begin(dt)
         self._last_step = step                            # (the look-ahead evaluates from the last step)
-        n, W, wells = self._n, len(self._wells), self._wells
-        dom = _dominant(wells, step.x, step.X0, self.moon_parent) if W > 1 else np.zeros(n, np.intp)
-        rails = ~self.nbody
-        nb = np.flatnonzero(self.nbody)
         # sphere contacts are looked for where two or more colliders move, or one and an obstacle
         movers = self._n_col + self._n_nb_col
         look = movers >= 2 or (movers and self._n_ob)
         self._spheres_may_meet = bool(look)               # (else an n-body collider may drift on its conic)
+        if look or not self._quiet(step):
+            self._stages(step, look)
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        ctx.position[self.t_rows] = step.x1
+        ctx.velocity[self.v_rows] = step.v1
+        self.last_x = step.x1
+        self.last_v = step.v1
+        for ev in step.events:
+            world.emit(ev)
+
+    def _stages(self, step: GravityStep, look: bool) -> None:
+        """The step's stages: crossings, rails, n-body, the contact pass, into ``step.x1, step.v1``."""
+        n, W, wells = self._n, len(self._wells), self._wells
+        dom = _dominant(wells, step.x, step.X0, self.moon_parent) if W > 1 else np.zeros(n, np.intp)
+        rails = ~self.nbody
+        nb = np.flatnonzero(self.nbody)
         done = crossed = None
         if W > 1 and (wells.parent >= 0).any():
             # bodies that enter or leave a moon's sphere of influence do so at the exact time in the step
@@ -298,14 +314,6 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
             self._rails_end(step, wi, end, passed.touched)
         if nb.size:
             self._leapfrog_end(step, nb, passed.drift, passed.surfaces_met)
-        ctx = world.step_context
-        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
-        ctx.position[self.t_rows] = step.x1
-        ctx.velocity[self.v_rows] = step.v1
-        self.last_x = step.x1
-        self.last_v = step.v1
-        for ev in step.events:
-            world.emit(ev)
 
     def _begin(self, dt: float) -> GravityStep:
         """The step's context: its times as given, the wells' and the bodies' states at its start."""
