@@ -24,7 +24,14 @@ interval, and the path enters the union at the earliest of the pieces' entries. 
 a feature (the pieces overlap on their borders), so a path through an edge or corner cannot slip
 between two features by a rounding. A path that starts within ``r`` of the box (touching) and
 approaches is in contact now; the normal is ``q - clamp(q, -h, h)``, made unit and turned to the world.
-A centre inside the box itself has no normal and is left to pass (as two coincident centres are).
+
+**Starting inside.** The box is solid, as the plane's half-space is. A centre inside it takes the
+normal of its nearest face (the axis of least ``h_a - |q_a|``, x before y before z on a tie; +a where
+``q_a = 0``) and that depth, negative, as its distance; so a sphere that overlaps a shape at the start
+(at spawn: :class:`~driftframe.systems.static_step.StaticShapes` reports it) is treated as two
+overlapping spheres are: one moving deeper (into the plane, towards the nearest face's inside) bounces
+at once, one impulse and no jump; one moving out is left to leave. Inside a box the nearest face is
+read where the sphere's path starts in the step (or at its last contact), not followed along it.
 
 Nothing here knows about entities; the approach rule is the solver's own
 (``v_n < -APPROACH |u|``), and ``slack`` its ``TOUCH r / |v_n|`` capped at ``SLACK_MAX dt``.
@@ -139,9 +146,26 @@ def box_entry(qx, qy, qz, wx, wy, wz, hx, hy, hz, r, limit):
 
 
 @kernel(**_OPTS)
+def _inside(S, k, qx, qy, qz):
+    """Box ``k``'s nearest face to a point ``q`` inside it (its frame): the face's unit outward normal
+    (world) and minus the point's depth under it (m), ``-(h_a - |q_a|)`` for the axis ``a`` of least depth."""
+    a = 0
+    depth = S[k, 13] - abs(qx)
+    dy = S[k, 14] - abs(qy)
+    dz = S[k, 15] - abs(qz)
+    side = -1.0 if qx < 0.0 else 1.0
+    if dy < depth:
+        a, depth, side = 1, dy, -1.0 if qy < 0.0 else 1.0
+    if dz < depth:
+        a, depth, side = 2, dz, -1.0 if qz < 0.0 else 1.0
+    # column a of Q (row-major at S[k, 4:13]) is the box's axis a in world coordinates
+    return side * S[k, 4 + a], side * S[k, 7 + a], side * S[k, 10 + a], -depth
+
+
+@kernel(**_OPTS)
 def outward(S, k, px, py, pz):
     """The unit outward normal of shape ``k`` at the sphere centre ``p`` (world), and the centre's
-    distance from the shape's surface (m; a plane's is signed); a zero normal when a box holds ``p``."""
+    signed distance from the shape's surface (m, < 0 inside); inside a box its nearest face's."""
     if S[k, KIND] == PLANE:
         nx, ny, nz = S[k, 4], S[k, 5], S[k, 6]
         return nx, ny, nz, nx * px + ny * py + nz * pz - S[k, 13]
@@ -151,7 +175,7 @@ def outward(S, k, px, py, pz):
     gz = qz - min(max(qz, -S[k, 15]), S[k, 15])
     dist = math.sqrt(gx * gx + gy * gy + gz * gz)
     if dist == 0.0:
-        return 0.0, 0.0, 0.0, 0.0
+        return _inside(S, k, qx, qy, qz)
     gx, gy, gz = gx / dist, gy / dist, gz / dist
     return (S[k, 4] * gx + S[k, 5] * gy + S[k, 6] * gz,
             S[k, 7] * gx + S[k, 8] * gy + S[k, 9] * gz,
@@ -173,7 +197,7 @@ def static_toi(px, py, pz, ux, uy, uz, r, spd, S, k, t, dt):
         gap = dist - r
         tc = t if gap <= 0.0 else t + gap / -vn
     elif dist <= r:
-        if not (vn < -APPROACH * spd):                     # touching and separating, or inside the box
+        if not (vn < -APPROACH * spd):                     # touching or inside, and separating
             return -1.0, 0.0
         tc = t
     else:

@@ -8,18 +8,28 @@ they were made in. The solver's static variant
 (:data:`~driftframe.framework.contact_solve.solve_static`) takes them as its last bodies:
 immovable (inverse mass 0), not live (no sphere-sphere code reads them), a
 pair with every sphere after the spheres' own pairs. A scene with no shapes
-never imports the variant (:meth:`StaticShapes.of` is None), so it pays no
+never imports the variant (:meth:`StaticShapes.present` is False), so it pays no
 compile time and no time per step for it.
+
+**Overlaps at the start.** A movable sphere that overlaps a shape where a
+step starts (made inside a box or behind a plane, or a shape moved onto it)
+is reported as overlapping spheres are (``systems.collision``): one
+RuntimeWarning per change of the scene (an entity gained or lost a component,
+or a shape's values changed), with the count and the deepest sphere and shape.
+What then happens is defined (:mod:`driftframe.framework.static_shapes`, "Starting
+inside"): moving deeper, it bounces at once off the plane or the box's
+nearest face, one impulse and no jump; moving out, it is left to leave.
 """
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
 from driftframe.components.body import Transform
 from driftframe.components.collision import BoxCollider, PlaneCollider
-from driftframe.framework.contact_params import F_AGAIN
+from driftframe.framework.contact_params import F_AGAIN, TOUCH
 from driftframe.framework.static_shapes import BOX, PLANE, SHAPE_COLS
 from driftframe.framework.store import to_indices
 
@@ -46,6 +56,7 @@ class StaticShapes:
         self._pairs: tuple | None = None
         self._raw = b""                             # the components' values the table was made from
         self._buffers: tuple | None = None          # the solver's arrays (see _arguments), for one (n, m)
+        self._checked: tuple | None = None          # (world epoch, table values) last checked for overlaps
 
     def present(self) -> bool:
         """Whether the world has any static shape (the queries are re-read once per change of entities)."""
@@ -107,6 +118,37 @@ class StaticShapes:
         self.table = np.ascontiguousarray(np.concatenate(rows)[order])
         self.e = np.concatenate(es)[order]
 
+    def report_overlaps(self, entities, x: np.ndarray, r: np.ndarray, movable: np.ndarray, now: float) -> int:
+        """Warn (once per change of the scene) when movable spheres overlap a shape by more than ``TOUCH r``,
+        as the collision system does for overlapping spheres; returns how many do (0 when not checked).
+
+        ``entities``, ``x``, ``r``, ``movable``: the spheres' entity ids, centres (m), radii (m) and
+        whether each moves (live and of finite mass). Call after :meth:`refresh`.
+        """
+        key = (self._world.epoch, self._raw)
+        if key == self._checked:
+            return 0
+        self._checked = key
+        x, r = np.asarray(x, float), np.asarray(r, float)
+        keep = np.flatnonzero(movable)
+        if not len(keep) or not len(self.entities):
+            return 0
+        # how far each sphere reaches past each shape's surface, m (> 0: overlapping)
+        depth = r[keep, None] - signed_distances(self.table, x[keep])
+        over = (depth > TOUCH * r[keep, None]).any(axis=1)
+        if not over.any():
+            return 0
+        i, k = np.unravel_index(int(np.argmax(depth)), depth.shape)
+        sphere, shape = int(np.asarray(entities)[keep[i]]), int(self.entities[k])
+        where = "behind plane" if self.table[k, 0] == PLANE else "into box"
+        centre = "its centre inside" if depth[i, k] > r[keep[i]] else "its centre outside"
+        warnings.warn(f"collision: {int(over.sum())} spheres overlap a static shape at t = {now!r} s; the deepest: "
+                      f"entity {sphere} (radius {r[keep[i]]:.6g} m) reaches {depth[i, k]:.6g} m {where} entity "
+                      f"{shape} ({centre}). A sphere moving deeper bounces at once off the plane or the box's "
+                      "nearest face, one moving out is left to leave (place spheres clear of the shapes)",
+                      RuntimeWarning, stacklevel=4)
+        return int(over.sum())
+
     def pairs(self, pi: np.ndarray, pj: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
         """The spheres' pairs ``pi, pj`` followed by every sphere with every shape (sphere-major): the
         shapes are bodies ``n .. n + m - 1``."""
@@ -118,6 +160,23 @@ class StaticShapes:
             self._pairs = (key, np.concatenate([np.asarray(pi, np.int64), si]),
                            np.concatenate([np.asarray(pj, np.int64), sj]))
         return self._pairs[1], self._pairs[2]
+
+
+def signed_distances(S: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(n, m): each centre's signed distance (m, < 0 inside) from each shape's surface, for the table ``S``
+    (:mod:`driftframe.framework.static_shapes`): a plane's ``n . x - d``; a box's the usual box distance
+    in its frame, ``|max(|q| - h, 0)| + min(max_a(|q_a| - h_a), 0)`` with ``q = Q^T (x - c)``."""
+    x = np.asarray(x, float).reshape(-1, 3)
+    out = np.empty((len(x), len(S)))
+    plane = S[:, 0] == PLANE
+    out[:, plane] = x @ S[plane, 4:7].T - S[plane, 13]
+    box = np.flatnonzero(S[:, 0] == BOX)
+    if len(box):
+        Q = S[box, 4:13].reshape(-1, 3, 3)
+        q = np.einsum("kab,ika->ikb", Q, x[:, None, :] - S[box, 1:4][None])      # (n, boxes, 3): Q^T (x - c)
+        g = np.abs(q) - S[box, 13:16][None]
+        out[:, box] = np.sqrt((np.maximum(g, 0.0) ** 2).sum(axis=2)) + np.minimum(g.max(axis=2), 0.0)
+    return out
 
 
 def _arguments(inputs, shapes: StaticShapes) -> list:
