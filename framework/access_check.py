@@ -40,7 +40,8 @@ running: Any = None
 # calls from these modules are the world's own bookkeeping (a reconcile, a save), not a system's access
 _INTERNAL = frozenset({"esper", "driftframe.framework.world", "driftframe.framework.store",
                        "driftframe.framework.save", "driftframe.framework.esper_adapter",
-                       "driftframe.framework.access_check", "driftframe.framework.resources"})
+                       "driftframe.framework.access_check", "driftframe.framework.resources",
+                       "driftframe.framework.table_sync", "driftframe.framework.state_hash"})
 
 
 class AccessError(RuntimeError):

@@ -1,4 +1,7 @@
-"""The world: one esper context, its component tables, the schedule, the step, events and the hash.
+"""The world: one esper context, its component tables, its systems stepped in order, and its events.
+
+The order is :mod:`~driftframe.framework.schedule`'s, the tables' reconcile with esper
+:mod:`~driftframe.framework.table_sync`'s, the state's hash :mod:`~driftframe.framework.state_hash`'s.
 
 Data flows one way each step. The built-in stages give the default order::
 
@@ -16,8 +19,8 @@ steps, so esper's module functions (``esper.create_entity``,
 ``esper.get_components``, ...) act on it from inside systems and from user
 code after ``world.activate()`` (a new World is also activated on creation).
 It also owns one :class:`~driftframe.framework.store.Table` per columnar
-component class; :meth:`World.sync` reconciles them with esper (see
-``store.py`` for the lifecycle), and :meth:`World.columns` is the public way
+component class; :meth:`World.sync` reconciles them with esper
+(:mod:`~driftframe.framework.table_sync`; ``store.py`` for the lifecycle), and :meth:`World.columns` is the public way
 to read and write whole columns.
 
 Events (collision contacts, ...) go through :meth:`World.emit`:
@@ -38,14 +41,11 @@ broken (:class:`WorldBrokenError` on the next step) until a save is loaded.
 """
 from __future__ import annotations
 
-import dataclasses
-import hashlib
 import itertools
 import os
 import time
 from collections import defaultdict
 from contextlib import ExitStack
-from operator import attrgetter, itemgetter
 from typing import Any, Callable, Iterable, NoReturn, Sequence, TypeVar
 
 import esper
@@ -53,11 +53,12 @@ import numpy as np
 
 from driftframe.framework import access_check
 from driftframe.framework import esper_adapter as ea
-from driftframe.framework import validate
+from driftframe.framework import table_sync, validate
 from driftframe.framework.resources import CheckedResources, Resources, key_name
 from driftframe.framework.schedule import (DEFAULT_AFTER, DEFAULT_BEFORE, FRAME_STAGES, STEP_STAGES,  # noqa: F401
                                            Entry, Schedule, ScheduleAmbiguityWarning, ScheduleError, system_name)
 from driftframe.framework.schedule import requires as _requires
+from driftframe.framework.state_hash import state_hash as _state_hash
 from driftframe.framework.step import Commit, StepContext
 from driftframe.framework.store import Columnar, Columns, Query, Table
 
@@ -75,16 +76,6 @@ PathLike = str | os.PathLike[str]
 class WorldBrokenError(RuntimeError):
     """A step of this world raised after one of its systems had run: the world is half-stepped (some
     systems moved it, the rest did not), so it refuses to step or save until a save is loaded into it."""
-_FIRST, _SECOND = itemgetter(0), itemgetter(1)
-_ROW, _TABLE = attrgetter("_row"), attrgetter("_table")
-
-
-def _describe(comp) -> str:
-    """Stable text of a plain (non-columnar) component: its fields, never its address."""
-    if dataclasses.is_dataclass(comp):
-        return repr(dataclasses.astuple(comp))
-    fields = getattr(comp, "__dict__", None)
-    return repr(sorted(fields.items())) if fields else ""
 
 
 class World:
@@ -151,9 +142,9 @@ class World:
         self.sync()
         for comp in components:
             if isinstance(comp, Columnar):
-                self._check_new([comp])
+                table_sync.check_new(self, [comp])
         ent = esper.create_entity(*components)
-        self._attach_now(ent, components)
+        table_sync.attach_now(self, ent, components)
         self._own_change()
         return ent
 
@@ -173,7 +164,7 @@ class World:
         self.sync()
         columnar = [c for c in cols if n and isinstance(c[0], Columnar)]
         for c in columnar:
-            self._check_new(c)
+            table_sync.check_new(self, c)
         create = esper.create_entity
         ents = [create(*comps) for comps in zip(*cols)]
         ids = np.asarray(ents, np.int64)
@@ -181,21 +172,6 @@ class World:
             self._table(type(c[0])).attach(ids, list(c))
         self._own_change()
         return ents
-
-    def _check_new(self, comps) -> None:
-        """Components about to join this world: not in another entity, of this world or another."""
-        sources = {id(t): t for t in map(_TABLE, comps)}            # a few: one per bulk block
-        for t in sources.values():
-            if t.world is None:
-                continue
-            comp = next(c for c in comps if c._table is t)
-            if t.world == self.name:
-                raise ValueError(f"the same {type(comp).__name__} object is on entity {int(t.entity[comp._row])} "
-                                 "already; give each entity its own (copy.copy(component))")
-            self._check_free(comp, -1)
-        if len(comps) > 1 and len(set(map(id, comps))) != len(comps):
-            raise ValueError(f"the same {type(comps[0]).__name__} object is given to two new entities; give "
-                             "each its own (copy.copy(component))")
 
     def _own_change(self) -> None:
         # the world's own add/remove keeps its tables right: only esper's own calls need a reconcile
@@ -209,9 +185,9 @@ class World:
         if old is not None and old is not component and isinstance(old, Columnar) and old._table.world == self.name:
             old._table.detach([old._row])
         if isinstance(component, Columnar) and component is not old:
-            self._check_new([component])
+            table_sync.check_new(self, [component])
         esper.add_component(entity, component)
-        self._attach_now(entity, (component,))
+        table_sync.attach_now(self, entity, (component,))
         self._own_change()
 
     def remove_component(self, entity: int, component_type: type[_C]) -> _C:
@@ -233,17 +209,6 @@ class World:
         esper.delete_entity(entity, immediate=True)
         self._own_change()
 
-    def _attach_now(self, ent: int, components) -> None:
-        for comp in components:
-            if isinstance(comp, Columnar):
-                table = self._table(type(comp))
-                if comp._table is table:
-                    if table.entity[comp._row] != ent:
-                        self._shared_error(type(comp), int(table.entity[comp._row]), ent)
-                    continue
-                self._check_free(comp, ent)
-                table.attach(np.array([ent]), [comp])
-
     # -- storage ----------------------------------------------------------------
     def table(self, cls: type[Columnar]) -> Table:
         """This world's table of columnar component class ``cls`` (made on first use, small)."""
@@ -259,16 +224,6 @@ class World:
             t = self._tables[cls] = Table(cls, 16, world=self.name)
         return t
 
-    def _shared_error(self, cls, a: int, b: int):
-        raise ValueError(f"the same {cls.__name__} object is on entities {a} and {b}; give each entity its "
-                         f"own (copy.copy(component))")
-
-    def _check_free(self, comp, ent: int) -> None:
-        owner = comp._table.world
-        if owner is not None and owner != self.name:
-            raise ValueError(f"{type(comp).__name__} given to entity {ent} belongs to an entity of world "
-                             f"{owner!r}; a component cannot be in two worlds: copy it (copy.copy)")
-
     def sync(self) -> None:
         """Reconcile the tables with esper: attach new components, free the rows of removed ones.
 
@@ -280,63 +235,7 @@ class World:
         # (the fast path, every system of every step: esper's cache is clean and holds the same probe list)
         if ea.structure_unchanged(self._probe, self.name):
             return
-        self.activate()
-        probe = ea.probe()
-        if probe is self._probe:
-            return
-        self.epoch += 1
-        present = [c for c in ea.component_types() if issubclass(c, Columnar)]
-        for cls in present:
-            lst = esper.get_component(cls)
-            if lst is not self._synced.get(cls):
-                self._reconcile(cls, lst)
-        for cls, table in list(self._tables.items()):
-            if not ea.holders(cls) and table.live:
-                self._reconcile(cls, [])
-        self._probe = ea.probe()
-
-    def _reconcile(self, cls, lst: list) -> None:
-        table = self._table(cls)
-        n = len(lst)
-        ents = np.fromiter(map(_FIRST, lst), np.int64, n)
-        comps = list(map(_SECOND, lst))
-        tables = list(map(_TABLE, comps))
-        count = tables.count(table)
-        if count == n:
-            mine = np.ones(n, bool)
-        elif count == 0:
-            mine = np.zeros(n, bool)
-        else:
-            mine = np.fromiter((t is table for t in tables), bool, n)
-        k_mine = np.flatnonzero(mine)
-        rows = np.fromiter((comps[k]._row for k in k_mine), np.intp, len(k_mine)) if len(k_mine) < n \
-            else np.fromiter(map(_ROW, comps), np.intp, n)
-        if len(rows) and len(np.unique(rows)) != len(rows):
-            u, first, counts = np.unique(rows, return_index=True, return_counts=True)
-            dup = u[counts > 1][0]
-            a, b = ents[k_mine[rows == dup]][:2]
-            self._shared_error(cls, int(a), int(b))
-        # a component moved to another entity by esper (removed from one, added to another)
-        table.entity[rows] = ents[k_mine]
-        seen = np.zeros(table.size, bool)
-        seen[rows] = True
-        gone = np.flatnonzero((table.entity[: table.size] >= 0) & ~seen)
-        table.detach(gone)
-        if len(k_mine) < n:
-            k_new = np.flatnonzero(~mine)
-            new = [comps[k] for k in k_new]
-            if len(set(map(id, new))) != len(new):
-                seen_ids: dict[int, int] = {}
-                for k, c in zip(k_new, new):
-                    if id(c) in seen_ids:
-                        self._shared_error(cls, seen_ids[id(c)], int(ents[k]))
-                    seen_ids[id(c)] = int(ents[k])
-            sources = {id(t): t for t in map(_TABLE, new)}          # a few: one per bulk block
-            if any(t.world is not None and t.world != self.name for t in sources.values()):
-                for k, c in zip(k_new, new):
-                    self._check_free(c, int(ents[k]))
-            table.attach(ents[k_new], new)
-        self._synced[cls] = lst
+        table_sync.sync(self)                       # (see table_sync: attach, free, follow what esper did)
 
     def query(self, *types: type, optional: tuple[type, ...] = ()) -> Query:
         """The cached :class:`~driftframe.framework.store.Query` of entities with all of ``types``.
@@ -657,39 +556,10 @@ class World:
 
     # -- determinism ------------------------------------------------------------
     def state_hash(self) -> str:
-        """BLAKE2 hash of the simulation's state (exact bytes of the numbers).
-
-        Two runs of the same scene with the same inputs give the same hash;
-        any difference in any bit of any simulated component changes it.
-        Entity order and table row placement do not matter: values are
-        gathered per entity id, in ascending order. Presentation is left out:
-        components whose class says ``presentation = True`` (a Camera) and
-        every component of their entities (the camera's eye), so a headless
-        run and a rendered run of the same bodies hash the same.
-        """
-        self.sync()
-        h = hashlib.blake2b(digest_size=16)
-        h.update(str(self.step_count).encode())
-        kinds = sorted(ea.component_types(), key=lambda c: (c.__module__, c.__qualname__))
-        skip: set[int] = set()
-        for cls in kinds:
-            if getattr(cls, "presentation", False):
-                skip.update(ea.holders(cls))
-        for cls in kinds:
-            if getattr(cls, "presentation", False):
-                continue
-            ents = np.array(sorted(e for e in ea.holders(cls) if e not in skip), np.int64)
-            h.update(cls.__qualname__.encode())
-            h.update(ents.tobytes())
-            if issubclass(cls, Columnar):
-                table = self._table(cls)
-                rows = table.rows_of(ents)
-                for name in cls._fields:
-                    h.update(np.ascontiguousarray(table.data[name][rows]).tobytes())
-            else:
-                for e in ents.tolist():
-                    h.update(_describe(esper.component_for_entity(e, cls)).encode())
-        return h.hexdigest()
+        """BLAKE2 hash of the simulation's state (exact bytes of every simulated number): the same for two
+        runs of the same scene with the same inputs, whatever the entity order or row placement; the
+        presentation (a Camera and its entity) left out. See :mod:`~driftframe.framework.state_hash`."""
+        return _state_hash(self)
 
     # -- saves ----------------------------------------------------------------------
     def save(self, path: PathLike, *, overwrite: bool = False) -> str:
