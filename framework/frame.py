@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from driftframe.framework import validate
+
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
@@ -198,12 +200,8 @@ def check_unit_quat(name: str, q: np.ndarray) -> np.ndarray:
     """Reject quaternions whose length is not 1 (within 1e-9): they are not rotations."""
     q = np.asarray(q, dtype=np.float64)
     n = np.linalg.norm(q.reshape(-1, 4), axis=1)
-    bad = np.abs(n - 1.0) > ORTHONORMAL_TOL
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        where = f"[{i}]" if q.ndim == 2 else ""
-        raise ValueError(f"{name}{where} must be a unit quaternion (x, y, z, w), got "
-                         f"{q.reshape(-1, 4)[i].tolist()} with length {n[i]!r}")
+    validate.rows(name, q, np.abs(n - 1.0) > ORTHONORMAL_TOL, "a unit quaternion (x, y, z, w)", row_ndim=1,
+                  detail=lambda i: f" with length {float(n[i])!r}")
     return q
 
 

@@ -102,30 +102,55 @@ def array(name: str, value, shape_tail=(3,), n: int | None = None, *, allow_inf:
     if hi is not None:
         bad |= (flat > hi).any(axis=1)
     if bad.any():
-        i = int(np.flatnonzero(bad)[0])
         need = "finite" if not allow_inf else "not NaN"
         if positive:
             need += " and > 0"
         if lo is not None or hi is not None:
             need += f" and in [{lo}, {hi}]"
-        raise ValueError(f"{name}[{i}] must be {need}, got {_show(arr[i])}")
+        rows(name, arr, bad, need, row_ndim=len(shape_tail))
     return arr
 
 
-def rows(name: str, values, bad, need: str) -> None:
-    """The one "first bad row" check of a scalar or a column: a ValueError ``name[i] must be NEED, got V``
-    (``name must be ...`` for a scalar) for the first ``i`` where ``bad`` is true; nothing when none is."""
+def rows(name: str, values, bad, need: str, *, row_ndim: int = 0, detail=None) -> None:
+    """The one "first bad row" check: a ValueError ``name[i] must be NEED, got V`` for the first ``i``
+    where ``bad`` is true; nothing when none is.
+
+    ``values``: one row or a column of rows, each ``row_ndim``-dimensional (0: numbers, shown as floats;
+    1: vectors, quaternions; ...); one row alone gives ``name must be ...``. ``detail(i)``: text to add
+    after the value (``" with length 2.0"``)."""
     bad = np.atleast_1d(np.asarray(bad))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        where = f"[{i}]" if np.ndim(values) else ""
-        raise ValueError(f"{name}{where} must be {need}, got {float(np.atleast_1d(values)[i])!r}")
+        column = np.ndim(values) > row_ndim
+        where = f"[{i}]" if column else ""
+        row = np.asarray(values)[i] if column else values
+        got = repr(float(np.asarray(row))) if row_ndim == 0 else _show(row)
+        raise ValueError(f"{name}{where} must be {need}, got {got}{detail(i) if detail else ''}")
 
 
 def choice(name: str, value, options: tuple):
     """``value`` when it is one of ``options``; else a ValueError naming ``name``, the options and the value."""
     if value not in options:
         raise ValueError(f"{name} must be one of {options}, got {shown(value)}")
+    return value
+
+
+def a_class(name: str, value, example: str = ""):
+    """``value`` when it is a class; else a TypeError naming ``name`` (with an ``example`` of one) and the
+    value."""
+    if not isinstance(value, type):
+        eg = f" (e.g. {example})" if example else ""
+        raise TypeError(f"{name} must be a class{eg}, got {shown(value)}")
+    return value
+
+
+def function(name: str, value, *, optional: bool = False, what: str = "callable"):
+    """``value`` when it can be called (or is None, when ``optional``); else a TypeError naming ``name``,
+    what it must be and the value."""
+    if value is None and optional:
+        return None
+    if not callable(value):
+        raise TypeError(f"{name} must be {what}{' or None' if optional else ''}, got {shown(value)}")
     return value
 
 

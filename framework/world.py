@@ -250,8 +250,7 @@ class World:
         q = self._queries.get(key)
         if q is None:
             for T in types + tuple(optional):
-                if not isinstance(T, type):
-                    raise TypeError(f"query types must be component classes, got {T!r}")
+                validate.a_class("a query's type", T, "Transform")
             q = self._queries[key] = Query(self, types, tuple(optional))
         return q
 
@@ -346,8 +345,7 @@ class World:
 
         None there is a KeyError naming the type and who publishes it (a system that declares it in its
         ``writes``, or the type's ``published_by``); a value not of that type is a TypeError."""
-        if not isinstance(key, type):
-            raise TypeError(f"resource(key): key must be a class (e.g. TimeWarp), got {key!r}")
+        validate.a_class("resource(key): key", key, "TimeWarp")
         value = self.resources[key]
         if not isinstance(value, key):
             raise TypeError(f"world {self.name!r}: resources[{key.__name__}] holds a {type(value).__name__}, "
@@ -497,10 +495,8 @@ class World:
 
     def subscribe(self, event_type: type[_E], callback: Callable[[_E], object]) -> Callable[[], None]:
         """Call ``callback(event)`` for every emitted event of ``event_type``; returns an unsubscribe function."""
-        if not isinstance(event_type, type):
-            raise TypeError(f"subscribe: event_type must be a class (e.g. CollisionEvent), got {event_type!r}")
-        if not callable(callback):
-            raise TypeError(f"subscribe: callback must be callable, got {callback!r}")
+        validate.a_class("subscribe: event_type", event_type, "CollisionEvent")
+        validate.function("subscribe: callback", callback)
         subs = self._subscribers[event_type]
         subs.append(callback)
 
