@@ -5,7 +5,9 @@ world. Read with ast, so the bars keep holding as the code grows.
   is one loop nest the compiler sees whole), which stays under 250;
 * no system module imports another system module (a module of ``systems/`` that defines an
   ``esper.Processor``): systems share state through declared resources, components and events, and
-  helpers live in modules of functions (``systems/camera_rig.py``, ``systems/readouts.py``).
+  helpers live in modules of functions (``systems/camera_rig.py``, ``systems/readouts.py``);
+* one of each small thing: one slerp, one first-bad-row validator (``validate.rows``), one cell lookup
+  in the broad phase's grid (``_cell_slot``).
 """
 import ast
 from pathlib import Path
@@ -141,3 +143,67 @@ def test_the_import_check_would_see_one_system_importing_another(tmp_path):
 @pytest.mark.parametrize("module", ["driftframe.systems.camera_rig", "driftframe.systems.readouts"])
 def test_the_shared_helpers_of_systems_define_no_system(module):
     assert not _defines_system(_system_modules()[module])
+
+
+@pytest.mark.parametrize("module", ["driftframe.systems.static_step"])
+def test_the_collision_systems_shape_helpers_define_no_system(module):
+    """systems/collision.py imports static_step: allowed only while it stays a module of functions."""
+    assert not _defines_system(_system_modules()[module])
+
+
+# -- one of each small thing (issue 22): found with ast, so a second copy fails here -----------------------
+
+def _defs(name: str) -> list[str]:
+    return [f"{path.relative_to(ROOT)}" for path in _sources()
+            for node in ast.walk(ast.parse(path.read_text(), str(path)))
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name == name]
+
+
+def test_there_is_one_slerp():
+    assert _defs("slerp") == ["framework/frame.py"]
+
+
+def _first_bad_row_checks(path: Path) -> list[str]:
+    """Functions that raise a ValueError saying what a value "must be" and take the first index of a mask
+    (``np.flatnonzero(bad)[0]``): a first-bad-row validator."""
+    out = []
+    for f in ast.walk(ast.parse(path.read_text(), str(path))):
+        if not isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        says_must = any(isinstance(n, ast.Raise) and isinstance(n.exc, ast.Call) and _name(n.exc) == "ValueError"
+                        and "must be" in ast.unparse(n.exc) for n in ast.walk(f))
+        first = any(isinstance(n, ast.Subscript) and isinstance(n.value, ast.Call)
+                    and _name(n.value) in ("flatnonzero", "nonzero", "argmax", "argwhere")
+                    and isinstance(n.slice, ast.Constant) and n.slice.value == 0 for n in ast.walk(f))
+        if says_must and first:
+            out.append(f"{path.relative_to(ROOT) if path.is_relative_to(ROOT) else path.name}:{f.name}")
+    return out
+
+
+def test_there_is_one_first_bad_row_validator():
+    found = [c for path in _sources() for c in _first_bad_row_checks(path)]
+    assert found == ["framework/validate.py:rows"]
+
+
+def test_the_finder_of_first_bad_row_validators_sees_one(tmp_path):
+    path = tmp_path / "spy.py"
+    path.write_text("import numpy as np\n\ndef check(x):\n    bad = x < 0\n    if bad.any():\n"
+                    "        i = int(np.flatnonzero(bad)[0])\n"
+                    "        raise ValueError(f'x[{i}] must be >= 0, got {x[i]}')\n")
+    assert _first_bad_row_checks(path) == ["spy.py:check"]
+
+
+def test_the_broad_phase_has_one_cell_lookup():
+    """A sparse grid cell's bucket is ``key * _HASH``'s top bits: only ``_cell_slot`` computes it."""
+    path = ROOT / "framework" / "broadphase_list.py"
+    tree = ast.parse(path.read_text(), str(path))
+    owners = []
+    for f in ast.walk(tree):
+        if isinstance(f, ast.FunctionDef):
+            if any(isinstance(n, ast.BinOp) and isinstance(n.op, ast.Mult)
+                   and "_HASH" in {getattr(n.left, "id", None), getattr(n.right, "id", None)} for n in ast.walk(f)):
+                owners.append(f.name)
+    assert owners == ["_cell_slot"]
+    grid = next(f for f in ast.walk(tree) if isinstance(f, ast.FunctionDef) and f.name == "_grid_pairs")
+    calls = [_name(n) for n in ast.walk(grid) if isinstance(n, ast.Call)]
+    assert calls.count("_cell_slot") == 3 and "_cell_key" in calls       # filing, the stencil, large bodies
