@@ -8,18 +8,12 @@ from __future__ import annotations
 from driftframe.framework import kernels
 
 
-def workload() -> None:
-    """Calls that reach the kernels: two steps of each demo scene (the second checks the neighbour list),
-    a Kepler propagation of enough bodies for the compiled loops, the n-body kernels, one frame through the
-    NV12 converter."""
-    import numpy as np
-
-    from driftframe import demos
+def _demos(names) -> None:
+    """Two steps of each demo (the second checks the neighbour list), and a third on the collision solver's
+    variant with the jam path where a demo has one."""
     from driftframe.app import make_world
-    from driftframe.framework import kepler
-    from driftframe.framework.yuv import rgba_to_nv12
 
-    for name in demos.NAMES:
+    for name in names:
         world, _ = make_world(name)
         try:
             world.step()
@@ -31,9 +25,56 @@ def workload() -> None:
                 world.step()
         finally:
             world.close()
-    # the all-pairs solvers directly: a demo's first steps may all be quiet (no pair meets), which
-    # framework/quiet_step.py answers without the solver
+
+
+def _collision_world(stick: bool, fill) -> None:
+    """One step of a world with movement and collision, ``fill(world)`` making its entities; ``stick``: the
+    solver's variant with the jam path."""
+    from driftframe.framework.world import World
+    from driftframe.systems.collision import CollisionSystem
+    from driftframe.systems.movement import MovementSystem
+
+    world = World(dt=1.0 / 60.0)
+    try:
+        world.add_system(MovementSystem())
+        world.add_system(CollisionSystem())._stick = stick
+        fill(world)
+        world.step()
+    finally:
+        world.close()
+
+
+def _row(world) -> None:
+    """A row of 40 balls (more than the all-pairs path takes) in touch and closing: a first step that is not
+    quiet, on the neighbour list."""
+    import numpy as np
+
+    from driftframe.components.body import Transform, Velocity
+    from driftframe.components.collision import SphereCollider
+    row = np.zeros((40, 3))
+    row[:, 0] = np.arange(40.0)
+    world.create_entities(Transform.bulk(40, position=row),
+                          Velocity.bulk(40, linear=np.where(np.arange(40)[:, None] % 2, -1.0, 1.0) * [1, 0, 0]),
+                          SphereCollider.bulk(40, radius=np.full(40, 0.5)))
+
+
+def _shapes(world) -> None:
+    """A ball against a plane and a box (the static-shape solvers; billiards' cushions reach them too)."""
+    from driftframe.components.body import Transform, Velocity
+    from driftframe.components.collision import BoxCollider, PlaneCollider, SphereCollider
+    world.create_entity(Transform((0.0, -0.5, 0.0)), PlaneCollider(normal=(0.0, 1.0, 0.0)))
+    world.create_entity(Transform((1.0, 0.0, 0.0)), BoxCollider(half_extents=(0.5, 0.5, 0.5)))
+    world.create_entity(Transform((0.0, 0.0, 0.0)), Velocity((1.0, -1.0, 0.0)), SphereCollider(0.5))
+
+
+def collisions() -> None:
+    """The sphere solvers: the collision demos but billiards, the all-pairs solvers called directly (a demo's
+    first steps may all be quiet, which framework/quiet_step.py answers without the solver), the neighbour
+    list's in a world, and the static-shape solver's jam-path variant."""
+    import numpy as np
+
     from driftframe.framework import contact
+    _demos(("asteroids", "cradle", "swarm"))
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])          # two unit balls touching, closing at 2 m/s
     u = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
     pi, pj = contact.all_pairs(2)
@@ -41,42 +82,19 @@ def workload() -> None:
         contact.solve_step(contact.StepInputs(x.copy(), u.copy(), np.full(2, 0.5), np.ones(2), np.ones(2),
                                               np.ones(2, np.bool_), np.full(2, -np.inf), 0.0, pi, pj, 1.0 / 60.0,
                                               contact.TC / 60.0, contact.CAP, None), stick=stick)
-    # and the neighbour list's solvers, in a world: a row of 40 balls (more than the all-pairs path takes)
-    # in touch and closing, so the first step is not quiet
-    from driftframe.components.body import Transform, Velocity
-    from driftframe.components.collision import SphereCollider
-    from driftframe.framework.world import World
-    from driftframe.systems.collision import CollisionSystem
-    from driftframe.systems.movement import MovementSystem
-    for stick in (False, True):
-        world = World(dt=1.0 / 60.0)
-        try:
-            world.add_system(MovementSystem())
-            collision = world.add_system(CollisionSystem())
-            collision._stick = stick
-            row = np.zeros((40, 3))
-            row[:, 0] = np.arange(40.0)
-            world.create_entities(Transform.bulk(40, position=row),
-                                  Velocity.bulk(40, linear=np.where(np.arange(40)[:, None] % 2, -1.0, 1.0) * [1, 0, 0]),
-                                  SphereCollider.bulk(40, radius=np.full(40, 0.5)))
-            world.step()
-        finally:
-            world.close()
-    # the static-shape solvers (planes, boxes; billiards' cushions reach them too): a ball against a plane
-    # and a box, without and with the jam path
-    from driftframe.components.collision import BoxCollider, PlaneCollider
-    for stick in (False, True):
-        world = World(dt=1.0 / 60.0)
-        try:
-            world.add_system(MovementSystem())
-            collision = world.add_system(CollisionSystem())
-            collision._stick = stick
-            world.create_entity(Transform((0.0, -0.5, 0.0)), PlaneCollider(normal=(0.0, 1.0, 0.0)))
-            world.create_entity(Transform((1.0, 0.0, 0.0)), BoxCollider(half_extents=(0.5, 0.5, 0.5)))
-            world.create_entity(Transform((0.0, 0.0, 0.0)), Velocity((1.0, -1.0, 0.0)), SphereCollider(0.5))
-            world.step()
-        finally:
-            world.close()
+        _collision_world(stick, _row)
+    _collision_world(True, _shapes)
+
+
+def orbits_and_the_rest() -> None:
+    """Everything else: the other demos (billiards' cushions: the static-shape solver), Kepler propagation of
+    enough bodies for the compiled loops, the n-body kernels, one frame through the NV12 converter."""
+    import numpy as np
+
+    from driftframe.framework import kepler
+    from driftframe.framework.yuv import rgba_to_nv12
+    _demos(("rotation", "spin", "billiards", "orbit"))
+    _collision_world(False, _shapes)
     n = kepler.COMPILED_MIN
     angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1
@@ -96,11 +114,22 @@ def workload() -> None:
     rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
 
 
+#: The warm-up in two halves of about equal compile time, run side by side on two cores
+#: (:func:`framework.kernels.warm`); together they reach every kernel.
+PARTS = (collisions, orbits_and_the_rest)
+
+
+def workload() -> None:
+    """Calls that reach every kernel: each of :data:`PARTS` in turn."""
+    for part in PARTS:
+        part()
+
+
 def warm(watch=None) -> list:
-    """Compile or load every kernel (:func:`framework.kernels.warm` with :func:`workload`)."""
-    return kernels.warm(workload, watch)
+    """Compile or load every kernel (:func:`framework.kernels.warm` with :data:`PARTS`)."""
+    return kernels.warm(PARTS, watch)
 
 
 def warm_once() -> None:
     """:func:`warm` unless the cache folder is warm already (:func:`framework.kernels.warm_once`)."""
-    kernels.warm_once(workload)
+    kernels.warm_once(PARTS)

@@ -250,6 +250,7 @@ class CompileWatch:
         self.t0 = None
         self.seconds = 0.0
         self.attempts: list = []         # (kernel, argument types) of each compile begun
+        self.remote: list = []           # what a warm-up helper process compiles now, outermost first
 
     @property
     def n(self) -> int:
@@ -279,6 +280,26 @@ class CompileWatch:
             if self.stack:
                 self.stack.pop()
 
+    def elsewhere(self, name: str | None) -> None:
+        """A compile in a warm-up helper process (:mod:`.warm_helper`): kernel ``name`` begins; None: the
+        last begun ends. Counted as this process's own."""
+        with self._lock:
+            if name is None:
+                if self.remote:
+                    self.remote.pop()
+                return
+            d = next((k for k in _registry if kernel_name(k) == name), None)
+            if d is None:
+                return
+            if self.t0 is None:
+                self.t0 = time.perf_counter()
+            if not self.remote:
+                for c in closure(d):
+                    if c is d or needs_compile(c):
+                        self.expected.setdefault(id(c), c)
+            self.started.setdefault(id(d), d)
+            self.remote.append(d)
+
     def failed(self):
         """The kernel whose compile failed: the last one begun that has no code for its arguments (numba
         reports a typing error after the compile events end, from the outermost call)."""
@@ -294,7 +315,8 @@ class CompileWatch:
     def current(self) -> str:
         with self._lock:
             ours = [d for d, mine in self.stack if mine]
-            return kernel_name(ours[-1]) if ours else ""
+            names = [kernel_name(ours[-1])] if ours else []
+            return ", ".join(names + ([kernel_name(self.remote[-1])] if self.remote else []))
 
     def line(self) -> str:
         """``3 of 14 kernels, 12 s: contact_solve.solve_listed``"""
@@ -331,13 +353,14 @@ class CompileWatch:
 # -- compiling ahead -------------------------------------------------------------------------------------
 @contextlib.contextmanager
 def file_lock(path: Path):
-    """An exclusive lock on ``path`` across processes (created if missing); a no-op where it cannot be made."""
+    """An exclusive lock on ``path`` across processes (created if missing); a no-op where it cannot be made.
+    Gives the locked descriptor (None where there is none to share)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as e:
         _unwritable(path.parent, e)
-        yield
+        yield None
         return
     try:
         if sys.platform == "win32":
@@ -348,12 +371,13 @@ def file_lock(path: Path):
                     break
                 except OSError:      # LK_LOCK gives up after 10 s; a compile takes longer
                     continue
+            yield None               # (a helper process cannot share this lock)
         else:
             import fcntl
             fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
+            yield fd                 # a helper process given this descriptor shares the lock (flock: per open file)
     finally:
-        os.close(fd)                 # closing releases the lock
+        os.close(fd)                 # closing releases the lock (once every process sharing it closed it)
 
 
 WARM_MARK = "warm.done"
@@ -364,40 +388,67 @@ def is_warm(folder: Path | None = None) -> bool:
     return ((folder or cache_dir()) / WARM_MARK).exists()
 
 
-def warm(workload, watch: CompileWatch | None = None) -> list:
-    """Run ``workload()`` (calls that reach every kernel: :func:`driftframe.warmup.workload`), so that
-    each kernel is compiled or loaded, one process at a time per cache folder (a file lock), then mark
-    the folder warm.
+def warm(parts, watch: CompileWatch | None = None) -> list:
+    """Run ``parts`` (one function or several; together, calls that reach every kernel:
+    :data:`driftframe.warmup.PARTS`), so that each kernel is compiled or loaded, one warm-up at a time
+    per cache folder (a file lock), then mark the folder warm.
 
-    Returns the kernels still with nothing compiled or cached (the workload did not reach them).
+    With several parts and more than one core, the parts after the first run at the same time in a helper
+    process (:mod:`.warm_helper`), then again here (loading what the helper compiled, and compiling
+    whatever it did not finish), so a cold compile takes two cores.
+
+    Returns the kernels still with nothing compiled or cached (the parts did not reach them).
     ``watch``: a :class:`CompileWatch` already entered, to show progress; every kernel with nothing
-    cached is added to its ``expected`` here.
+    cached is added to its ``expected`` here, and the helper's compiles are counted in it.
     """
-    with file_lock(cache_dir() / "warm.lock"):
-        return _warm(workload, watch)
+    with file_lock(cache_dir() / "warm.lock") as fd:
+        return _warm(parts, watch, fd)
 
 
-def warm_once(workload) -> None:
+def warm_once(parts) -> None:
     """:func:`warm` unless the cache folder is warm already; quiet. Each batch worker calls it before a run:
     the first to take the lock compiles, the others wait and then find the folder warm."""
     if not is_warm():
-        with file_lock(cache_dir() / "warm.lock"):
+        with file_lock(cache_dir() / "warm.lock") as fd:
             if not is_warm():
-                _warm(workload, None)
+                _warm(parts, None, fd)
 
 
-def _warm(workload, watch) -> list:
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:       # (not on macOS or Windows)
+        return os.cpu_count() or 1
+
+
+def _warm(parts, watch, lock_fd=None) -> list:
     folder = cache_dir()
     kernels = registry()
+    parts = [parts] if callable(parts) else list(parts)
     for stale in folder.glob("*.tmp.*"):        # a write cut short (Ctrl-C, a crash): numba renames on success
         with contextlib.suppress(OSError):
             stale.unlink()
+    cold = [d for d in kernels if needs_compile(d)]
     if watch is not None:
         with watch._lock:
-            for d in kernels:
-                if needs_compile(d):
-                    watch.expected.setdefault(id(d), d)
-    workload()
+            for d in cold:
+                watch.expected.setdefault(id(d), d)
+    helper = None
+    if len(parts) > 1 and cold and _cores() > 1 and lock_fd is not None:
+        from driftframe.framework import warm_helper
+        helper = warm_helper.start(parts[1:], lock_fd)
+        relay = threading.Thread(target=warm_helper.relay, args=(helper, watch), daemon=True)
+        relay.start()
+    try:
+        parts[0]()
+        if helper is not None:
+            helper.wait()
+            relay.join()
+        for part in parts[1:]:   # loads what the helper compiled; compiles what it left (or lost to a race)
+            part()
+    finally:
+        if helper is not None:
+            warm_helper.stop(helper)
     try:                          # what the warm-up did not reach compiles at its first call, as numba does
         (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
     except OSError as e:

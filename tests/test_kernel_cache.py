@@ -225,15 +225,15 @@ def uncalled_kernels() -> list[str]:
 @pytest.mark.slow
 def test_ctrl_c_during_warm_leaves_a_cache_the_next_warm_completes_and_uses(tmp_path):
     env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
-    # a cache that lacks only the solver's kernels (the largest: seconds each to compile), copied from this
-    # run's warm one, so that the Ctrl-C lands in a compile without compiling every kernel twice (CPU time
-    # the whole suite pays); an empty cache when this run has none warm
+    # a cache that lacks only the all-pairs solver (seconds to compile) and a small kernel, copied from
+    # this run's warm one, so that the Ctrl-C lands in a compile without compiling every kernel twice (CPU
+    # time the whole suite pays); an empty cache when this run has none warm
     warm = kernels.cache_dir()
     if warm.is_dir() and (warm / kernels.WARM_MARK).exists():
         seeded = tmp_path / "nc" / "driftframe" / warm.name
         shutil.copytree(warm, seeded)
         for f in list(seeded.iterdir()):
-            if f.name.startswith("contact_solve.") or f.name == kernels.WARM_MARK:
+            if f.name.startswith(("contact_solve.solve_all_pairs-", "contact_solve._shift-")) or f.name == kernels.WARM_MARK:
                 f.unlink()
     proc = subprocess.Popen(EXE + ["warm"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     first = proc.stderr.readline()
@@ -258,6 +258,85 @@ def test_ctrl_c_during_warm_leaves_a_cache_the_next_warm_completes_and_uses(tmp_
     assert not _cache_files(tmp_path / "nc", "*.tmp.*")
     again = subprocess.run(EXE + ["warm"], capture_output=True, text=True, env=env, timeout=300)
     assert again.returncode == 0 and "driftframe: compiling" not in again.stderr, again.stderr
+
+
+# two warm-up parts in a module of their own (a helper process imports its part by name)
+_PARTS = """
+import numpy as np
+
+
+def first():
+    from driftframe.framework import yuv
+    yuv.rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
+
+
+def second():
+    from driftframe.framework import sorting
+    sorting.median(np.arange(5.0))
+
+
+def both():
+    first()
+    second()
+"""
+
+
+def _parts_env(tmp_path, cache):
+    (tmp_path / "parts_here.py").write_text(_PARTS)
+    return _env(NUMBA_CACHE_DIR=tmp_path / cache, PYTHONPATH=str(tmp_path))
+
+
+def test_a_second_warm_up_part_compiles_in_a_helper_process_and_counts_in_the_progress(tmp_path):
+    # on two cores the second part compiles in a helper process at the same time; this process then loads
+    # its kernels, and the progress line counts them as one process would
+    code = ("import sys, parts_here; from driftframe import cli, warmup; from driftframe.framework import sorting; "
+            "warmup.PARTS = {parts}; rc = cli.main(['warm']); "
+            "print(rc, sum(sorting.median.stats.cache_misses.values()), sum(sorting.median.stats.cache_hits.values()))")
+    two = _py(code.format(parts="(parts_here.first, parts_here.second)"), env=_parts_env(tmp_path, "two"))
+    one = _py(code.format(parts="(parts_here.both,)"), env=_parts_env(tmp_path, "one"))
+    assert two.returncode == 0 and one.returncode == 0, (two.stderr, one.stderr)
+    compiled = [re.search(r"compiled (\d+) kernels in", r.stderr) for r in (two, one)]
+    assert all(compiled) and compiled[0].group(1) == compiled[1].group(1), (two.stderr, one.stderr)
+    if len(os.sched_getaffinity(0)) > 1:
+        assert two.stdout.split()[-3:] == ["0", "0", "1"], two.stdout    # compiled by the helper, loaded here
+    assert one.stdout.split()[-3:] == ["0", "1", "0"], one.stdout          # (one part: compiled here)
+
+
+def test_a_warm_up_helper_ends_with_its_parent_even_a_killed_one(tmp_path):
+    # the parent SIGKILLed while its helper compiles: the helper sees its stdin close and ends at once; the
+    # cache lock it shared is then free, and the next warm completes
+    env = _parts_env(tmp_path, "nc")
+    (tmp_path / "parts_here.py").write_text(_PARTS + "\n\ndef slow():\n    import time\n    time.sleep(60)\n")
+    code = ("import parts_here; from driftframe import cli, warmup; "
+            "warmup.PARTS = (parts_here.slow, parts_here.slow); cli.main(['warm'])")
+    proc = subprocess.Popen([PY, "-c", code], env=env, cwd=tempfile.gettempdir(), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+
+    def helpers():
+        found = []
+        for pid in os.listdir("/proc"):
+            try:
+                cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+            except (OSError, ValueError):
+                continue
+            if b"warm_helper" in cmd and b"parts_here:slow" in cmd:
+                found.append(pid)
+        return found
+
+    deadline = time.monotonic() + 60
+    while not helpers() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.1)
+    assert helpers(), "no helper process started"
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while helpers() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not helpers(), "the helper outlived its parent"
+    done = _py("import parts_here; from driftframe import cli, warmup; "
+               "warmup.PARTS = (parts_here.first, parts_here.second); raise SystemExit(cli.main(['warm']))",
+               env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
 
 
 def test_warm_once_takes_the_lock_and_skips_a_warm_folder(tmp_path):
@@ -287,7 +366,7 @@ def test_import_driftframe_imports_none_of_the_heavy_libraries():
 
 # warm's own work swapped for one kernel (a second): what is tested here is the lock and the order
 _CHEAP = ("import numpy as np; from driftframe import warmup; from driftframe.framework import kernels, yuv; "
-          "warmup.workload = lambda: yuv.rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4); ")
+          "warmup.PARTS = (lambda: yuv.rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4),); ")
 
 
 def test_warm_once_in_two_processes_at_once_compiles_in_one_and_the_other_waits_and_loads(tmp_path):

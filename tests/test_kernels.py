@@ -54,11 +54,30 @@ class _TypeOnly(CompilerBase):
 
 
 def _kernels():
+    """Each kernel once (a module that imports another's kernel names the same dispatcher), by its own name."""
+    seen = set()
     for mod in list(sys.modules.values()):
         if getattr(mod, "__name__", "").startswith("driftframe"):
-            for name, obj in list(vars(mod).items()):
-                if isinstance(obj, numba.core.registry.CPUDispatcher):
-                    yield f"{mod.__name__}.{name}", obj
+            for obj in list(vars(mod).values()):
+                if isinstance(obj, numba.core.registry.CPUDispatcher) and id(obj) not in seen:
+                    seen.add(id(obj))
+                    yield f"{obj.py_func.__module__}.{obj.py_func.__name__}", obj
+
+
+def _calls_a_kernel(k) -> bool:
+    """Only a kernel that calls another can pass it a literal: one naming no kernel in its code (and with no
+    closure, where a kernel could hide) is a leaf, and typing its copy would find nothing."""
+    f = k.py_func
+    if f.__code__.co_freevars:
+        return True
+    names, codes = set(), [f.__code__]
+    while codes:                                   # the function's names and those of the code nested in it
+        code = codes.pop()
+        names.update(code.co_names)
+        codes.extend(c for c in code.co_consts if isinstance(c, type(code)))
+    values = [f.__globals__.get(n) for n in names]
+    values += [getattr(v, n, None) for v in values if isinstance(v, type(sys)) for n in names]   # mod.f(...)
+    return any(isinstance(v, numba.core.registry.CPUDispatcher) and v is not k for v in values)
 
 
 def _literal_signatures(kernels):
@@ -68,7 +87,8 @@ def _literal_signatures(kernels):
 
 def _type_cached_signatures(kernels, done):
     """Type an uncached copy of each kernel for each signature the cache gave it and not yet in ``done``."""
-    todo = [(name, k, sig) for name, k in kernels.items() for sig in k.stats.cache_hits if (name, sig) not in done]
+    todo = [(name, k, sig) for name, k in kernels.items() if _calls_a_kernel(k)
+            for sig in k.stats.cache_hits if (name, sig) not in done]
     for name, k, sig in todo:
         options = {o: v for o, v in k.targetoptions.items() if o not in ("cache", "nopython")}   # njit's own
         copy = numba.njit(cache=False, pipeline_class=_TypeOnly, **options)(k.py_func)
