@@ -36,6 +36,8 @@ import math
 
 import numpy as np
 
+from numba.extending import register_jitable
+
 from driftframe.framework import wisdom_holman as wh
 from driftframe.framework.encounters import bulirsch_stoer, changeover
 from driftframe.framework.kernels import kernel
@@ -83,30 +85,10 @@ def _switched_kick(X, V, gm, dc, a, t):
         V[i, 2] += t * a[i, 2]
 
 
-@kernel(error_model="numpy")
-def _jump(X, V, gm, t):
-    """``X_i += t P/(G m_0)``, ``P = sum_{i>=1} G m_i V_i`` (the democratic split's momentum term)."""
-    n = X.shape[0]
-    p0 = 0.0
-    p1 = 0.0
-    p2 = 0.0
-    for i in range(1, n):
-        p0 += gm[i] * V[i, 0]
-        p1 += gm[i] * V[i, 1]
-        p2 += gm[i] * V[i, 2]
-    s = t / gm[0]
-    for i in range(1, n):
-        X[i, 0] += s * p0
-        X[i, 1] += s * p1
-        X[i, 2] += s * p2
-
-
-@kernel(error_model="numpy")
-def _closest_squared(Xb, Vb, X, V, i, j, dt):
-    """The least squared distance of the pair ``i, j`` over a drift from ``(Xb, Vb)`` to ``(X, V)``: the
-    cubic Hermite interpolant in ``s = t/dt`` of ``q = r^2`` from its values and rates ``q' = 2 d.w`` at
-    both ends, minimised where its derivative ``a s^2 + b s + c`` vanishes inside (0, 1) (REBOUND's
-    prediction, which divides by ``a`` and so misses the minimum when ``a = 0``)."""
+@register_jitable(inline="always")
+def _pair_sums(Xb, Vb, X, V, i, j):
+    """The pair ``i, j``'s squared distances ``qo, qn`` at the two ends of a drift from ``(Xb, Vb)`` to
+    ``(X, V)`` and half their rates, ``d.w`` (``q' = 2 d.w``), at both ends."""
     qo = 0.0
     qn = 0.0
     ro = 0.0
@@ -116,8 +98,16 @@ def _closest_squared(Xb, Vb, X, V, i, j, dt):
         dn = X[j, k] - X[i, k]
         qo += do * do
         qn += dn * dn
-        ro += 2.0 * do * (Vb[j, k] - Vb[i, k])
-        rn += 2.0 * dn * (V[j, k] - V[i, k])
+        ro += do * (Vb[j, k] - Vb[i, k])
+        rn += dn * (V[j, k] - V[i, k])
+    return qo, qn, ro, rn
+
+
+@register_jitable(inline="always")
+def _least_squared(qo, qn, ro, rn, dt):
+    """:func:`_closest_squared` from the pair's :func:`_pair_sums` (``ro, rn``: half the rates)."""
+    ro = 2.0 * ro                                     # (x 2 is exact: the bits of summing 2 d.w)
+    rn = 2.0 * rn
     qmin = min(qo, qn)
     a = 6.0 * (qo - qn) + 3.0 * dt * (ro + rn)
     b = 6.0 * (qn - qo) - 2.0 * dt * (2.0 * ro + rn)
@@ -134,6 +124,17 @@ def _closest_squared(Xb, Vb, X, V, i, j, dt):
     return qmin
 
 
+@register_jitable(inline="always")
+def _closest_squared(Xb, Vb, X, V, i, j, dt):
+    """The least squared distance of the pair ``i, j`` over a drift from ``(Xb, Vb)`` to ``(X, V)``: the
+    cubic Hermite interpolant in ``s = t/dt`` of ``q = r^2`` from its values and rates ``q' = 2 d.w`` at
+    both ends, minimised where its derivative ``a s^2 + b s + c`` vanishes inside (0, 1) (REBOUND's
+    prediction, which divides by ``a`` and so misses the minimum when ``a = 0``). A kernel's helper (and plain
+    Python, for a check of one pair)."""
+    qo, qn, ro, rn = _pair_sums(Xb, Vb, X, V, i, j)
+    return _least_squared(qo, qn, ro, rn, dt)
+
+
 @kernel(error_model="numpy")
 def _flag_pairs(Xb, Vb, X, V, dc, dt, first, flag):
     """``flag[i]``: whether body ``i`` (rows ``first..``) is in a pair whose least distance over the drift from
@@ -147,20 +148,10 @@ def _flag_pairs(Xb, Vb, X, V, dc, dt, first, flag):
             rc = 1.1 * max(dc[i], dc[j])
             # first a lower bound of the cubic with no root and no division: its weights of qo, qn are >= 0
             # and sum to 1, those of dt q'o, dt q'n lie in [0, 4/27] and [-4/27, 0]
-            qo = 0.0
-            qn = 0.0
-            ro = 0.0
-            rn = 0.0
-            for k in range(3):
-                do = Xb[j, k] - Xb[i, k]
-                dn = X[j, k] - X[i, k]
-                qo += do * do
-                qn += dn * dn
-                ro += do * (Vb[j, k] - Vb[i, k])
-                rn += dn * (V[j, k] - V[i, k])
+            qo, qn, ro, rn = _pair_sums(Xb, Vb, X, V, i, j)
             if min(qo, qn) - (8.0 / 27.0) * (max(-dt * ro, 0.0) + max(dt * rn, 0.0)) >= rc * rc:
                 continue
-            if _closest_squared(Xb, Vb, X, V, i, j, dt) < rc * rc:
+            if _least_squared(qo, qn, ro, rn, dt) < rc * rc:
                 if not flag[i]:
                     count += 1
                 flag[i] = True
@@ -238,12 +229,12 @@ def _mercurius(x, v, gm, dc, dt, n_steps, tolerance):
     encounters = 0
     _switched_kick(X, V, gm, dc, a, 0.5 * dt)
     for s in range(n_steps):
-        _jump(X, V, gm, 0.5 * dt)
+        wh._jump(X, V, gm, 0.5 * dt)
         got = _drift(X, V, Xb, Vb, gm, dc, m, dt, flag, tolerance)
         if got < 0:
             return -1 - s
         encounters += got
-        _jump(X, V, gm, 0.5 * dt)
+        wh._jump(X, V, gm, 0.5 * dt)
         _switched_kick(X, V, gm, dc, a, dt if s < n_steps - 1 else 0.5 * dt)
     T = n_steps * dt
     for k in range(3):                                # x_0 = C - sum m_i X_i / M,  v_0 = V_C - sum m_i V_i / m_0

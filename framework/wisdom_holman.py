@@ -399,24 +399,32 @@ def _wh_jacobi(x, v, gm, dt, n_steps, table):
 
 # -- democratic heliocentric ------------------------------------------------------------------------------
 @kernel(error_model="numpy")
+def _jump(X, V, gm, t):
+    """``X_i += t P/(G m_0)``, ``P = sum_{i>=1} G m_i V_i``: the democratic split's momentum term (here and in
+    :mod:`framework.mercurius`, whose hybrid step is this split with the pulls switched)."""
+    n = X.shape[0]
+    p0 = 0.0
+    p1 = 0.0
+    p2 = 0.0
+    for i in range(1, n):
+        p0 += gm[i] * V[i, 0]
+        p1 += gm[i] * V[i, 1]
+        p2 += gm[i] * V[i, 2]
+    s = t / gm[0]
+    for i in range(1, n):
+        X[i, 0] += s * p0
+        X[i, 1] += s * p1
+        X[i, 2] += s * p2
+
+
+@kernel(error_model="numpy")
 def _dh_kick_jump(X, V, gm, a, t_kick, t_jump, jump):
     """The pairs without body 0 kick the barycentric velocities for ``t_kick``; around it the jump
-    ``X_i += t_jump P / (G m_0)``, ``P = sum G m_j V_j`` (when ``jump``)."""
+    ``X_i += t_jump P / (G m_0)``, ``P = sum G m_j V_j`` (when ``jump``: :func:`_jump`)."""
     n = X.shape[0]
     for side in range(2):
         if jump:
-            p0 = 0.0
-            p1 = 0.0
-            p2 = 0.0
-            for i in range(1, n):
-                p0 += gm[i] * V[i, 0]
-                p1 += gm[i] * V[i, 1]
-                p2 += gm[i] * V[i, 2]
-            s = t_jump / gm[0]
-            for i in range(1, n):
-                X[i, 0] += s * p0
-                X[i, 1] += s * p1
-                X[i, 2] += s * p2
+            _jump(X, V, gm, t_jump)
         if side == 0:
             _pair_accel(X, gm, np.int64(1), np.bool_(False), a)
             for i in range(1, n):
