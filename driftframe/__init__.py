@@ -14,7 +14,7 @@ One import package. Its layers, from the ground up (no layer imports one above i
 """
 from driftframe.framework import __version__
 
-TYPE_CHECKING = False   # typing.TYPE_CHECKING's meaning without importing typing (2 ms); type checkers take it as True
+TYPE_CHECKING = False   # typing.TYPE_CHECKING's meaning without importing typing; type checkers take it as True
 if TYPE_CHECKING:       # what a type checker sees; at run time __getattr__ below imports each name at its first use
     from driftframe.app import (attach_rendering, declare_model_file, declare_variant, load_scene, make_world,
                                 simulation_systems)

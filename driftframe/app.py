@@ -170,7 +170,7 @@ def load_kernels(name: str, *, seed: int = 0) -> None:
     they open the window or start the progress bar, so that wait comes first
     (the command line says why) instead of a frozen window or a bar stuck at
     frame 0. With the kernels cached it costs what the first step would pay
-    anyway (the cache load), plus the scratch world: 2-40 ms for the demos.
+    anyway (the cache load), plus the scratch world (docs/design/costs.md).
     """
     world, _ = make_world(name, seed=seed)
     try:

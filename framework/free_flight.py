@@ -2,9 +2,8 @@
 
 :func:`driftframe.framework.step.advance` writes the same update with two numpy
 calls (``v0 dt`` into ``x1``, then ``+ x0``); for a handful of bodies each
-call costs more than the arithmetic (2 bodies: 0.53 us for the two against
-0.28 us for this call), and the compiled loop stays ahead at every size
-measured (10,000 bodies: 12.7 us against 19.6), so the movement stage moves
+call costs more than the arithmetic, and the compiled loop stays ahead at
+every size measured (docs/design/costs.md), so the movement stage moves
 every contiguous group without an Acceleration with it.
 The same bits as numpy's: each element is one rounded product and one
 rounded sum, ``(v0 dt) + x0`` (IEEE addition commutes exactly), and numba

@@ -372,7 +372,7 @@ def save_track(track: Track, path: str | os.PathLike[str], *, overwrite: bool = 
 
 
 #: Largest track file read: 32 MiB. A flown hold is about 60-90 bytes, so this is over 350,000 entries: a
-#: gamepad flight (at most one entry a step) of 1.6 h at 60 steps/s. A 200 MB track took 3 GB and 146 s.
+#: gamepad flight (at most one entry a step) of 1.6 h at 60 steps/s (what a far larger one cost: docs/design/costs.md).
 TRACK_CAP = 32 << 20
 #: Deepest JSON nesting read. A track is 3 levels deep; JSON nested ~100,000 deep hit Python's recursion limit.
 _TRACK_DEPTH = 8

@@ -68,8 +68,8 @@ def advance(x0: np.ndarray, v0: np.ndarray, a: np.ndarray | None, dt: float,
 
 def _bytes(a: np.ndarray) -> memoryview | None:
     """``a``'s bytes as a flat memoryview (non-empty C-contiguous arrays; else None): ``dst[:] = src`` of two
-    such views copies 48 bytes in about 0.06 us, where ``np.copyto`` takes 0.28 (a small scene's commit is
-    one copy)."""
+    such views copies a few bytes several times sooner than ``np.copyto`` (a small scene's commit is one
+    copy; the figures: docs/design/costs.md)."""
     return memoryview(a).cast("B") if a.size and a.flags.c_contiguous else None
 
 

@@ -428,7 +428,7 @@ class World:
         outer = access_check.running                # (a system of another world stepping this one)
         last = None                                 # the system running, or the last one that ran
         # one clock read per system: each one's time runs from the end of the one before (its line in the
-        # profile holds the loop's few bookkeeping operations too, about 0.1 us)
+        # profile holds the loop's few bookkeeping operations too)
         t0 = clock()
         try:
             while plan:

@@ -21,7 +21,7 @@ _CONJ = np.array([-1.0, -1.0, -1.0, 1.0])
 
 
 def _cross(a, b) -> np.ndarray:
-    """a x b for two 3-vectors (np.cross costs ~50 us a call on one vector; this ~2)."""
+    """a x b for two 3-vectors (np.cross's set-up dwarfs one vector's six products: docs/design/costs.md)."""
     a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
     b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])

@@ -49,8 +49,8 @@ class MovementSystem(esper.Processor):
         self._views = ()
         self._tables = (None, None)           # the Transform and Velocity tables (a world's, kept)
         self._whole = False                   # the plan writes every row of the step context's positions
-        # dt as a 0-d array (numpy's multiply takes it ~0.1 us sooner than a float, which it converts at
-        # every call; the same bits), the dt it was made from, and that as a float (the compiled free flight's)
+        # dt as a 0-d array (numpy's multiply takes it sooner than a float, which it converts at every call;
+        # the same bits: docs/design/costs.md), the dt it was made from, and that as a float (free flight's)
         self._dt, self._dt_f, self._dt_x = np.array(0.0), 0.0, 0.0
         self._free_flight = None              # framework/free_flight.py's kernel, loaded by prepare()
 

@@ -54,8 +54,9 @@ class SpinSystem(esper.Processor):
         The same operations in the same order as ``framework.frame.quat_from_rotvec``,
         ``quat_multiply`` and ``q / |q|`` (so the same bits), done component by
         component on contiguous rows into scratch buffers kept between steps:
-        about 4x faster than the (n, 4) array expressions, which spend their time
-        allocating temporaries and striding across the quaternion's components.
+        several times faster than the (n, 4) array expressions, which spend their time
+        allocating temporaries and striding across the quaternion's components
+        (docs/design/costs.md).
         """
         n = len(q)
         if self._scratch.shape[1] < n:
