@@ -139,10 +139,11 @@ def _count_gc(phase: str, info: dict) -> None:
 
 
 def timed_steps(step, k: int, cpu_out: list, wall_out: list, cost: tuple[int, int], gc_out: list | None = None,
-                contacts=None) -> None:
-    """``k`` calls of ``step``, each one's CPU and wall nanoseconds (less the clocks' own cost) appended, and to
-    ``gc_out`` whether the garbage collector ran during it and ``contacts()`` after it (-1: no ``contacts``),
-    both read outside the timed span."""
+                contacts=None, contacts_out: list | None = None) -> None:
+    """``k`` calls of ``step``, each one's CPU and wall nanoseconds (less the clocks' own cost) appended, to
+    ``gc_out`` whether the garbage collector ran during it and to ``contacts_out`` ``contacts()`` after it
+    (-1: no ``contacts``), both read outside the timed span. (Only ints and bools are kept: an object the
+    collector tracks, a tuple, kept per step would itself start a collection every 700 steps.)"""
     cpu, wall = time.thread_time_ns, time.perf_counter_ns
     c0, w0 = cost
     runs = GC_RUNS
@@ -156,24 +157,26 @@ def timed_steps(step, k: int, cpu_out: list, wall_out: list, cost: tuple[int, in
         cpu_out.append(max(c - c0, 0))
         wall_out.append(max(w - w0, 0))
         if gc_out is not None:
-            gc_out.append((runs[0] != g, contacts() if contacts is not None else -1))
+            gc_out.append(runs[0] != g)
+            contacts_out.append(contacts() if contacts is not None else -1)
 
 
 def run_scene(make, steps: int, rounds: int, block: int, engines: list[str], cost) -> dict:
     """The rounds of one scene (see the module docstring): per engine, per-step CPU and wall (ns)."""
-    out = {k: {"cpu": [], "wall": [], "gc": [], "first_cpu": [], "first_wall": [], "mean_cpu": [], "mean_wall": []}
-           for k in engines}
+    out = {k: {"cpu": [], "wall": [], "gc": [], "contacts": [], "first_cpu": [], "first_wall": [], "mean_cpu": [],
+               "mean_wall": []} for k in engines}
     for rnd in range(rounds):
         scene = make()
         order = engines if rnd % 2 == 0 else engines[::-1]
         sims = {k: (Drift if k == "driftframe" else Bullet)(scene) for k in order}
         run = {k: ([], []) for k in order}
         gcs = {k: [] for k in order}
+        cts = {k: [] for k in order}
         done = 0
         while done < steps:
             k_steps = min(block, steps - done)
             for k in order:
-                timed_steps(sims[k].step, k_steps, *run[k], cost, gcs[k], getattr(sims[k], "contacts", None))
+                timed_steps(sims[k].step, k_steps, *run[k], cost, gcs[k], getattr(sims[k], "contacts", None), cts[k])
             done += k_steps
         for k in order:
             cpu, wall = run[k]
@@ -183,6 +186,7 @@ def run_scene(make, steps: int, rounds: int, block: int, engines: list[str], cos
             o["cpu"] += cpu[1:]
             o["wall"] += wall[1:]
             o["gc"] += gcs[k][1:]
+            o["contacts"] += cts[k][1:]
             o["mean_cpu"].append(sum(cpu) / len(cpu))
             o["mean_wall"].append(sum(wall) / len(wall))
             sims[k].close()
@@ -190,8 +194,8 @@ def run_scene(make, steps: int, rounds: int, block: int, engines: list[str], cos
     for k, o in out.items():
         worst = max(range(len(o["cpu"])), key=o["cpu"].__getitem__)
         res[k] = {"median_cpu": statistics.median(o["cpu"]), "worst_cpu": o["cpu"][worst],
-                  "gc_steps": sum(g for g, _ in o["gc"]), "steps": len(o["gc"]), "worst_gc": o["gc"][worst][0],
-                  "worst_contacts": o["gc"][worst][1],
+                  "gc_steps": sum(o["gc"]), "steps": len(o["gc"]), "worst_gc": o["gc"][worst],
+                  "worst_contacts": o["contacts"][worst],
                   "median_wall": statistics.median(o["wall"]), "worst_wall": max(o["wall"]),
                   "first_cpu": statistics.median(o["first_cpu"]), "first_wall": statistics.median(o["first_wall"]),
                   "mean_cpu": statistics.median(o["mean_cpu"]), "mean_wall": statistics.median(o["mean_wall"])}
@@ -344,10 +348,11 @@ collection in it (gc.callbacks). That step's numpy fancy indexing (the changed b
 solver's dispatch and result records were most of the difference and are compiled calls now (quiet_step.
 write_changed, the solver's entry point); the solver's own code (about 45 us cold) remains. A quiet step
 costs 80-95 us after the same eviction: every step pays for cold caches, the contact step most. Python's
-garbage collector: a step of these scenes makes no lasting object (1,000 quiet steps: 4 net container
+garbage collector: a step of these scenes keeps no object it tracks (1,000 quiet steps: 4 net container
 allocations), so the collector runs in a step only when work outside the steps (building and closing the
-rounds' worlds, 100-150 objects in reference cycles each) has filled its first generation; then that step
-pays for it (86-284 us measured). The lines above say whether it happened in this run.
+rounds' worlds: 100-150 objects in reference cycles each; or a caller keeping a tuple a step) has filled its
+first generation; that step then pays for the collection (86-284 us in a probe that kept a tuple a step).
+The lines above say whether it happened in this run (this benchmark keeps only ints and bools per step).
 
 Where a step of the head-on pair goes (wall time, us, median of {STAGE_STEPS} steps after the first):
 `world.step()` {whole:.3g}, of which {where} (the profile's lines of the systems that ran: those with
