@@ -28,7 +28,6 @@ class ModelRef:
     colour: tuple[float, float, float] | None = None
 
     def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name:
-            raise TypeError(f"ModelRef.name must be a non-empty model name (str), got {validate.shown(self.name)}")
+        validate.text("ModelRef.name", self.name, "a non-empty model name (str)")
         if self.colour is not None:
             object.__setattr__(self, "colour", tuple(check_colour("ModelRef.colour", self.colour).tolist()))

@@ -66,8 +66,7 @@ class FixedStepLoop:
 
     def __init__(self, world: World, clock: Callable[[], float], *, max_steps: int = 8, max_delta: float | None = 0.25,
                  max_step_time: float = 1.0 / 30.0, drop_when_behind: bool = True):
-        if not callable(clock):
-            raise TypeError(f"clock must be a function returning seconds, got {clock!r}")
+        validate.function("clock", clock, what="a function returning seconds")
         if isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1:
             raise ValueError(f"max_steps must be an int >= 1, got {max_steps!r}")
         if max_delta is not None:

@@ -207,8 +207,7 @@ class ModelCache:
 
     # -- entries -----------------------------------------------------------------
     def _check_name(self, name) -> str:
-        if not isinstance(name, str) or not name:
-            raise TypeError(f"a model name must be a non-empty str, got {name!r}")
+        validate.text("a model name", name)
         return name
 
     def define(self, name: str, lods, *, colour=GREY, texture=None, normal_map=None) -> Model:
@@ -356,8 +355,7 @@ def declare_variant(world: World, name: str, base: str = "sphere", *, scale: Arr
 
     Stored in ``world.resources[ModelVariants]`` until rendering is attached.
     """
-    if not isinstance(name, str) or not name:
-        raise TypeError(f"variant name must be a non-empty str, got {name!r}")
+    validate.text("variant name", name)
     check_scale(f"variant {name!r} scale", scale)
     if colour is not None:
         check_colour(f"variant {name!r} colour", colour)
@@ -374,8 +372,7 @@ def declare_model_file(world: World, name: str, path: str | os.PathLike[str], *,
     """
     from pathlib import Path
 
-    if not isinstance(name, str) or not name:
-        raise TypeError(f"model name must be a non-empty str, got {name!r}")
+    validate.text("model name", name)
     p = Path(path)
     if p.suffix.lower() not in meshes.MODEL_FILES:
         raise ValueError(f"model file {str(p)!r}: unknown type {p.suffix or '(none)'!r}; "

@@ -87,6 +87,7 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
 
+from driftframe.framework import validate
 from driftframe.framework import warp as time_warp
 # the parts' public names (and the private ones the tests and benchmarks reach) are importable from here too
 from driftframe.framework.output import OutputExistsError, no_space, remove_stale_parts  # noqa: F401
@@ -250,8 +251,7 @@ def _checked(world, path, *, frames, fps, steps_per_frame, before_step, gif_scal
     if isinstance(fps, bool) or not isinstance(fps, (int, float, np.integer, np.floating)) \
             or not math.isfinite(fps) or fps <= 0:
         raise ValueError(f"fps must be a finite number > 0, got {fps!r}")
-    if before_step is not None and not callable(before_step):
-        raise TypeError(f"before_step must be a function (world, step_index) or None, got {before_step!r}")
+    validate.function("before_step", before_step, optional=True, what="a function (world, step_index)")
     if not 0 < gif_scale <= 1:
         raise ValueError(f"gif_scale must be in (0, 1], got {gif_scale!r}")
     if preset not in X264_PRESETS:

@@ -144,6 +144,14 @@ def a_class(name: str, value, example: str = ""):
     return value
 
 
+def text(name: str, value, what: str = "a non-empty str") -> str:
+    """``value`` when it is a non-empty str; else a TypeError naming ``name``, ``what`` it must be and the
+    value."""
+    if not isinstance(value, str) or not value:
+        raise TypeError(f"{name} must be {what}, got {shown(value)}")
+    return value
+
+
 def function(name: str, value, *, optional: bool = False, what: str = "callable"):
     """``value`` when it can be called (or is None, when ``optional``); else a TypeError naming ``name``,
     what it must be and the value."""
