@@ -14,7 +14,9 @@ mass, at rest).
 ``PlaneCollider`` and ``BoxCollider`` are static shapes (a table's cushions,
 a floor, a wall): always immovable, whatever else the entity has. Spheres meet
 them in the same time-ordered event loop as each other (exact time of impact
-on the step's path, restitution the smaller of the two coefficients).
+on the step's path, restitution the smaller of the two coefficients). A
+sphere that starts inside a box or behind a plane is reported once and
+resolved as overlapping spheres are (:mod:`driftframe.systems.static_step`).
 """
 from __future__ import annotations
 
