@@ -453,5 +453,39 @@ def _warm(parts, watch, lock_fd=None) -> list:
         (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
     except OSError as e:
         _unwritable(folder, e)
+    prune(folder)
     # a kernel loaded from the cache as a caller's callee has no overload of its own: its entries count
     return [d for d in kernels if needs_compile(d)]
+
+
+#: Cache folders of other driftframe versions or sources kept beside this one (the newest warmed first):
+#: two installs that alternate keep theirs, and upgrades do not pile up megabytes of stale kernels.
+KEEP_OTHERS = 3
+
+
+def prune(folder: Path) -> list:
+    """Remove the cache folders beside ``folder`` (other keys) but the :data:`KEEP_OTHERS` last warmed (by
+    their mark, else their own time); returns those removed. A process still loading from a removed folder
+    finds its files missing and compiles, as with any cache miss."""
+    import shutil
+
+    def when(d: Path) -> float:
+        try:
+            return (d / WARM_MARK).stat().st_mtime
+        except OSError:
+            try:
+                return d.stat().st_mtime
+            except OSError:
+                return 0.0
+
+    import re
+    key = re.compile(r".+-[0-9a-f]{16}")         # <version>-<source digest>: only folders made as cache_dir() makes them
+    try:
+        others = [d for d in folder.parent.iterdir() if d.name != folder.name and key.fullmatch(d.name) and d.is_dir()]
+    except OSError:
+        return []
+    others.sort(key=when, reverse=True)
+    gone = others[KEEP_OTHERS:]
+    for d in gone:
+        shutil.rmtree(d, ignore_errors=True)
+    return gone

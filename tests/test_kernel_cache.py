@@ -398,3 +398,23 @@ def test_batch_on_several_processes_warms_the_cache_once_before_the_workers_star
     again = subprocess.run([PY, "-c", code.replace("'-o'", "'--overwrite', '-o'")], stdout=subprocess.PIPE,
                            stderr=subprocess.STDOUT, text=True, env=env, cwd=tempfile.gettempdir(), timeout=600)
     assert again.returncode == 0 and "driftframe: compiling" not in again.stdout, again.stdout   # warm: skipped
+
+
+def test_warm_keeps_three_other_cache_folders_the_last_warmed_and_removes_the_rest(tmp_path):
+    # upgrades and edited sources each make a folder: warm keeps this one and the 3 last warmed beside it
+    root = tmp_path / "nc" / "driftframe"
+    for k in range(5):
+        d = root / f"0.0.{k}-{k:016x}"
+        d.mkdir(parents=True)
+        (d / "x.nbi").write_bytes(b"old")
+        (d / kernels.WARM_MARK).write_text("x")
+        os.utime(d / kernels.WARM_MARK, (1e9 + k, 1e9 + k))      # 0.0.4 the last warmed
+    (root / "mine").mkdir()                                       # not a cache key: never touched
+    res = _py(_CHEAP + "from driftframe import cli; raise SystemExit(cli.main(['warm']))",
+              env=_env(NUMBA_CACHE_DIR=tmp_path / "nc"))
+    assert res.returncode == 0, res.stderr
+    left = sorted(p.name for p in root.iterdir())
+    this = [n for n in left if n.startswith(kernels.__version__ + "-")]
+    assert len(this) == 1 and (root / this[0] / kernels.WARM_MARK).exists()
+    assert sorted(set(left) - set(this)) == ["0.0.2-0000000000000002", "0.0.3-0000000000000003",
+                                              "0.0.4-0000000000000004", "mine"], left
