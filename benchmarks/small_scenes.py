@@ -344,7 +344,7 @@ A worst step with contacts is the scene's contact step (the solver's one call am
 and data are out of the CPU's caches when it comes, after pybullet's block and many steps that do not run it.
 A worst step without contact or collection runs the same code as the median step (the field of 50 also
 rebuilds its neighbour list every few steps): such spikes hit pybullet's steps alike (its worst column, against
-medians of 1.5-35 us), time the shared virtual machine charges to the thread (this VM reports steal time). In a
+medians of 1.5-35 us): likely time the shared virtual machine charges to the thread (this VM reports steal time). In a
 probe (the head-on pair's contact step, CPU time, one process): about 25 us when the same step has just run,
 about 160-260 us after pybullet's 5 steps or after touching 64 MB of other data; no page fault (getrusage) and no
 collection in it (gc.callbacks). That step's numpy fancy indexing (the changed bodies' end of step) and the
