@@ -470,20 +470,10 @@ def _tag(tag) -> str:
     return ", ".join(x for x in (what, "a collection in it" if ran else "no collection") if x)
 
 
-def report(res, quick, bullet, started):
-    load = ", ".join(f"{x:.1f}" for x in res.get("load", ()))
-    reps = res.get("repeats", 1)
+def _gas_and_converging_rows(res, bullet, pb, bar) -> list:
+    """The main table's rows of the dense gases and the converging scenes (``pb(key, field)``: pybullet's
+    figure; ``bar(name, ok, text)`` records each verdict)."""
     rows = []
-    verdicts = []
-
-    def pb(key, field="median"):
-        p = res[key].get("pybullet")
-        return p[field] if p else float("nan")
-
-    def bar(name, ok, text):
-        verdicts.append((name, "met" if ok else "NOT met", text))
-        return "met" if ok else "**not met**"
-
     for frac in (0.30, 0.45):
         d = res[f"gas{frac}"]["driftframe"]
         ratio = d["mean"] / pb(f"gas{frac}", "mean")
@@ -519,6 +509,78 @@ def report(res, quick, bullet, started):
                      bar(f"converging e={e}", ok, f"ratio {ratio:.2f}, worst {_ms(d['worst'])} ms, "
                                                    f"rise {d['rise']:.1e}, "
                                                    f"overlap {d['overlap']:.1e}")])
+    return rows
+
+
+def _first_table(res, limits, bar) -> str:
+    """The first step after world.prepare() against the scene's median step (issue 20: at most 2x), a table;
+    ``bar(name, ok, text)`` records each verdict."""
+    first_rows = []
+    named = [(f"gas{f}", f"dense gas 2,000 at {f:.0%}") for f in (0.30, 0.45)] + \
+        [(f"conv{e}", f"200 converging, e = {e}") for e in (0.0, 0.5)] + \
+        [(f"field{n}", f"field of {n:,} at 5 %") for n in limits if f"field{n}" in res] + \
+        [("head_on", "two bodies head on")]
+
+    def first_row(name, d, status):
+        ratio = d["cpu_first"] / d["cpu_median"]
+        return [name, f"{_ms(d['cpu_first'])} / {_ms(d['first_med'])}", _ms(d["first_worst"]),
+                f"{_ms(d['cpu_median'])} / {_ms(d['median'])}", f"{ratio:.2f} ({d['first_med'] / d['median']:.2f})",
+                f"{d['contacts_first']:g} / {d['contacts_median']:g}",
+                status if status else bar(f"first step {name}", ratio <= 2.0,
+                                          f"first {_ms(d['cpu_first'])} ms CPU = {ratio:.2f}x median")]
+    for key, name in named:
+        first_rows.append(first_row(name, res[key]["driftframe"], None))
+    for key, name in (("sc", "touching simple cubic 10x10x10"), ("fcc", "touching FCC 500")):
+        first_rows.append(first_row(name, res[key]["driftframe"], "the scene's event (every contact is in step 1): "
+                                                                  "its bar is first step <= 50 ms, above"))
+    return common.table(["scene", "first step ms, CPU / wall (median of the runs)", "worst first step, wall",
+                        "median step ms, CPU / wall", "first / median, CPU (wall)",
+                        "contacts: first step / median step", "first <= 2x median (CPU)"], first_rows)
+
+
+def _worst_table(res, quick, bar) -> str:
+    """Issue 24: every class's worst step at most 2x pybullet's worst step (CPU time, same run), a table;
+    ``bar(name, ok, text)`` records each verdict."""
+    worst_rows = []
+    for key, name, _, n_steps in worst_cases(quick) + [("conv0.0", "200 converging, e = 0", None, 0)]:
+        if key not in res:
+            continue
+        d, p = res[key]["driftframe"], res[key].get("pybullet", {})
+        ratio = d["cpu_worst"] / p.get("cpu_worst", math.nan)
+        text = f"worst {_ms(d['cpu_worst'])} ms CPU = {ratio:.2f}x pybullet's"
+        row = [name, f"{_ms(d['cpu_worst'])} / {_ms(d['worst'])}", f"{_ms(d['cpu_mean'])} / {_ms(d['mean'])}",
+               _ms(d["cpu_first"]), f"{_ms(p.get('cpu_worst', math.nan))} / {_ms(p.get('worst', math.nan))}",
+               f"{_ms(p.get('cpu_mean', math.nan))} / {_ms(p.get('mean', math.nan))}",
+               _ms(p.get("cpu_first", math.nan)), f"{ratio:.2f}",
+               f"{_tag(d['worst_tag'])}; {d['gc_steps']} / {p.get('gc_steps', 0)}",
+               bar(f"worst step {name}", ratio <= 2.0, text)]
+        if key == "jammed":                        # first contact steps: at most 2x pybullet's first step
+            fr = d["cpu_first"] / p.get("cpu_first", math.nan)
+            row[-1] += "; first step " + bar("first step of the jammed clump", fr <= 2.0,
+                                             f"first {_ms(d['cpu_first'])} ms CPU = {fr:.2f}x pybullet's")
+        worst_rows.append(row)
+    return common.table(["scene", "driftframe worst ms: CPU / wall", "mean: CPU / wall", "first, CPU",
+                        "pybullet worst: CPU / wall", "mean: CPU / wall", "first, CPU",
+                        "worst / pybullet's worst (CPU)",
+                        "driftframe's worst step; steps with a collection: driftframe / pybullet",
+                        "worst <= 2x pybullet's"], worst_rows)
+
+
+def report(res, quick, bullet, started):
+    load = ", ".join(f"{x:.1f}" for x in res.get("load", ()))
+    reps = res.get("repeats", 1)
+    rows = []
+    verdicts = []
+
+    def pb(key, field="median"):
+        p = res[key].get("pybullet")
+        return p[field] if p else float("nan")
+
+    def bar(name, ok, text):
+        verdicts.append((name, "met" if ok else "NOT met", text))
+        return "met" if ok else "**not met**"
+
+    rows += _gas_and_converging_rows(res, bullet, pb, bar)
     for key, name in (("sc", "touching simple cubic 10x10x10"), ("fcc", "touching FCC 500")):
         d = res[key]["driftframe"]
         p = res[key].get("pybullet", {})
@@ -572,56 +634,14 @@ def report(res, quick, bullet, started):
     table = common.table(["scene", "driftframe ms: median (mean) / worst", "pybullet ms: median (mean) / worst",
                           "ratio of means (of medians)", "checks",
                           "bar", "status"], rows)
-    # the first step after world.prepare() against the scene's median step (issue 20: at most 2x)
-    first_rows = []
-    named = [(f"gas{f}", f"dense gas 2,000 at {f:.0%}") for f in (0.30, 0.45)] + \
-        [(f"conv{e}", f"200 converging, e = {e}") for e in (0.0, 0.5)] + \
-        [(f"field{n}", f"field of {n:,} at 5 %") for n in limits if f"field{n}" in res] + [("head_on", "two bodies head on")]
-    def first_row(name, d, status):
-        ratio = d["cpu_first"] / d["cpu_median"]
-        return [name, f"{_ms(d['cpu_first'])} / {_ms(d['first_med'])}", _ms(d["first_worst"]),
-                f"{_ms(d['cpu_median'])} / {_ms(d['median'])}", f"{ratio:.2f} ({d['first_med'] / d['median']:.2f})",
-                f"{d['contacts_first']:g} / {d['contacts_median']:g}",
-                status if status else bar(f"first step {name}", ratio <= 2.0,
-                                          f"first {_ms(d['cpu_first'])} ms CPU = {ratio:.2f}x median")]
-    for key, name in named:
-        first_rows.append(first_row(name, res[key]["driftframe"], None))
-    for key, name in (("sc", "touching simple cubic 10x10x10"), ("fcc", "touching FCC 500")):
-        first_rows.append(first_row(name, res[key]["driftframe"],
-                                    "the scene's event (every contact is in step 1): its bar is first step <= 50 ms, above"))
+    first_table = _first_table(res, limits, bar)
     rb = res["rebuild1000"]
     rb_ratio = rb["build_median"] / rb["step_median"]
     rebuild_text = (f"{_ms(rb['build_median'])} ms CPU, the median of {rb['builds']} rebuilds (the worst "
                     f"{_ms(rb['build_worst'])}), against a median step of {_ms(rb['step_median'])} ms: "
                     f"{rb_ratio:.2f}x; " + bar("rebuild at a radius ratio of 1,000", rb_ratio <= 2.0,
                                               f"rebuild {rb_ratio:.2f}x the median step"))
-    # issue 24: every class's worst step at most 2x pybullet's worst step (CPU time, same run)
-    worst_rows = []
-    for key, name, _, n_steps in worst_cases(quick) + [("conv0.0", "200 converging, e = 0", None, 0)]:
-        if key not in res:
-            continue
-        d, p = res[key]["driftframe"], res[key].get("pybullet", {})
-        ratio = d["cpu_worst"] / p.get("cpu_worst", math.nan)
-        text = f"worst {_ms(d['cpu_worst'])} ms CPU = {ratio:.2f}x pybullet's"
-        row = [name, f"{_ms(d['cpu_worst'])} / {_ms(d['worst'])}", f"{_ms(d['cpu_mean'])} / {_ms(d['mean'])}",
-               _ms(d["cpu_first"]), f"{_ms(p.get('cpu_worst', math.nan))} / {_ms(p.get('worst', math.nan))}",
-               f"{_ms(p.get('cpu_mean', math.nan))} / {_ms(p.get('mean', math.nan))}",
-               _ms(p.get("cpu_first", math.nan)), f"{ratio:.2f}",
-               f"{_tag(d['worst_tag'])}; {d['gc_steps']} / {p.get('gc_steps', 0)}",
-               bar(f"worst step {name}", ratio <= 2.0, text)]
-        if key == "jammed":                        # first contact steps: at most 2x pybullet's first step
-            fr = d["cpu_first"] / p.get("cpu_first", math.nan)
-            row[-1] += "; first step " + bar("first step of the jammed clump", fr <= 2.0,
-                                             f"first {_ms(d['cpu_first'])} ms CPU = {fr:.2f}x pybullet's")
-        worst_rows.append(row)
-    worst_table = common.table(["scene", "driftframe worst ms: CPU / wall", "mean: CPU / wall", "first, CPU",
-                                "pybullet worst: CPU / wall", "mean: CPU / wall", "first, CPU",
-                                "worst / pybullet's worst (CPU)",
-                                "driftframe's worst step; steps with a collection: driftframe / pybullet",
-                                "worst <= 2x pybullet's"], worst_rows)
-    first_table = common.table(["scene", "first step ms, CPU / wall (median of the runs)", "worst first step, wall",
-                                "median step ms, CPU / wall", "first / median, CPU (wall)",
-                                "contacts: first step / median step", "first <= 2x median (CPU)"], first_rows)
+    worst_table = _worst_table(res, quick, bar)
     met = sum(v[1] == "met" for v in verdicts)
     missed = ", ".join(f"{n} ({t})" for n, s, t in verdicts if s != "met") or "none"
     body = f"""
