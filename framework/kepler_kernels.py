@@ -272,134 +272,127 @@ def _focal1_sc(a, ome, sh0, ch0, hn, mu, sd, cd):
     return x, y, vx, vy, s, c
 
 
-@_inline
-def _at1(i, r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1,
-         focal, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, dd_ome, t, guess, out_r, out_v):
-    """Body ``i`` of :meth:`Epoch.at`'s compiled loop: its state ``t`` s after its epoch into row ``i`` of
-    ``out_r, out_v``, from the first guess ``guess``; returns the ``chi`` of the whole ``t``."""
+@kernel
+def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1,
+                 focal, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, dd_ome, dt, guess, out_r, out_v, out_chi,
+                 xs, vs, well, t1, mu_w, step):
+    """:meth:`Epoch.at` (``xs`` empty): each body ``dt[i]`` s on from its epoch, from the guess ``guess[i]``.
+
+    Or the gravity system's usual step on rails (:meth:`Epoch.step_from`, ``xs`` not empty): the bodies were
+    at ``xs, vs`` (world frame) one ``step`` (s) before ``t1``; ``dt`` holds the times of their epochs, so
+    each goes ``t1 - dt[i]`` s on, from :func:`next_chi`'s guess out of its last ``chi`` (``guess``) and
+    ``xs, vs`` about the well (``well = (X0, V0, X1, V1)``, its centre and velocity at the step's start and
+    end; ``mu_w``, its ``mu``), and lands about the well at ``t1``: ``out_r = X1 + r``, ``out_v = V1 + u``.
+    The same operations in the same order as ``next_chi``, ``Epoch.at`` and the adds in numpy (the same
+    bits), in one pass. Returns the number of bodies that needed the numpy path (none)."""
+    n = r0.shape[0]
     tol = 4.0 * 2.220446049250313e-16
-    turns = 0.0
-    if abs(t) > period[i]:
-        turns = np.round(t / period[i])
-        t = t - period[i] * turns
-    target = sqmu[i] * t
-    al = alpha[i]
-    s0 = sigma0[i]
-    rn = r0n[i]
-    span = (span0[i] * abs(t) + 2.0) * span1[i]
-    lo = -span if t < 0 else 0.0
-    hi = 0.0 if t < 0 else span
-    chi = guess - turns * chi_turn[i]
-    if not (chi >= lo and chi <= hi):
-        chi = sqmu[i] * t / rn                       # the straight-line start: right sign, Laguerre does the rest
-        if chi < lo:
-            chi = lo
-        if chi > hi:
-            chi = hi
-    psi = 0.0
-    c2 = 0.5
-    c3 = 1.0 / 6.0
-    fp = rn
-    s_half = np.nan
-    c_half = np.nan
-    chi_half = np.nan                                # the chi of s_half, c_half
-    for it in range(60):
-        chi2 = chi * chi
-        psi = al * chi2
-        c2, c3, s_half, c_half = _stumpff_half(psi)
-        chi_half = chi
-        one_c3 = 1.0 - psi * c3
-        one_c2 = 1.0 - psi * c2
-        ta = chi2 * chi * c3
-        tb = s0 * chi2 * c2
-        tc = rn * chi * one_c3
-        f = ta + tb + tc - target
-        fp = chi2 * c2 + s0 * chi * one_c3 + rn * one_c2
-        if abs(f) <= tol * (abs(ta) + abs(tb) + abs(tc) + abs(target)) or not np.isfinite(f):
-            break
-        if f > 0:
-            hi = min(hi, chi)
+    on_rails = xs.shape[0] > 0
+    for i in range(n):
+        if on_rails:
+            t = t1 - dt[i]
+            g = _next_chi1(guess[i], xs[i, 0] - well[0, 0], xs[i, 1] - well[0, 1], xs[i, 2] - well[0, 2],
+                           vs[i, 0] - well[1, 0], vs[i, 1] - well[1, 1], vs[i, 2] - well[1, 2], mu_w, step)
         else:
-            lo = max(lo, chi)
-        if it < 8:
-            fpp = s0 * one_c2 + (1.0 - al * rn) * chi * one_c3
-            disc = abs(16.0 * fp * fp - 20.0 * f * fpp)
-            new = chi - 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
-        else:
-            new = chi - f / fp
-        if not (new >= lo and new <= hi):
-            if np.isfinite(hi) and np.isfinite(lo):
-                new = 0.5 * (lo + hi)
-            elif np.isfinite(lo):
-                new = max(2.0 * abs(lo), 1.0)
+            t = dt[i]
+            g = guess[i]
+        turns = 0.0
+        if abs(t) > period[i]:
+            turns = np.round(t / period[i])
+            t = t - period[i] * turns
+        target = sqmu[i] * t
+        al = alpha[i]
+        s0 = sigma0[i]
+        rn = r0n[i]
+        span = (span0[i] * abs(t) + 2.0) * span1[i]
+        lo = -span if t < 0 else 0.0
+        hi = 0.0 if t < 0 else span
+        chi = g - turns * chi_turn[i]
+        if not (chi >= lo and chi <= hi):
+            chi = sqmu[i] * t / rn                       # the straight-line start: right sign, Laguerre does the rest
+            if chi < lo:
+                chi = lo
+            if chi > hi:
+                chi = hi
+        psi = 0.0
+        c2 = 0.5
+        c3 = 1.0 / 6.0
+        fp = rn
+        s_half = np.nan
+        c_half = np.nan
+        chi_half = np.nan                                # the chi of s_half, c_half
+        for it in range(60):
+            chi2 = chi * chi
+            psi = al * chi2
+            c2, c3, s_half, c_half = _stumpff_half(psi)
+            chi_half = chi
+            one_c3 = 1.0 - psi * c3
+            one_c2 = 1.0 - psi * c2
+            ta = chi2 * chi * c3
+            tb = s0 * chi2 * c2
+            tc = rn * chi * one_c3
+            f = ta + tb + tc - target
+            fp = chi2 * c2 + s0 * chi * one_c3 + rn * one_c2
+            if abs(f) <= tol * (abs(ta) + abs(tb) + abs(tc) + abs(target)) or not np.isfinite(f):
+                break
+            if f > 0:
+                hi = min(hi, chi)
             else:
-                new = min(-2.0 * abs(hi), -1.0)
-        chi = new
-    chi2 = chi * chi
-    f_ = 1.0 - chi2 * c2 / rn
-    g_ = (rn * chi * (1.0 - psi * c3) + s0 * chi2 * c2) / sqmu[i]
-    fd = sqmu[i] * chi * (psi * c3 - 1.0) / (fp * rn)
-    gd = 1.0 - chi2 * c2 / fp
-    if t == 0.0:
-        f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
-    if focal[i] and t != 0.0 and al < 0:             # a hyperbola: its focal state in double-double
-        xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd_hyp(-a[i], -ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
-                                                       ddc[i, 3], ddc[i, 4], ddc[i, 5],
-                                                       _hyp_half(sh0[i], ch0[i], al, chi))
-        for k in range(3):
-            out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
-            out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
-    elif focal[i] and t != 0.0:                      # eccentric conics: from the focal frame
-        if chi_half == chi and s_half == s_half:        # the solver's sin(x/2), cos(x/2) at this chi
-            x, y, vx, vy, s, c = _focal1_sc(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i],
-                                            np.copysign(s_half, chi), c_half)
-        else:
-            x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
-        if ome[i] < dd_ome:
-            xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
-                                                       ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
+                lo = max(lo, chi)
+            if it < 8:
+                fpp = s0 * one_c2 + (1.0 - al * rn) * chi * one_c3
+                disc = abs(16.0 * fp * fp - 20.0 * f * fpp)
+                new = chi - 5.0 * f / (fp + np.copysign(np.sqrt(disc), fp))
+            else:
+                new = chi - f / fp
+            if not (new >= lo and new <= hi):
+                if np.isfinite(hi) and np.isfinite(lo):
+                    new = 0.5 * (lo + hi)
+                elif np.isfinite(lo):
+                    new = max(2.0 * abs(lo), 1.0)
+                else:
+                    new = min(-2.0 * abs(hi), -1.0)
+            chi = new
+        chi2 = chi * chi
+        f_ = 1.0 - chi2 * c2 / rn
+        g_ = (rn * chi * (1.0 - psi * c3) + s0 * chi2 * c2) / sqmu[i]
+        fd = sqmu[i] * chi * (psi * c3 - 1.0) / (fp * rn)
+        gd = 1.0 - chi2 * c2 / fp
+        if t == 0.0:
+            f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
+        if focal[i] and t != 0.0 and al < 0:             # a hyperbola: its focal state in double-double
+            xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd_hyp(-a[i], -ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
+                                                           ddc[i, 3], ddc[i, 4], ddc[i, 5],
+                                                           _hyp_half(sh0[i], ch0[i], al, chi))
             for k in range(3):
                 out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
                 out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
+        elif focal[i] and t != 0.0:                      # eccentric conics: from the focal frame
+            if chi_half == chi and s_half == s_half:        # the solver's sin(x/2), cos(x/2) at this chi
+                x, y, vx, vy, s, c = _focal1_sc(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i],
+                                                np.copysign(s_half, chi), c_half)
+            else:
+                x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
+            if ome[i] < dd_ome:
+                xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
+                                                           ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
+                for k in range(3):
+                    out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
+                    out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
+            else:
+                for k in range(3):
+                    out_r[i, k] = x * P[i, k] + y * Q[i, k]
+                    out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
         else:
             for k in range(3):
-                out_r[i, k] = x * P[i, k] + y * Q[i, k]
-                out_v[i, k] = vx * P[i, k] + vy * Q[i, k]
-    else:
-        for k in range(3):
-            out_r[i, k] = f_ * r0[i, k] + g_ * v0[i, k]
-            out_v[i, k] = fd * r0[i, k] + gd * v0[i, k]
-    return chi + turns * chi_turn[i]
-
-
-@kernel
-def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1,
-                 focal, a, ome, P, Q, sh0, ch0, hn, Pl, Ql, ddc, dd_ome, dt, guess, out_r, out_v, out_chi):
-    """Returns the number of bodies that needed the numpy path (a guess outside the bracket)."""
-    for i in range(r0.shape[0]):
-        out_chi[i] = _at1(i, r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1, focal, a, ome,
-                          P, Q, sh0, ch0, hn, Pl, Ql, ddc, dd_ome, dt[i], guess[i], out_r, out_v)
+                out_r[i, k] = f_ * r0[i, k] + g_ * v0[i, k]
+                out_v[i, k] = fd * r0[i, k] + gd * v0[i, k]
+        out_chi[i] = chi + turns * chi_turn[i]
+        if on_rails:
+            for k in range(3):
+                out_r[i, k] = well[2, k] + out_r[i, k]
+                out_v[i, k] = well[3, k] + out_v[i, k]
     return 0
-
-
-@kernel
-def _rails_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1, focal, a, ome, P, Q,
-                    sh0, ch0, hn, Pl, Ql, ddc, dd_ome, t1, ep_t, chi, x, v, well, mu_w, step, out_x, out_v):
-    """The usual step of bodies on rails about one well, in one pass (``systems.gravity.rails``): from the
-    epochs (the arrays of ``_at_compiled``, taken at ``ep_t``) to ``t1``, each from :func:`next_chi`'s
-    guess out of its last ``chi`` and its state ``x, v`` at the step's start (world frame), the well's
-    rows ``well = (X0, V0, X1, V1)`` at the step's start and end. Writes the end state in the world frame,
-    ``out_x = X1 + r``, ``out_v = V1 + u``, and the new ``chi`` over the last (in place). The same
-    operations in the same order as ``next_chi``, ``Epoch.at`` and the adds in numpy: the same bits."""
-    X0, V0, X1, V1 = well[0], well[1], well[2], well[3]
-    for i in range(r0.shape[0]):
-        g = _next_chi1(chi[i], x[i, 0] - X0[0], x[i, 1] - X0[1], x[i, 2] - X0[2],
-                       v[i, 0] - V0[0], v[i, 1] - V0[1], v[i, 2] - V0[2], mu_w, step)
-        chi[i] = _at1(i, r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, span1, focal, a, ome,
-                      P, Q, sh0, ch0, hn, Pl, Ql, ddc, dd_ome, t1 - ep_t[i], g, out_x, out_v)
-        for k in range(3):
-            out_x[i, k] = X1[k] + out_x[i, k]
-            out_v[i, k] = V1[k] + out_v[i, k]
 
 
 @kernel

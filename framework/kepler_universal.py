@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 
 from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_div, _dd_dot2,
-                                                 _rails_compiled,
                                                  _dd_sqrt, _fast_two_sum, _focal1, _focal_dd, _focal_dd_constants,
                                                  _focal_dd_constants_hyp, _focal_dd_hyp, _hyp_half,
                                                  _next_chi_compiled, _two_prod, _two_sum)
@@ -287,6 +286,9 @@ def _long_guess(r0n, sigma0, alpha, mu, dt):
     return np.where(bad, sqmu * dt / r0n, chi)
 
 
+#: The compiled loop's arguments for a plain Epoch.at (no states at a step's start: not the step on rails).
+_NOT_ON_RAILS = (np.empty((0, 3)), np.empty((0, 3)), np.zeros((4, 3)), 0.0, 0.0, 0.0)
+
 #: Bodies from which Epoch.at with a guess uses the compiled loop (below: numpy, whose per-call
 #: overhead is smaller than numba's dispatch for a handful of bodies). The two agree to a few ulp, not bit
 #: for bit (numpy's Stumpff series takes as many terms as the largest |psi| needs, the loop 12).
@@ -346,8 +348,9 @@ class Epoch:
         if self.r0.shape[0] < COMPILED_MIN:
             raise ValueError(f"Epoch.step_from: {self.r0.shape[0]} bodies; the compiled pass is for "
                              f"{COMPILED_MIN} or more (Epoch.at takes the numpy path below that)")
-        _rails_compiled(*self._columns(), FOCAL_DD_OME, float(t1), t_epoch, chi, np.ascontiguousarray(x),
-                        np.ascontiguousarray(v), well, float(mu), float(step), out_x, out_v)
+        _at_compiled(*self._columns(), FOCAL_DD_OME, t_epoch, chi, out_x, out_v, chi, np.ascontiguousarray(x),
+                     np.ascontiguousarray(v), np.ascontiguousarray(well, dtype=np.float64), float(t1), float(mu),
+                     float(step))
 
     def at(self, dt, chi=None):
         """``r, v, chi`` after ``dt`` s (scalar or ``(n,)``); ``chi``: a first guess (:func:`next_chi`).
@@ -362,7 +365,7 @@ class Epoch:
             out_r = np.empty((n, 3))
             out_v = np.empty((n, 3))
             out_chi = np.empty(n)
-            _at_compiled(*self._columns(), FOCAL_DD_OME, dt, guess, out_r, out_v, out_chi)
+            _at_compiled(*self._columns(), FOCAL_DD_OME, dt, guess, out_r, out_v, out_chi, *_NOT_ON_RAILS)
             return out_r, out_v, out_chi
         dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
         guess = None if chi is None else np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)

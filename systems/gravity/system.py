@@ -119,6 +119,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         self.t_rows = as_index(to_indices(q.rows(Transform))[keep])    # a slice when contiguous
         self.v_rows = as_index(to_indices(q.rows(Velocity))[keep])
         self.a_rows = q.rows(Acceleration)[keep]
+        self._has_a = np.flatnonzero(self.a_rows >= 0)    # (the bodies with an Acceleration)
         self.gm = G * kg[keep]
         self.m_rows = m_rows[keep]
         n = self._n = len(self.ents)
@@ -126,6 +127,9 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         nb.refresh()
         self.nbody = np.isin(self.ents, nb.entities)
         self._n_nb = int(np.count_nonzero(self.nbody))
+        # a step's thrust and edits where there are none (read-only: the stages only read them)
+        self._no_a, self._none = np.zeros((n, 3)), np.zeros(n, bool)
+        self._no_a.flags.writeable = self._none.flags.writeable = False
         self._every = np.arange(n)                         # (every body: the one well's, in a quiet step)
         # a moon orbits its parent: its well is fixed, never chosen by spheres of influence
         self.moon_parent = np.full(n, -1, np.intp)
@@ -167,6 +171,10 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         self.ep_chi = np.zeros(n)                         # universal anomaly at the last step (a warm start)
         self.last_x = np.full((n, 3), np.nan)
         self.last_v = np.full((n, 3), np.nan)
+        # the step's end states are written into these, which then swap with last_x, last_v: no (n, 3) array
+        # is made and freed each step (at 10,000 bodies each costs its page faults again, ~1 ns a body)
+        self._x1_next = np.empty((n, 3))
+        self._v1_next = np.empty((n, 3))
         self._epoch_version += 1
         orbiting = world.query(Orbiting)
         orbiting.refresh()
@@ -279,8 +287,8 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
         ctx.position[self.t_rows] = step.x1
         ctx.velocity[self.v_rows] = step.v1
-        self.last_x = step.x1
-        self.last_v = step.v1
+        self.last_x, self._x1_next = step.x1, self.last_x
+        self.last_v, self._v1_next = step.v1, self.last_v
         for ev in step.events:
             world.emit(ev)
 
@@ -323,16 +331,16 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         vel_t = world.table(Velocity).data["linear"]
         x = pos_t[self.t_rows]
         v = vel_t[self.v_rows]
-        a = np.zeros((n, 3))
-        has_a = self.a_rows >= 0
-        thrust = np.zeros(n, bool)
-        if has_a.any():
+        a, thrust = self._no_a, self._none                # (read-only zeros: no body has an Acceleration)
+        has_a = self._has_a
+        if has_a.size:
+            a = np.zeros((n, 3))
             a[has_a] = world.table(Acceleration).data["linear"][self.a_rows[has_a]]
-            thrust = np.any(a != 0.0, axis=1)
+            thrust = (a[:, 0] != 0.0) | (a[:, 1] != 0.0) | (a[:, 2] != 0.0)
         X0 = pos_t[wells.t_rows]
         V0 = np.where((wells.v_rows >= 0)[:, None], vel_t[np.maximum(wells.v_rows, 0)], 0.0)
         if np.array_equal(x, self.last_x) and np.array_equal(v, self.last_v):
-            edited = np.zeros(n, bool)                    # the usual step: nobody else moved anything
+            edited = self._none                           # the usual step: nobody else moved anything
         else:
             edited = np.any(x != self.last_x, axis=1) | np.any(v != self.last_v, axis=1)
         # the obstacles at the step's start (the components: the commit stage writes their end later)
@@ -344,7 +352,7 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
                            x=x, v=v, a=a, thrust=thrust, edited=edited,
                            ob_x=pos_t[self.ob_t_rows],
                            ob_v=np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0),
-                           x1=np.empty_like(x), v1=np.empty_like(v), events=[])
+                           x1=self._x1_next, v1=self._v1_next, events=[])
 
     def _place_moon(self, step: GravityStep, wj: int, end: RailsEnd) -> None:
         """Moon ``wj``'s centre at ``t1`` from its parent's bodies' end (it is one of them), and the bound
