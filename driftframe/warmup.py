@@ -67,6 +67,26 @@ def _shapes(world) -> None:
     world.create_entity(Transform((0.0, 0.0, 0.0)), Velocity((1.0, -1.0, 0.0)), SphereCollider(0.5))
 
 
+def _rails(r, v) -> None:
+    """Bodies on rails about one well, enough of them for the gravity system's compiled quiet step
+    (``Epoch.step_from``): three steps (the first takes the epochs, the next are quiet)."""
+    from driftframe.components.body import Transform, Velocity
+    from driftframe.components.gravity import GravityWell
+    from driftframe.framework.world import World
+    from driftframe.systems.gravity import GravitySystem
+    from driftframe.systems.movement import MovementSystem
+
+    world = World(dt=0.01)
+    try:
+        world.add_system(MovementSystem())
+        world.add_system(GravitySystem())
+        world.create_entity(Transform(), GravityWell(mu=1.0, radius=0.1))
+        world.create_entities(Transform.bulk(len(r), position=2.0 * r), Velocity.bulk(len(v), linear=0.7 * v))
+        world.step(3)
+    finally:
+        world.close()
+
+
 def collisions() -> None:
     """The sphere solvers: the collision demos but billiards, the all-pairs solvers called directly (a demo's
     first steps may all be quiet, which framework/quiet_step.py answers without the solver), the neighbour
@@ -101,6 +121,7 @@ def orbits_and_the_rest() -> None:
     v = np.stack([-np.sin(angle), np.cos(angle), np.zeros(n)], axis=1)
     r1, v1, chi = kepler.Epoch(r, v, 1.0).at(0.1, chi=np.full(n, 0.1))
     kepler.next_chi(chi, r1, v1, 1.0, 0.1)
+    _rails(r, v)
     from driftframe.framework import wisdom_holman as wh      # the n-body kernels: every coordinate path, a corrector
     for coordinates, corrector in (("jacobi", 3), ("democratic", 0), ("fixed", 0)):
         wh.wisdom_holman(r[:3].copy(), v[:3].copy(), np.array([1.0, 1e-3, 1e-3]), 0.01, 2,
