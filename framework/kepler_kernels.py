@@ -151,10 +151,17 @@ def _focal_dd(a, ome, b_h, b_l, sq_h, sq_l, h_h, h_l, s, c):
     is ``-mu/(2a)`` of that ``a`` to ~1e-32, whatever ``ome``'s rounding: their roundings are what is left of the energy
     error near periapsis (each ulp of ``|v|`` there is ``4/(1 - e)`` ulp of energy), so they are kept
     to ~1e-32 and the state is rounded once (:func:`_dd_dot2`). ``s, c`` themselves may be off by an
-    ulp: that moves the body along the orbit (``E``), not off it."""
-    s2h, s2l = _two_prod(s, s)
+    ulp: that moves the body along the orbit (``E``), and off it unless they stay on the unit circle, so
+    they are taken as the point ``(s, c) / sqrt(s^2 + c^2)``: ``sin^2(E/2) = s^2/n^2``, ``sin E = 2 s c/n^2``
+    in double-double. (Each ulp of ``s^2 + c^2 - 1`` is ``~v^2/|E|`` ulp of energy through ``|v|``: 2-3x
+    the double-rounding floor at e = 0.9999 from E0 = 1 rad, 1x with the point on the circle.)"""
+    ph, pl = _two_prod(s, s)
+    qh, ql = _two_prod(c, c)
+    nh, nl = _two_sum(ph, qh)
+    nh, nl = _fast_two_sum(nh, nl + (pl + ql))                        # n^2 = s^2 + c^2 (1 to an ulp)
+    s2h, s2l = _dd_div(ph, pl, nh, nl)                               # sin^2(E/2)
     seh, sel = _two_prod(s, c)
-    seh, sel = 2.0 * seh, 2.0 * sel                                  # sin E
+    seh, sel = _dd_div(2.0 * seh, 2.0 * sel, nh, nl)                 # sin E
     ch_, cl_ = _two_sum(1.0, -2.0 * s2h)
     ceh, cel = _fast_two_sum(ch_, cl_ - 2.0 * s2l)                   # cos E = 1 - 2 s^2
     th, tl = _two_sum(ome, -2.0 * s2h)

@@ -100,6 +100,16 @@ def test_very_eccentric_orbits_stay_within_twice_the_rounding_floor(e, E0):
     assert h_err < 1e-14
 
 
+@pytest.mark.parametrize("e", [0.9999, 0.99999])
+@pytest.mark.parametrize("E0", [1.0, 2.0, 4.0])
+def test_very_eccentric_orbits_stay_within_twice_the_floor_away_from_periapsis(e, E0):
+    # 20 orbits at 10 steps each, where the floor is small (no sample near periapsis): sin(E/2), cos(E/2)
+    # rounded each on its own left the point off the unit circle, 2-3x the floor (2.1, 3.0, 2.5 here)
+    err, floor, h_err = errors_and_floor(e, E0, np.arange(1, 201) * 2 * math.pi / 10)
+    assert err <= 2 * floor                    # the issue's bar
+    assert h_err < 1e-14
+
+
 def test_the_compiled_focal_path_gives_the_numpy_paths_states():
     """Many bodies with a guess take the compiled loop: eccentric ellipses from far-side epochs there too."""
     rng = np.random.default_rng(5)
