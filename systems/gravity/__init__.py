@@ -51,7 +51,10 @@ step, and one after a surface bounce in the same step at the next step's start.
   not depend on how the time was stepped (time warp changes nothing). A new
   epoch is taken when the body thrusts, touches a surface, changes sphere of
   influence, or when anything else (a collision, user code) changed its
-  position or velocity since this system wrote them.
+  position or velocity since this system wrote them. A step in which none of
+  that happens to any body of a lone root well (and no sphere contact is looked
+  for) is one compiled pass from :data:`framework.kepler.COMPILED_MIN` bodies
+  on (``rails.Rails._quiet``), with the stages' bits.
 * *Thrust* (the rule when the engine fires): a body whose
   :class:`~components.body.Acceleration` is non-zero this step takes the
   symplectic split ``v += a dt/2; Kepler flow for dt; v += a dt/2`` — a
