@@ -156,8 +156,8 @@ def _blas_without_scipy() -> None:
 
 def entry(dispatcher, args: tuple):
     """``dispatcher``'s compiled entry point for exactly the types of ``args`` (loaded or compiled now):
-    a call to it skips numba's dispatch (typing every argument and finding the overload, about 45 ns an
-    argument; a small scene's step makes two such calls). Only for calls whose arguments keep those types:
+    a call to it skips numba's dispatch (typing every argument and finding the overload: its cost in
+    docs/design/costs.md; a small scene's step makes two such calls). Only for calls whose arguments keep those types:
     the same array objects (an array's dtype, dimensions and layout stay) and Python floats; the entry
     point unboxes what it is given as the types it was compiled for, unchecked. Under NUMBA_DISABLE_JIT,
     the function itself."""

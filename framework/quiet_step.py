@@ -50,7 +50,7 @@ def gather_quiet(pos, vel, acc, kg, rad, rest, idx, dt, b3, a, b1, live, pairs):
     """:func:`contact_bodies.gather_bodies` and then, when every body is valid and one moves,
     :func:`quiet_all_pairs` over the pairs ``pairs[0], pairs[1]``, in one call (a small scene's step
     otherwise pays the call twice). The arrays come packed, so that the call takes 13 arguments, not 23
-    (numba's dispatch costs about 45 ns an argument; this call is most of a quiet step of a few bodies):
+    (numba's dispatch costs per argument, docs/design/costs.md; this call is most of a quiet step of a few bodies):
     ``idx`` rows ``t_idx, v_idx, a_idx, m_idx, c_idx``; ``b3`` rows ``x0, v0, x, u`` (each ``(n, 3)``);
     ``b1`` rows ``inv, r, e``. Returns ``(bad, moving, quiet)``; ``quiet`` is False when it was not tested."""
     x, u = b3[2], b3[3]

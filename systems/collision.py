@@ -362,7 +362,7 @@ class CollisionSystem(esper.Processor):
         quiet = False
         if not listed:
             quiet = st.gather_quiet(lay, dt, self._all_pairs(n))     # its first call
-            self._quick_path(dt)        # (its entry point: typing 13 arguments takes ~0.15 ms, not a step's)
+            self._quick_path(dt)        # (its entry point: typing its 13 arguments once here, not in a step)
         elif n >= 2 and st.bad(lay) is None:
             self._build_list(lay, st, dt)
         t_last = self._t_last_of(lay)
@@ -408,7 +408,7 @@ class CollisionSystem(esper.Processor):
         """Load (from the kernel cache, or compile) the solver this scene's steps call, without calling it,
         and its jam-path variant where a restitution below 1 can jam (inelastic collapse): numba loads a
         kernel at its first call, and the jam variant's first call came in the step that first jams
-        (about 15 ms there). Types only: nothing is solved."""
+        (docs/design/costs.md). Types only: nothing is solved."""
         if listed:
             lst = self._listed()                             # (made here, not in the first step that needs it)
             pi, pj = self._pi, self._pj
@@ -500,7 +500,7 @@ class CollisionSystem(esper.Processor):
         point)``, valid while those five are the same; None (and nothing kept) where a step of the current
         colliders does not take it. The arguments are the same objects while it is (the world's columns and
         the state's arrays at this epoch, ``float(dt)``), so the kernel's entry point for their types is
-        called directly (kernels.entry: 13 arguments' dispatch, about 0.5 us, saved)."""
+        called directly (kernels.entry: 13 arguments' dispatch saved; docs/design/costs.md)."""
         self._quick = None
         world = self._world
         lay = self._layout                          # (the world has synced its tables before calling this)
@@ -692,7 +692,7 @@ class CollisionSystem(esper.Processor):
         """The all-pairs solver's compiled entry point (kernels.entry), made in prepare() or at its first call:
         the few bodies' contact step calls it past numba's dispatch and past :func:`contact.solve_step`'s records
         (with cold caches, as a contact step among quiet ones runs, the dispatch of its 14 arguments and the
-        records cost about 40 us, the solver itself about 45). Its arguments always have these types: the
+        records cost about as much as the solver itself: docs/design/costs.md). Its arguments always have these types: the
         state's float64 and bool arrays (C order), the pairs' int64 rows, ``now``, ``dt``, ``t_c`` as floats
         (made so in :meth:`_continuous`), ``cap`` an int, ``lst`` None (``inputs``: :class:`contact.StepInputs`'s
         fields, in its order)."""
