@@ -6,16 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _K, _at_compiled, _dd_div, _dd_dot2,
+from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _at_compiled, _dd_div, _dd_dot2,
                                                  _dd_sqrt, _fast_two_sum, _focal1, _focal_dd, _focal_dd_constants,
                                                  _focal_dd_constants_hyp, _focal_dd_hyp, _hyp_half,
                                                  _next_chi_compiled, _two_prod, _two_sum)
 
 TWO_PI = 2.0 * np.pi
 _EPS = np.finfo(np.float64).eps
-_C3_SERIES_ABS = np.abs(_C3_SERIES)
-# k terms leave a remainder below 1e-18 where p^k 6 |c3_k| < 1e-18: log10 p < L_k (L_k grows with k)
-_TERM_LIMIT = np.array([(-18.0 - np.log10(6.0 * _C3_SERIES_ABS[k])) / k for k in range(1, len(_K))])
+from driftframe.framework.kepler_small import _TERM_LIMIT, DONE, _at_small
 
 
 def _series_terms(p: float) -> int:
@@ -356,7 +354,8 @@ class Epoch:
         """``r, v, chi`` after ``dt`` s (scalar or ``(n,)``); ``chi``: a first guess (:func:`next_chi`).
 
         Many bodies with a guess (on rails) go through the compiled loop (:data:`COMPILED_MIN`);
-        the numpy path below is the same solution, array by array."""
+        the numpy path below is the same solution, array by array, and a few bodies with a guess take
+        it compiled with its bits (:mod:`~driftframe.framework.kepler_small`)."""
         n = self.r0.shape[0]
         if chi is not None and n >= COMPILED_MIN:
             dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,)))
@@ -367,6 +366,16 @@ class Epoch:
             out_chi = np.empty(n)
             _at_compiled(*self._columns(), FOCAL_DD_OME, dt, guess, out_r, out_v, out_chi, *_NOT_ON_RAILS)
             return out_r, out_v, out_chi
+        if chi is not None:
+            # a few bodies with a guess (on rails): the numpy path below in one compiled pass, its bits
+            # (kepler_small), unless a body needs numpy's own cosh, sinh, log10 or arctan2
+            dt_c = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,)))
+            guess = np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)
+            out_r = np.empty((n, 3))
+            out_v = np.empty((n, 3))
+            out_chi = np.empty(n)
+            if _at_small(*self._columns(), FOCAL_DD_OME, dt_c, guess, out_r, out_v, out_chi) == DONE:
+                return out_r, out_v, out_chi
         dt = np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,))
         guess = None if chi is None else np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)
         # ellipses: take whole periods off dt, so the rounding and the work do not grow with time

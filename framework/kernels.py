@@ -36,7 +36,8 @@ from driftframe.framework import __version__
 #: :data:`KERNEL_IMPORTS`: a test checks both lists are complete.
 KERNEL_MODULES = ("broadphase_list", "contact_again", "contact_bodies", "contact_heap", "contact_islands",
                   "contact_jam", "contact_pairs", "contact_solve", "contact_toi", "encounters", "free_flight",
-                  "kepler_kernels", "mercurius", "quiet_step", "sorting", "static_shapes", "wisdom_holman", "yuv")
+                  "kepler_kernels", "kepler_small", "mercurius", "quiet_step", "sorting", "static_shapes",
+                  "wisdom_holman", "yuv")
 #: Modules that declare no kernel but whose names kernels read at compile time (numba freezes a global's
 #: value into the code): constants and the records kernels take.
 KERNEL_IMPORTS = ("contact_params",)
