@@ -7,6 +7,8 @@ out of it where its conic about the moon passes ``soi`` outwards
 epoch about its new well there."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from driftframe.framework import kepler
@@ -14,6 +16,42 @@ from driftframe.systems.gravity.context import GravityStep
 
 #: Most sphere-of-influence changes one body may make in one step (in and out of a moon's sphere is two).
 MAX_CROSSINGS = 4
+
+
+#: Bodies times moons up to which :func:`_far_from_moons` tests in Python floats (numpy's calls on a few
+#: elements cost more than the arithmetic: docs/design/costs.md, 'Small gravity scenes').
+_FEW = 16
+
+
+def _far_from_moons(step: GravityStep, kw, wi: int, moons, wells, contact) -> bool:
+    """True when none of bodies ``kw`` about root well ``wi``, looked at from the step's start, is ``near``
+    a moon in :meth:`Crossings._next_crossing`: the same test on the same numbers in the same order, in
+    Python floats (``kepler._norm``'s einsum sums ``(d0^2 + d2^2) + d1^2``). False: let numpy look."""
+    t0, t1 = step.t0, step.t1
+    span = np.maximum(np.minimum(t1, contact) - t0, 0.0).tolist()
+    xs, vs, acc = step.x[kw].tolist(), step.v[kw].tolist(), step.a[kw].tolist()
+    X0, V0 = step.X0, step.V0
+    Xw, Vw = X0[wi].tolist(), V0[wi].tolist()
+    hdt = 0.5 * step.dt
+    mu, R = float(wells.mu[wi]), float(wells.radius[wi])
+    A = mu / (R * R)
+    for wj in moons.tolist():
+        rm = (X0[wj] - X0[wi]).tolist()
+        um = (V0[wj] - V0[wi]).tolist()
+        soi = float(wells.soi[wj])
+        for j in range(len(xs)):
+            x, v, a = xs[j], vs[j], acc[j]
+            d0 = (x[0] - Xw[0]) - rm[0]
+            d1 = (x[1] - Xw[1]) - rm[1]
+            d2 = (x[2] - Xw[2]) - rm[2]
+            e0 = ((v[0] - Vw[0]) + hdt * a[0]) - um[0]
+            e1 = ((v[1] - Vw[1]) + hdt * a[1]) - um[1]
+            e2 = ((v[2] - Vw[2]) + hdt * a[2]) - um[2]
+            gap = math.sqrt((d0 * d0 + d2 * d2) + d1 * d1) - soi
+            sp = span[j]
+            if not gap > math.sqrt((e0 * e0 + e2 * e2) + e1 * e1) * sp + A * sp * sp:
+                return False
+    return True
 
 
 class Crossings:
@@ -81,6 +119,9 @@ class Crossings:
                 continue
             g = np.flatnonzero(self.ep_well[k] == wi)
             kw, tf = k[g], t_from[g]
+            if (from_start and wells.parent[wi] < 0 and kw.size * moons.size <= _FEW and not (tf > t0).any()
+                    and _far_from_moons(step, kw, wi, moons, wells, self.ep_contact[kw])):
+                continue                                    # (the loop below would find no body near a moon)
             mu, R = wells.mu[wi], wells.radius[wi]
             upto = np.minimum(t1, self.ep_contact[kw])      # (a surface contact first: its own conic after)
             span = np.maximum(upto - tf, 0.0)

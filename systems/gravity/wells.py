@@ -7,6 +7,8 @@ kept by :mod:`.rails`). A body moves about the deepest well whose sphere of
 influence holds it, ties at one depth going to the strongest pull (patched conics)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from driftframe.components.body import Transform, Velocity
@@ -82,6 +84,10 @@ class _Wells:
 def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
     """Each body's well: the deepest sphere of influence holding it, then the strongest pull.
     ``moon_parent[k] >= 0``: body k is a moon and orbits that well, whatever the spheres say."""
+    if x.shape[0] * len(w) <= _FEW:
+        found = _dominant_few(w, x, X, moon_parent)
+        if found is not None:
+            return found
     d2 = np.einsum("nwk,nwk->nw", x[:, None, :] - X[None], x[:, None, :] - X[None])
     inside = d2 < (w.soi * w.soi)[None, :]
     moons = np.flatnonzero(moon_parent >= 0)
@@ -92,6 +98,37 @@ def _dominant(w: _Wells, x, X, moon_parent) -> np.ndarray:
         pull = w.mu[None, :] / d2
     deepest = np.where(inside, w.depth[None, :], -1.0).max(axis=1, keepdims=True)
     return np.argmax(np.where(inside & (w.depth[None, :] == deepest), pull, -np.inf), axis=1)
+
+
+#: Bodies times wells up to which :func:`_dominant` works in Python floats (numpy's calls on a few elements
+#: cost more than the arithmetic: docs/design/costs.md, 'Small gravity scenes').
+_FEW = 16
+
+
+def _dominant_few(w: _Wells, x, X, moon_parent):
+    """:func:`_dominant` in Python floats, the same numbers (einsum sums ``(d0^2 + d2^2) + d1^2``) and the
+    same choice (the first of equal pulls); None where a distance is 0 or not finite (numpy's inf and NaN
+    rules then decide)."""
+    xs, Xs = x.tolist(), X.tolist()
+    soi2 = (w.soi * w.soi).tolist()
+    mu, depth, parents = w.mu.tolist(), w.depth.tolist(), moon_parent.tolist()
+    out = []
+    for k, p in enumerate(xs):
+        best_w, best_pull, deepest, found = 0, -math.inf, -1.0, []
+        for i, c in enumerate(Xs):
+            d0, d1, d2 = p[0] - c[0], p[1] - c[1], p[2] - c[2]
+            r2 = (d0 * d0 + d2 * d2) + d1 * d1
+            if not (0.0 < r2 < math.inf):
+                return None
+            inside = i == parents[k] if parents[k] >= 0 else r2 < soi2[i]
+            if inside:
+                deepest = max(deepest, depth[i])
+            found.append((inside, mu[i] / r2))
+        for i, (inside, pull) in enumerate(found):
+            if inside and depth[i] == deepest and pull > best_pull:
+                best_w, best_pull = i, pull
+        out.append(best_w)
+    return np.array(out, np.intp)
 
 
 class WellPaths:
