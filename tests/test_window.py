@@ -96,8 +96,9 @@ def _finish(proc):
 def test_keys_thrust_the_ship_and_switch_the_camera(display, tmp_path):
     state = tmp_path / "state.json"
     env = {**os.environ, "DISPLAY": display}
+    track = tmp_path / "flight.json"
     proc = subprocess.Popen([sys.executable, "-m", "driftframe", "play", "asteroids", "--size", "480x270",
-                             "--state-out", str(state), "--screenshots", str(tmp_path)],
+                             "--state-out", str(state), "--screenshots", str(tmp_path), "--save-track", str(track)],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wid = _wait_for_window(display, proc)
@@ -120,7 +121,11 @@ def test_keys_thrust_the_ship_and_switch_the_camera(display, tmp_path):
     # thrust acted along the nose (the ship starts facing +z at rest) and the velocity persisted
     v = np.array(s["player"]["velocity"])
     fwd = np.array(s["player"]["forward"])
-    assert v @ fwd > 3.0, v                             # ~1.5 s at 6 m/s^2 (timing of real keys varies)
+    # as long as the flight held the key (its track: real keys land on however many steps a loaded
+    # machine ran in the 1.5 s), at the ship's 6 m/s^2
+    doc = json.loads(track.read_text())
+    held = sum(round((h["end"] - h["start"]) / doc["dt"]) for h in doc["holds"] if h.get("throttle") == 1.0)
+    assert held >= 1 and v @ fwd == pytest.approx(6.0 * held * doc["dt"], rel=1e-9), (v, held)
     np.testing.assert_allclose(np.cross(v, fwd), 0.0, atol=1e-9)
     assert s["camera"] == "cockpit"                     # the demo starts in chase: C switched it
     assert s["steps"] > 60
@@ -157,7 +162,7 @@ def test_a_flight_saved_in_play_re_renders_as_the_same_flight_byte_for_byte(disp
     err = _finish(proc)
     assert f"track: {track}" in err
     doc = json.loads(track.read_text())
-    assert doc["version"] == 1 and doc["demo"] == "asteroids" and doc["steps"] > 60
+    assert doc["version"] == 1 and doc["demo"] == "asteroids" and doc["steps"] > 1   # (as many as the machine ran)
     assert any(h.get("throttle") == 1.0 for h in doc["holds"]) and any(h.get("yaw") == 1.0 for h in doc["holds"])
     assert any(h.get("kill_rotation") for h in doc["holds"])
     assert doc["presses"] == [{"time": doc["presses"][0]["time"], "action": "switch_camera"}]
@@ -188,17 +193,21 @@ def test_f11_fullscreen_f3_overlay_and_a_resize_that_keeps_the_aspect_ratio(disp
         assert "Geometry:" in res.stdout, (res.stdout, res.stderr, proc.poll())
         return tuple(int(v) for v in res.stdout.split("Geometry:")[1].split()[0].split("x"))
 
+    def becomes(size, timeout=20.0):                    # (a loaded machine answers a key late)
+        deadline = time.monotonic() + timeout
+        while geometry() != size and time.monotonic() < deadline:
+            time.sleep(0.1)
+        return geometry()
+
     assert geometry() == (480, 270)
     _xdo(display, "key", "--window", wid, "F11")
-    time.sleep(0.8)
-    assert geometry() == (1280, 720)                    # the whole Xvfb screen
+    assert becomes((1280, 720)) == (1280, 720)          # the whole Xvfb screen
     _xdo(display, "key", "--window", wid, "F3")
     time.sleep(0.8)
     _xdo(display, "key", "--window", wid, "F12")
     time.sleep(0.5)
     _xdo(display, "key", "--window", wid, "F11")
-    time.sleep(0.8)
-    assert geometry() == (480, 270)                     # back to the window it was
+    assert becomes((480, 270)) == (480, 270)            # back to the window it was
     _xdo(display, "windowsize", wid, "600", "500")      # taller than 16:9: bars above and below
     time.sleep(0.8)
     _xdo(display, "key", "--window", wid, "F12")
