@@ -121,7 +121,8 @@ def orbits_and_the_rest() -> None:
     v = np.stack([-np.sin(angle), np.cos(angle), np.zeros(n)], axis=1)
     r1, v1, chi = kepler.Epoch(r, v, 1.0).at(0.1, chi=np.full(n, 0.1))
     kepler.next_chi(chi, r1, v1, 1.0, 0.1)
-    kepler.Epoch(r[:3], v[:3], 1.0).at(0.1, chi=np.full(3, 0.1))      # a few bodies: kepler_small's kernel
+    kepler.Epoch(r[:3], v[:3], 1.0).at(0.1, chi=np.full(3, 0.1))      # a few bodies: kepler_small's kernels
+    kepler.next_chi(chi[:3], r1[:3], v1[:3], 1.0, 0.1, origin=(np.zeros(3), np.zeros(3)))
     _rails(r, v)
     from driftframe.framework import wisdom_holman as wh      # the n-body kernels: every coordinate path, a corrector
     for coordinates, corrector in (("jacobi", 3), ("democratic", 0), ("fixed", 0)):

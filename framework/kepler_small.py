@@ -265,3 +265,19 @@ def _at_small(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, spa
                 out_v[i, k] = v0[i, k]
         out_chi[i] = x + turns[i] * chi_turn[i] if any_longer else x
     return DONE
+
+
+@kernel
+def _next_chi_small(chi, r, v, X, V, mu, step, out):
+    """``kepler_universal.next_chi``'s numpy path (``r, v`` absolute, the well at ``X, V``) with its bits:
+    its dot products are numpy's einsum of three products, which sums ``(p0 + p2) + p1``."""
+    for i in range(r.shape[0]):
+        r0, r1, r2 = r[i, 0] - X[0], r[i, 1] - X[1], r[i, 2] - X[2]
+        v0, v1, v2 = v[i, 0] - V[0], v[i, 1] - V[1], v[i, 2] - V[2]
+        rn2 = (r0 * r0 + r2 * r2) + r1 * r1
+        rn = np.sqrt(rn2)
+        rv = (r0 * v0 + r2 * v2) + r1 * v1
+        d1 = np.sqrt(mu / rn2)
+        dchi = step * d1 * (1.0 - 0.5 * step * rv / rn2)
+        alpha = 2.0 / rn - ((v0 * v0 + v2 * v2) + v1 * v1) / mu
+        out[i] = chi[i] + dchi if abs(alpha) * dchi * dchi <= 0.2 else np.nan

@@ -13,7 +13,7 @@ from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _at_com
 
 TWO_PI = 2.0 * np.pi
 _EPS = np.finfo(np.float64).eps
-from driftframe.framework.kepler_small import _TERM_LIMIT, DONE, _at_small
+from driftframe.framework.kepler_small import _TERM_LIMIT, DONE, _at_small, _next_chi_small
 
 
 def _series_terms(p: float) -> int:
@@ -96,6 +96,13 @@ def next_chi(chi, r, v, mu, step, *, origin=None):
     if r.shape[0] >= COMPILED_MIN and chi.shape == (r.shape[0],) and r.dtype == v.dtype == np.float64:
         out = np.empty(r.shape[0])
         _next_chi_compiled(chi, r, v, X, V, float(mu), float(step), out)
+        return out
+    if (origin is not None and chi.shape == (r.shape[0],) and r.dtype == v.dtype == np.float64 and r.shape[1] == 3
+            and np.ndim(mu) == 0 and np.ndim(step) == 0):
+        # a few bodies (on rails): the numpy lines below in one compiled pass, their bits (kepler_small)
+        out = np.empty(r.shape[0])
+        _next_chi_small(np.ascontiguousarray(chi), np.ascontiguousarray(r), np.ascontiguousarray(v),
+                        np.ascontiguousarray(X), np.ascontiguousarray(V), float(mu), float(step), out)
         return out
     if origin is not None:
         r = r - X

@@ -65,3 +65,21 @@ def test_the_kernel_answers_a_circle(dt):
     r, v, chi = ep.at(dt, np.array([dt]))
     assert np.allclose(r[0], [np.cos(dt), np.sin(dt), 0.0], atol=1e-12)
     assert np.allclose(v[0], [-np.sin(dt), np.cos(dt), 0.0], atol=1e-12)
+
+
+def test_next_chi_for_a_few_bodies_gets_the_numpy_lines_bits(monkeypatch):
+    rng = np.random.default_rng(5)
+    for _ in range(300):
+        n = int(rng.integers(1, 6))
+        mu, step = 10 ** rng.uniform(0, 15), 10 ** rng.uniform(-2, 3)
+        r, v = rng.normal(size=(n, 3)) * 10 ** rng.uniform(0, 7), rng.normal(size=(n, 3)) * 10 ** rng.uniform(-2, 4)
+        X, V = rng.normal(size=3) * 10 ** rng.uniform(0, 7), rng.normal(size=3) * 10 ** rng.uniform(-2, 4)
+        chi = rng.normal(size=n) * 100
+        fast = ku.next_chi(chi, r, v, mu, step, origin=(X, V))
+        # next_chi's numpy lines (kepler_universal._dot is numpy's einsum)
+        rr, vv = r - X, v - V
+        rn2 = ku._dot(rr, rr)
+        dchi = step * np.sqrt(mu / rn2) * (1.0 - 0.5 * step * ku._dot(rr, vv) / rn2)
+        alpha = 2.0 / np.sqrt(rn2) - ku._dot(vv, vv) / mu
+        slow = np.where(np.abs(alpha) * dchi * dchi <= 0.2, chi + dchi, np.nan)
+        assert fast.tobytes() == slow.tobytes()

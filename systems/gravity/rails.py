@@ -67,7 +67,8 @@ class Rails:
         (before any sphere contact)."""
         mu = self._wells.mu[wi]
         g = slice(None) if sel.size == self._n else sel     # a slice gathers faster than an index
-        self._take_epochs(step, sel, wi, done)
+        if done is None or not done[sel].all():           # (else the crossings took them all this step)
+            self._take_epochs(step, sel, wi, done)
         plain = sel[self.c_rows[sel] < 0] if look else sel
         if plain.size:
             self._surfaces(plain, wi, step.t1, step.events)

@@ -107,8 +107,8 @@ _FEW = 16
 
 def _dominant_few(w: _Wells, x, X, moon_parent):
     """:func:`_dominant` in Python floats, the same numbers (einsum sums ``(d0^2 + d2^2) + d1^2``) and the
-    same choice (the first of equal pulls); None where a distance is 0 or not finite (numpy's inf and NaN
-    rules then decide)."""
+    same choice (the first of equal pulls; ``mu / 0`` is inf, as numpy's); None where a distance is not
+    finite (numpy's NaN rules then decide)."""
     xs, Xs = x.tolist(), X.tolist()
     soi2 = (w.soi * w.soi).tolist()
     mu, depth, parents = w.mu.tolist(), w.depth.tolist(), moon_parent.tolist()
@@ -118,12 +118,12 @@ def _dominant_few(w: _Wells, x, X, moon_parent):
         for i, c in enumerate(Xs):
             d0, d1, d2 = p[0] - c[0], p[1] - c[1], p[2] - c[2]
             r2 = (d0 * d0 + d2 * d2) + d1 * d1
-            if not (0.0 < r2 < math.inf):
+            if not (0.0 <= r2 < math.inf) or (r2 == 0.0 and not mu[i] > 0.0):
                 return None
             inside = i == parents[k] if parents[k] >= 0 else r2 < soi2[i]
             if inside:
                 deepest = max(deepest, depth[i])
-            found.append((inside, mu[i] / r2))
+            found.append((inside, mu[i] / r2 if r2 > 0.0 else math.inf))   # (a moon at its own centre)
         for i, (inside, pull) in enumerate(found):
             if inside and depth[i] == deepest and pull > best_pull:
                 best_w, best_pull = i, pull
