@@ -112,7 +112,9 @@ class Crossings:
         if not k.size:
             return best_t, best_w
         X0, V0, t0, t1 = step.X0, step.V0, step.t0, step.t1
-        for wi in np.unique(self.ep_well[k]):
+        wells_of = self.ep_well[k]
+        # (np.unique's sorted wells; for a few bodies a set of ints is sorted in a fraction of its time)
+        for wi in sorted(set(wells_of.tolist())) if k.size <= _FEW else np.unique(wells_of):
             wi = int(wi)
             moons = np.flatnonzero(wells.parent == wi)
             if wells.parent[wi] < 0 and not moons.size:
