@@ -101,8 +101,7 @@ def next_chi(chi, r, v, mu, step, *, origin=None):
             and np.ndim(mu) == 0 and np.ndim(step) == 0):
         # a few bodies (on rails): the numpy lines below in one compiled pass, their bits (kepler_small)
         out = np.empty(r.shape[0])
-        _next_chi_small(np.ascontiguousarray(chi), np.ascontiguousarray(r), np.ascontiguousarray(v),
-                        np.ascontiguousarray(X), np.ascontiguousarray(V), float(mu), float(step), out)
+        _next_chi_small(*(np.array(a, dtype=np.float64) for a in (chi, r, v, X, V)), float(mu), float(step), out)
         return out
     if origin is not None:
         r = r - X
@@ -376,7 +375,8 @@ class Epoch:
         if chi is not None:
             # a few bodies with a guess (on rails): the numpy path below in one compiled pass, its bits
             # (kepler_small), unless a body needs numpy's own cosh, sinh, log10 or arctan2
-            dt_c = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,)))
+            # (fresh writable copies: a read-only array is another type to numba, another compile)
+            dt_c = np.array(np.broadcast_to(dt, (n,)), dtype=np.float64)
             guess = np.array(np.broadcast_to(chi, (n,)), dtype=np.float64)
             out_r = np.empty((n, 3))
             out_v = np.empty((n, 3))
