@@ -1,6 +1,8 @@
 """F_AGAIN: keeping a step's inputs and putting them back, so that it can be run again (compiled kernels)."""
 from __future__ import annotations
 
+import numpy as np
+
 from driftframe.framework.kernels import kernel
 
 # F_AGAIN: a step is run again from its inputs as they came. What it changes: x and u of the bodies it
@@ -8,7 +10,7 @@ from driftframe.framework.kernels import kernel
 # in place: (t - now) + now is not t in every bit, so a copy) and, with the list, swept. blo and bhi need
 # none: the rows of bodies swept at the start are made again from x and u, the others are not read.
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _put_rows(x, u, changed, x_in, u_in):
     for b in range(changed.shape[0]):
         if changed[b]:
@@ -19,7 +21,10 @@ def _put_rows(x, u, changed, x_in, u_in):
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def keep_pairs(x, u, t_last, lst):
-    return t_last.copy()
+    keep = np.empty(t_last.shape[0], np.float64)
+    for k in range(t_last.shape[0]):
+        keep[k] = t_last[k]
+    return keep
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)

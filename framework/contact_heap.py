@@ -11,7 +11,8 @@ from driftframe.framework.kernels import kernel
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def grow_f(a, n):
     """A (rows, cols) float array with room for ``n`` rows (at least twice as many), ``a`` copied in."""
-    b = np.empty((max(n, 2 * a.shape[0]), a.shape[1]))
+    m = 2 * a.shape[0]
+    b = np.empty((n if n > m else m, a.shape[1]), np.float64)
     for k in range(a.shape[0]):
         for d in range(a.shape[1]):
             b[k, d] = a[k, d]
@@ -21,7 +22,8 @@ def grow_f(a, n):
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def grow_i(a, n, fill):
     """An int64 array of ``max(n, 2 len(a))`` with ``a`` copied in and ``fill`` after it."""
-    b = np.empty(max(n, 2 * a.shape[0]), np.int64)
+    m = 2 * a.shape[0]
+    b = np.empty(n if n > m else m, np.int64)
     for k in range(a.shape[0]):
         b[k] = a[k]
     for k in range(a.shape[0], b.shape[0]):
@@ -33,19 +35,6 @@ def grow_i(a, n, fill):
 # every array a function call receives (an atomic operation, before and after the call), and with
 # four arrays those counts were two thirds of a dense gas's solve. Pair and version are whole
 # numbers held exactly in float64 (below 2^53). Order: by time, then by pair.
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def _sift_up(H, k):
-    t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
-    while k > 0:
-        q = (k - 1) >> 1
-        if t < H[q, 0] or (t == H[q, 0] and p < H[q, 1]):
-            H[k, 0], H[k, 1], H[k, 2], H[k, 3] = H[q, 0], H[q, 1], H[q, 2], H[q, 3]
-            k = q
-        else:
-            break
-    H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
-
-
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def sift_down(H, k, n):
     t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
@@ -76,6 +65,13 @@ def heap_pop(H, n):
 def heap_push(H, n, t, p, v, s):
     """Add a row to a heap of ``n`` rows, which has room for it (the caller grows ``H`` before a loop
     of pushes: an array reassigned inside a loop is reference-counted on every pass)."""
-    H[n, 0], H[n, 1], H[n, 2], H[n, 3] = t, p, v, s
-    _sift_up(H, n)
+    k = n
+    while k > 0:
+        q = (k - 1) >> 1
+        if t < H[q, 0] or (t == H[q, 0] and p < H[q, 1]):
+            H[k, 0], H[k, 1], H[k, 2], H[k, 3] = H[q, 0], H[q, 1], H[q, 2], H[q, 3]
+            k = q
+        else:
+            break
+    H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
 

@@ -28,7 +28,7 @@ def kick(b, sg, lam, c, inv, bmark, wave, dv, moved, nm, wn):
     return nm
 
 
-@kernel(error_model="numpy", no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cfunc_wrapper=True, inline="always")    # pasted into island_dense, its one caller
 def solve_psd(A, y, m, out):
     """Solve ``A[:m, :m] out = y[:m]`` for a symmetric positive semi-definite A (A and y are overwritten).
 
@@ -37,7 +37,9 @@ def solve_psd(A, y, m, out):
     unknowns are set to 0 (a basic solution of a consistent singular system).
     Only + - * /, in an order fixed by the data.
     """
-    perm = np.arange(m)
+    perm = np.empty(m, np.int64)
+    for k in range(m):
+        perm[k] = k
     top = 0.0
     for k in range(m):
         if A[k, k] > top:
@@ -65,7 +67,9 @@ def solve_psd(A, y, m, out):
                     A[k, l] -= f * A[s, l]
                 y[k] -= f * y[s]
         rank += 1
-    sol = np.zeros(m)
+    sol = np.empty(m, np.float64)
+    for s in range(m):
+        sol[s] = 0.0
     for s in range(rank - 1, -1, -1):
         acc = y[s]
         for l in range(s + 1, rank):
@@ -108,7 +112,7 @@ def island_dense(cs, K, wi, wj, wn, rhs, inv, lam, A, y, sub, act):
                     s += inv[ja]
                 A[p, q] = s * dot
             y[p] = rhs[ca]
-        sol = np.empty(m)
+        sol = np.empty(m, np.float64)
         solve_psd(A, y, m, sol)
         neg = False
         for p in range(m):
@@ -131,7 +135,7 @@ def restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, w
     stick_any = False
     for k in range(K):
         i, j = wi[k], wj[k]
-        ee = min(e[i], e[j])
+        ee = e[j] if e[j] < e[i] else e[i]                 # min(e[i], e[j]), as Python's min gives it
         gi = t - t_last[i]
         gj = t - t_last[j]
         bi = burst[i] + 1 if gi <= t_c else 1

@@ -1,8 +1,6 @@
 """The jam path: an island's touching cluster given one velocity (compiled kernels; see :mod:`.contact`)."""
 from __future__ import annotations
 
-import numpy as np
-
 from driftframe.framework.contact_params import TOUCH
 from driftframe.framework.kernels import kernel
 
@@ -85,11 +83,3 @@ def stick_cluster(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm,
             lam = -(dv[i, 0] * wn[c, 0] + dv[i, 1] * wn[c, 1] + dv[i, 2] * wn[c, 2]) / inv[i]
         wlam[c] = lam if lam > 0.0 else 0.0
     return nm
-
-
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def no_stick(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, wave, head, nxt, PI, PJ, seen,
-              queue):
-    """:func:`stick_cluster`'s stand-in in the drivers without it: -1, the step is to be run again with it."""
-    return np.int64(-1)
-

@@ -31,18 +31,23 @@ def link_pair(p, i, j, head, nxt):
 def pair_structures(pi, pj, n):
     """Growable copies of the pairs, their adjacency lists (head/nxt), versions and marks."""
     P = pi.shape[0]
-    cap_p = max(2 * P, 16)
+    cap_p = 2 * P if 2 * P > 16 else 16
     PI = np.empty(cap_p, np.int64)
     PJ = np.empty(cap_p, np.int64)
     for p in range(P):
         PI[p] = pi[p]
         PJ[p] = pj[p]
-    head = np.full(n, -1, np.int64)
+    head = np.empty(n, np.int64)
+    for k in range(n):
+        head[k] = -1
     nxt = np.empty(2 * cap_p, np.int64)
     for p in range(P):
         link_pair(p, PI[p], PJ[p], head, nxt)
-    ver = np.zeros(cap_p, np.int64)
-    mark = np.full(cap_p, -1, np.int64)
+    ver = np.empty(cap_p, np.int64)
+    mark = np.empty(cap_p, np.int64)
+    for p in range(cap_p):
+        ver[p] = 0
+        mark[p] = -1
     return P, PI, PJ, head, nxt, ver, mark
 
 
@@ -64,7 +69,7 @@ def all_pairs(n):
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def initial_heap(PI, PJ, P, x, u, r, inv, live, spd, dt):
     """Every candidate pair's time of impact from t = 0, into a heap; and the overlaps at the start."""
-    H = np.empty((max(2 * P, 1024), 4))                   # room for every pair, and as many again
+    H = np.empty((2 * P if 2 * P > 1024 else 1024, 4), np.float64)    # room for every pair, and as many again
     hn = 0
     overlaps = 0
     worst = _INF
@@ -170,12 +175,6 @@ def listed_start(lst, pi, pj, x, u, r, live, dt):
     return n_swept, P, PI, PJ, head, nxt, ver, mark
 
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def unlisted_start(lst, pi, pj, x, u, r, live, dt):
-    """Every pair a candidate: nobody swept (``pi`` stands in for the pair structures, made later)."""
-    return np.int64(0), pi.shape[0], pi, pj, pi, pi, pi, pi
-
-
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
     """The moved bodies whose new path leaves their territory (or their swept box) are swept: their new
@@ -217,10 +216,3 @@ def listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, ma
         P, PI, PJ, nxt, ver, mark = sweep_body(b, P, PI, PJ, head, nxt, ver, mark, swept, blo, bhi,
                                            centre, reach, order, lo_x, width, np.bool_(False))
     return P, PI, PJ, nxt, ver, mark, n_swept, flags
-
-
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
-def unlisted_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
-    """Every pair a candidate: nothing to add."""
-    return P, PI, PJ, nxt, ver, mark, n_swept, flags
-

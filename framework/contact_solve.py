@@ -16,18 +16,24 @@ from driftframe.framework.contact_again import (keep_listed, keep_nothing, keep_
                                                 put_back_nothing, put_back_pairs)
 from driftframe.framework.contact_heap import grow_f, heap_pop, heap_push, sift_down
 from driftframe.framework.contact_islands import island_dense, island_sequential, islands, kick, restitution
-from driftframe.framework.contact_jam import no_stick, stick_cluster
-from driftframe.framework.contact_pairs import (initial_heap, listed_resweep, listed_start, pair_structures,
-                                                unlisted_resweep, unlisted_start)
+from driftframe.framework.contact_jam import stick_cluster
+from driftframe.framework.contact_pairs import initial_heap, listed_resweep, listed_start, pair_structures
 from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F_LIMIT, F_STICK, N_STATS, S_BACK,
                                                  S_CONTACTS, S_OVERLAPS, S_PAIRS, S_POPPED, S_PUSHED, S_SEQUENTIAL,
                                                  S_SWEPT, S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
 from driftframe.framework.contact_toi import toi
 from driftframe.framework.kernels import kernel
-from driftframe.framework.static_shapes import (no_shape_contact, no_shape_point, no_shape_push, no_shapes_start,
-                                                shape_contact, shape_point, shape_push, shapes_start)
+from driftframe.framework.static_shapes import shape_contact, shape_push, shapes_start
 
 _OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+# _REASSIGNED: numba keeps every variable in its own slot and copies an array variable, reference count and
+# all (a struct of 7 or 9 fields unpacked: some 25 LLVM instructions), at each join of the control flow that
+# its SSA form gives a variable assigned more than once. In this loop that was most of the solver's IR:
+# the wave's scratch (15 arrays) and the pair structures (6) reassigned inside it, three event arrays
+# growing. So the solver assigns them once where it can (an outer loop for the wave's scratch, one events
+# array, the list's re-sweep only in the listed solvers, whose P can grow): its IR shrank by a third and a
+# cold compile by a second or so (docs/bench/compile.md).
 
 
 @kernel(**_OPTS)
@@ -35,10 +41,13 @@ def wave_scratch(cap):
     """A wave's arrays for up to ``cap`` contacts: pair, i, j, island root, island members, normal,
     normal velocity, restitution, impulse, stuck; the entries put back (time, pair, version, slack);
     right-hand side."""
+    wstick = np.empty(cap, np.bool_)
+    for k in range(cap):
+        wstick[k] = False
     return (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
-            np.empty(cap, np.int64), np.empty((cap, 3)), np.empty(cap), np.empty(cap), np.empty(cap),
-            np.zeros(cap, np.bool_), np.empty(cap), np.empty(cap, np.int64), np.empty(cap, np.int64),
-            np.empty(cap), np.empty(cap))
+            np.empty(cap, np.int64), np.empty((cap, 3), np.float64), np.empty(cap, np.float64),
+            np.empty(cap, np.float64), np.empty(cap, np.float64), wstick, np.empty(cap, np.float64),
+            np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.float64), np.empty(cap, np.float64))
 
 
 @kernel(**_OPTS)
@@ -46,10 +55,61 @@ def body_scratch(n):
     """A step's arrays per body: velocity changed; x and u as they came (for F_AGAIN); burst and count of
     contacts; the wave that last kicked it, joined it in an island, counted its contact, took it into a
     stuck cluster; union-find parents; the cluster's queue; the wave's moved bodies and their velocity
-    changes."""
-    return (np.zeros(n, np.bool_), np.empty((n, 3)), np.empty((n, 3)), np.zeros(n, np.int64), np.zeros(n, np.int64),
-            np.full(n, -1, np.int64), np.full(n, -1, np.int64), np.full(n, -1, np.int64), np.full(n, -1, np.int64),
-            np.arange(n), np.empty(n, np.int64), np.empty(n, np.int64), np.zeros((n, 3)))
+    changes. Then a dense island's scratch (A, y, sub, act: :func:`island_dense`) and a lone contact's
+    order (``[0]``)."""
+    changed = np.empty(n, np.bool_)
+    burst = np.empty(n, np.int64)
+    count = np.empty(n, np.int64)
+    bmark = np.empty(n, np.int64)
+    ustamp = np.empty(n, np.int64)
+    kstamp = np.empty(n, np.int64)
+    sseen = np.empty(n, np.int64)
+    parent = np.empty(n, np.int64)
+    dv = np.empty((n, 3), np.float64)
+    for k in range(n):
+        changed[k] = False
+        burst[k] = count[k] = 0
+        bmark[k] = ustamp[k] = kstamp[k] = sseen[k] = -1
+        parent[k] = k
+        dv[k, 0] = dv[k, 1] = dv[k, 2] = 0.0
+    one = np.empty(1, np.int64)
+    one[0] = 0
+    return (changed, np.empty((n, 3), np.float64), np.empty((n, 3), np.float64), burst, count, bmark, ustamp, kstamp,
+            sseen, parent, np.empty(n, np.int64), np.empty(n, np.int64), dv,
+            np.empty((DENSE_MAX, DENSE_MAX), np.float64), np.empty(DENSE_MAX, np.float64),
+            np.empty(DENSE_MAX, np.int64), np.empty(DENSE_MAX, np.bool_), one)
+
+
+@kernel(**_OPTS, inline="always")
+def _step_arrays(u):
+    """The step's stats (zeros) and each body's speed ``|u|``."""
+    stats = np.empty(N_STATS, np.float64)
+    for k in range(N_STATS):
+        stats[k] = 0.0
+    spd = np.empty(u.shape[0], np.float64)
+    for k in range(u.shape[0]):
+        spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
+    return stats, spd
+
+
+@kernel(**_OPTS)
+def _events(E, ne, n):
+    """The step's events (rows ``E[:ne]``, see :func:`_solve`) as the solvers return them: ``(i, j, time,
+    impulse)``, the normal, the two points; and ``changed`` all False for a step without contact (n > 0)."""
+    ev = np.empty((ne, 4), np.float64)
+    ev_n = np.empty((ne, 3), np.float64)
+    ev_x = np.empty((ne, 6), np.float64)
+    for k in range(ne):
+        for d in range(4):
+            ev[k, d] = E[k, d]
+        for d in range(3):
+            ev_n[k, d] = E[k, 4 + d]
+        for d in range(6):
+            ev_x[k, d] = E[k, 7 + d]
+    changed = np.empty(n, np.bool_)
+    for k in range(n):
+        changed[k] = False
+    return changed, ev, ev_n, ev_x
 
 
 @kernel(**_OPTS)
@@ -59,273 +119,277 @@ def _shift(t, d):
         t[k] += d
 
 
+@kernel(**_OPTS)
+def _listed_structures(n_swept, P, PI, PJ, head, nxt, ver, mark, pi, pj, n):
+    """The structures ``listed_start`` made (bodies were swept), else new ones of ``pi``, ``pj`` (one call:
+    the solver then assigns them once, see :func:`_solve`)."""
+    if n_swept > 0:
+        return P, PI, PJ, head, nxt, ver, mark
+    return pair_structures(pi, pj, n)
+
+
 def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
     """The step's event loop: the body of every solver (:func:`solve_all_pairs`, :func:`solve_listed`
     and their ``_stick`` variants), each compiled from it with its own pieces (see :func:`_solver`)."""
     keep = _keep(x, u, t_last, lst)
     _shift(t_last, -now)
     n = x.shape[0]
-    stats = np.zeros(N_STATS)
+    stats, spd = _step_arrays(u)
     flags = 0
     # the pair structures (adjacency, versions) are made only when needed: a quiet step makes none
-    n_swept, P, PI, PJ, head, nxt, ver, mark = _start(lst, pi, pj, x, u, r, live, dt)
-    early = n_swept > 0
+    if _LISTED:
+        n_swept, P0, PI0, PJ0, head0, nxt0, ver0, mark0 = listed_start(lst, pi, pj, x, u, r, live, dt)
+    else:
+        n_swept, P0, PI0, PJ0 = np.int64(0), pi.shape[0], pi, pj
     stats[S_SWEPT] = n_swept
-    spd = np.empty(n)
-    for k in range(n):
-        spd[k] = math.sqrt(u[k, 0] * u[k, 0] + u[k, 1] * u[k, 1] + u[k, 2] * u[k, 2])
-
     # -- heap of pending contacts --
-    H, hn, overlaps, worst, wi_, wj_ = initial_heap(PI, PJ, P, x, u, r, inv, live, spd, dt)
-    ns, hn = _shapes_start(H, hn, PI, PJ, P, x, u, r, live, spd, dt, lst, n)   # shapes: bodies ns.., lst their table
+    H, hn, overlaps, worst, wi_, wj_ = initial_heap(PI0, PJ0, P0, x, u, r, inv, live, spd, dt)
+    ns = n
+    if _STATIC:                                            # shapes: bodies ns.., lst their table
+        ns, hn = shapes_start(H, hn, PI0, PJ0, P0, x, u, r, live, spd, dt, lst, n)
     for k in range((hn >> 1) - 1, -1, -1):
         sift_down(H, k, hn)
     stats[S_OVERLAPS] = overlaps
     stats[S_WORST_I], stats[S_WORST_J], stats[S_WORST] = wi_, wj_, worst
     if hn == 0:                                            # no contact this step
-        stats[S_PAIRS] = P
+        stats[S_PAIRS] = P0
         _shift(t_last, now)
-        return np.zeros(n, np.bool_), np.empty((0, 4)), np.empty((0, 3)), np.empty((0, 6)), stats, flags
-    if not early:
+        changed, ev, ev_n, ev_x = _events(H, np.int64(0), n)
+        return changed, ev, ev_n, ev_x, stats, flags
+    if _LISTED:
+        P, PI, PJ, head, nxt, ver, mark = _listed_structures(n_swept, P0, PI0, PJ0, head0, nxt0, ver0, mark0, pi,
+                                                             pj, n)
+    else:
         P, PI, PJ, head, nxt, ver, mark = pair_structures(pi, pj, n)
-
     # -- per body bookkeeping --
-    (changed, x_in, u_in, burst, count, bmark, ustamp, kstamp, sseen, parent, squeue, moved,
-     dv) = body_scratch(n)
+    (changed, x_in, u_in, burst, count, bmark, ustamp, kstamp, sseen, parent, squeue, moved, dv, A, y, sub, act,
+     one) = body_scratch(n)
     same = SLACK_MAX * dt
-    # wave scratch, per wave (a wave holds at most one valid entry per pair and per heap entry: it is
-    # made large enough before each wave, never inside the loops that fill it, where an array that
-    # may be replaced is reference-counted on every pass)
-    wcap = np.int64(64)                  # see contact_params._NOT_LITERAL
-    wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = wave_scratch(wcap)
-    A = np.empty((DENSE_MAX, DENSE_MAX))
-    y = np.empty(DENSE_MAX)
-    sub = np.empty(DENSE_MAX, np.int64)
-    act = np.empty(DENSE_MAX, np.bool_)
-    one = np.zeros(1, np.int64)
-    # events
-    ev = np.empty((64, 4))
-    ev_n = np.empty((64, 3))
-    ev_x = np.empty((64, 6))
-    ne = 0
-
+    E = np.empty((64, 13), np.float64)                     # events, a row each: see _events
+    ne = np.int64(0)                     # see contact_params._NOT_LITERAL
     waves = 0
     limit = 64 * (n + P) + 100_000
-    while hn > 0:
-        # -- pop the earliest valid entry --
-        t0 = H[0, 0]
-        p0 = int(H[0, 1])
-        v0 = int(H[0, 2])
-        hn -= 1
-        heap_pop(H, hn)
-        if v0 != ver[p0]:
-            continue
-        if waves >= limit:
-            flags |= F_LIMIT
-            break
-        # -- the wave: every valid entry within its own slack of t0 --
-        need = min(P, hn) + 1                              # entries it can take (valid ones: one per pair)
-        if need > wcap:
-            wcap = max(2 * wcap, need)
-            wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = \
-                wave_scratch(wcap)
-        K = np.int64(0)                                    # see contact_params._NOT_LITERAL
-        nb = 0
-        horizon = t0 + SLACK_MAX * dt
-        cand_p = p0
-        cand_ok = True
-        while True:
-            if cand_ok:
-                i, j = PI[cand_p], PJ[cand_p]
-                if _STATIC and j >= ns:
-                    nx, ny, nz, vn = _shape_contact(lst, j - ns, x, u, i, t0)
-                else:
-                    wx = u[j, 0] - u[i, 0]
-                    wy = u[j, 1] - u[i, 1]
-                    wz = u[j, 2] - u[i, 2]
-                    dx = x[j, 0] - x[i, 0] + wx * t0
-                    dy = x[j, 1] - x[i, 1] + wy * t0
-                    dz = x[j, 2] - x[i, 2] + wz * t0
-                    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-                    if dist > 0.0:
-                        nx, ny, nz = dx / dist, dy / dist, dz / dist
-                        vn = nx * wx + ny * wy + nz * wz
-                    else:
-                        nx = ny = nz = vn = 0.0
-                if vn < -APPROACH * (spd[i] + spd[j]):
-                    wp[K], wi[K], wj[K] = cand_p, i, j
-                    wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
-                    wvn[K] = vn
-                    K += 1
-            if hn == 0 or H[0, 0] > horizon:
+    # The wave's scratch is made in an outer loop that the loop of waves leaves only to make it larger: one
+    # definition per array (an array a loop reassigns is copied at every join: compile time, see _REASSIGNED)
+    wcap = np.int64(64)                  # see contact_params._NOT_LITERAL
+    more = True
+    while more and hn > 0:
+        wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = wave_scratch(wcap)
+        more = False
+        while hn > 0:
+            need = (hn if hn < P else P) + 1               # at most one valid entry per pair and per heap entry
+            if need > wcap:
+                wcap = need if need > 2 * wcap else 2 * wcap
+                more = True
                 break
-            tp, pp, vv, ss = H[0, 0], int(H[0, 1]), int(H[0, 2]), H[0, 3]
-            stats[S_POPPED] += 1
+            if hn + P > H.shape[0]:
+                H = grow_f(H, hn + P)
+            # -- pop the earliest valid entry --
+            t0, p0, v0 = H[0, 0], np.int64(H[0, 1]), np.int64(H[0, 2])
             hn -= 1
             heap_pop(H, hn)
-            if vv != ver[pp]:
-                cand_ok = False
+            if v0 != ver[p0]:
                 continue
-            if tp - t0 <= ss:
-                cand_p = pp
-                cand_ok = True
-                ver[pp] += 1                               # taken: its entry is void from now on
-            else:
-                back_t[nb], back_p[nb], back_v[nb], back_s[nb] = tp, pp, vv, ss
-                nb += 1
-                cand_ok = False
-        ver[p0] += 1
-        stats[S_BACK] += nb
-        if hn + nb > H.shape[0]:
-            H = grow_f(H, hn + nb)
-        for b in range(nb):                                # not this instant: back into the heap
-            heap_push(H, hn, back_t[b], back_p[b], back_v[b], back_s[b])
-            hn += 1
-        if K == 0:
-            continue
-        waves += 1
-        t = t0
-        # -- restitution of each contact: the pair's, or the TC model / the bounds; islands --
-        fl, stick_any = restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, we)
-        flags |= fl
-        islands(K, wi, wj, inv, parent, ustamp, waves, wroot)
-        for k in range(K):
-            rhs[k] = -(1.0 + we[k]) * wvn[k]
-            wlam[k] = 0.0
-        if K == 1:
-            ordk = one                                     # a lone contact (most waves): nothing to sort
-        else:
-            ordk = sorting.argsort_stable(wroot, K)             # islands together, wave order inside
-        nm = np.int64(0)                 # see contact_params._NOT_LITERAL
-        s = 0
-        while s < K:
-            root = wroot[ordk[s]]
-            f = s
-            while f < K and wroot[ordk[f]] == root:
-                f += 1
-            m = f - s
-            for a in range(m):
-                cs[a] = ordk[s + a]
-            stick = False
-            if stick_any:
-                for a in range(m):
-                    if wstick[cs[a]]:
-                        stick = True
-            if stick:
-                nm = _stick_fn(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark, waves, head,
-                               nxt, PI, PJ, sseen, squeue)
-                if nm < 0:
-                    break                                  # _no_stick: this driver cannot; F_AGAIN below
-                flags |= F_STICK
-            elif m == 1:
-                c = cs[0]
-                i, j = wi[c], wj[c]
-                lam = rhs[c] / (inv[i] + inv[j])
-                wlam[c] = lam
-                nm = kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-                nm = kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-            elif m <= DENSE_MAX:
-                island_dense(cs, m, wi, wj, wn, rhs, inv, wlam, A, y, sub, act)
-                for a in range(m):
-                    c = cs[a]
-                    lam = wlam[c]
-                    if lam == 0.0:
-                        continue
-                    nm = kick(wi[c], -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-                    nm = kick(wj[c], 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-            else:
-                stats[S_SEQUENTIAL] += 1
-                nm = island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam, moved, nm)
-            s = f
-        if nm < 0:
-            flags |= F_AGAIN
-            break
-        # -- bookkeeping of the bodies that took an impulse; events --
-        if ne + K > ev.shape[0]:
-            ev, ev_n, ev_x = grow_f(ev, ne + K), grow_f(ev_n, ne + K), grow_f(ev_x, ne + K)
-        for k in range(K):
-            if not (wlam[k] > 0.0):
+            if waves >= limit:
+                flags |= F_LIMIT
+                break
+            # -- the wave: every valid entry within its own slack of t0 --
+            K = np.int64(0)                                    # see contact_params._NOT_LITERAL
+            nb = 0
+            horizon = t0 + SLACK_MAX * dt
+            cand_p, cand_ok = p0, True
+            while True:
+                if cand_ok:
+                    i, j = PI[cand_p], PJ[cand_p]
+                    if _STATIC and j >= ns:
+                        nx, ny, nz, vn = shape_contact(lst, j - ns, x, u, i, t0)
+                    else:
+                        wx = u[j, 0] - u[i, 0]
+                        wy = u[j, 1] - u[i, 1]
+                        wz = u[j, 2] - u[i, 2]
+                        dx = x[j, 0] - x[i, 0] + wx * t0
+                        dy = x[j, 1] - x[i, 1] + wy * t0
+                        dz = x[j, 2] - x[i, 2] + wz * t0
+                        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                        if dist > 0.0:
+                            nx, ny, nz = dx / dist, dy / dist, dz / dist
+                            vn = nx * wx + ny * wy + nz * wz
+                        else:
+                            nx = ny = nz = vn = 0.0
+                    if vn < -APPROACH * (spd[i] + spd[j]):
+                        wp[K], wi[K], wj[K] = cand_p, i, j
+                        wn[K, 0], wn[K, 1], wn[K, 2] = nx, ny, nz
+                        wvn[K] = vn
+                        K += 1
+                if hn == 0 or H[0, 0] > horizon:
+                    break
+                tp, pp, vv, ss = H[0, 0], np.int64(H[0, 1]), np.int64(H[0, 2]), H[0, 3]
+                stats[S_POPPED] += 1
+                hn -= 1
+                heap_pop(H, hn)
+                if vv != ver[pp]:
+                    cand_ok = False
+                    continue
+                if tp - t0 <= ss:
+                    cand_p = pp
+                    cand_ok = True
+                    ver[pp] += 1                               # taken: its entry is void from now on
+                else:
+                    back_t[nb], back_p[nb], back_v[nb], back_s[nb] = tp, pp, vv, ss
+                    nb += 1
+                    cand_ok = False
+            ver[p0] += 1
+            stats[S_BACK] += nb
+            for b in range(nb):                                # not this instant: back into the heap
+                heap_push(H, hn, back_t[b], back_p[b], back_v[b], back_s[b])
+                hn += 1
+            if K == 0:
                 continue
-            i, j = wi[k], wj[k]
-            for b in (i, j):
-                if kstamp[b] != waves and not (_STATIC and b >= ns):      # (a shape keeps no burst or count)
-                    kstamp[b] = waves                      # once per body per wave
-                    burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
-                    t_last[b] = t
-                    if min(e[i], e[j]) < 1.0:
-                        count[b] += 1                      # the cap is on inelastic contacts
-            ev[ne, 0], ev[ne, 1], ev[ne, 2], ev[ne, 3] = i, j, t, wlam[k]
-            for d in range(3):
-                ev_n[ne, d] = wn[k, d]
-                ev_x[ne, d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
-                ev_x[ne, 3 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
-            _shape_point(ev_x, np.int64(ne), j, ns)        # a shape's point: where the sphere touches it
-            ne += 1
-        # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
-        for a in range(nm):
-            b = moved[a]
-            if not changed[b]:                             # its x and u as they came (for F_AGAIN)
+            waves += 1
+            t = t0
+            # -- restitution of each contact: the pair's, or the TC model / the bounds; islands --
+            fl, stick_any = restitution(K, wi, wj, e, t, t_last, burst, count, cap, t_c, same, wstick, we)
+            flags |= fl
+            islands(K, wi, wj, inv, parent, ustamp, waves, wroot)
+            for k in range(K):
+                rhs[k] = -(1.0 + we[k]) * wvn[k]
+                wlam[k] = 0.0
+            if K == 1:
+                ordk = one                                     # a lone contact (most waves): nothing to sort
+            else:
+                ordk = sorting.argsort_stable(wroot, K)             # islands together, wave order inside
+            nm = np.int64(0)                 # see contact_params._NOT_LITERAL
+            s = 0
+            while s < K:
+                root = wroot[ordk[s]]
+                f = s
+                while f < K and wroot[ordk[f]] == root:
+                    f += 1
+                m = f - s
+                for a in range(m):
+                    cs[a] = ordk[s + a]
+                stick = False
+                if stick_any:
+                    for a in range(m):
+                        if wstick[cs[a]]:
+                            stick = True
+                if stick:
+                    if _STICK:
+                        nm = stick_cluster(cs, m, wi, wj, wn, inv, live, u, x, r, t, wlam, dv, moved, nm, bmark,
+                                           waves, head, nxt, PI, PJ, sseen, squeue)
+                        flags |= F_STICK
+                    else:
+                        nm = np.int64(-1)                      # no jam path in this driver: F_AGAIN below
+                        break
+                elif m == 1:
+                    c = cs[0]
+                    i, j = wi[c], wj[c]
+                    lam = rhs[c] / (inv[i] + inv[j])
+                    wlam[c] = lam
+                    nm = kick(i, -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                    nm = kick(j, 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                elif m <= DENSE_MAX:
+                    island_dense(cs, m, wi, wj, wn, rhs, inv, wlam, A, y, sub, act)
+                    for a in range(m):
+                        c = cs[a]
+                        lam = wlam[c]
+                        if lam == 0.0:
+                            continue
+                        nm = kick(wi[c], -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                        nm = kick(wj[c], 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
+                else:
+                    stats[S_SEQUENTIAL] += 1
+                    nm = island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam, moved, nm)
+                s = f
+            if nm < 0:
+                flags |= F_AGAIN
+                break
+            # -- bookkeeping of the bodies that took an impulse; events --
+            if ne + K > E.shape[0]:
+                E = grow_f(E, ne + K)
+            for k in range(K):
+                if not (wlam[k] > 0.0):
+                    continue
+                i, j = wi[k], wj[k]
+                for b in (i, j):
+                    if kstamp[b] != waves and not (_STATIC and b >= ns):      # (a shape keeps no burst or count)
+                        kstamp[b] = waves                      # once per body per wave
+                        burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
+                        t_last[b] = t
+                        if (e[j] if e[j] < e[i] else e[i]) < 1.0:
+                            count[b] += 1                      # the cap is on inelastic contacts
+                E[ne, 0], E[ne, 1], E[ne, 2], E[ne, 3] = i, j, t, wlam[k]
                 for d in range(3):
-                    x_in[b, d] = x[b, d]
-                    u_in[b, d] = u[b, d]
-            for d in range(3):
-                u[b, d] += dv[b, d]
-                x[b, d] -= dv[b, d] * t
-            spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
-            changed[b] = True
-        # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
-        P, PI, PJ, nxt, ver, mark, n_swept, flags = _resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt,
-                                                             ver, mark, n_swept, stats, flags)
-        # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
-        if hn + P > H.shape[0]:
-            H = grow_f(H, hn + P)
-        for a in range(nm):
-            b = moved[a]
-            node = head[b]
-            while node >= 0:
-                p = node >> 1
-                node = nxt[node]
-                if mark[p] == waves:
-                    continue
-                mark[p] = waves
-                ver[p] += 1
-                i, j = PI[p], PJ[p]
-                if _STATIC and j >= ns:
-                    hn = _shape_push(H, hn, p, ver[p], x, u, r, spd, live, lst, i, j - ns, t, dt, stats)
-                    continue
-                if not (live[i] and live[j]):
-                    continue
-                tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
-                              u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
-                              r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], t, dt)
-                if tp >= 0.0:
-                    heap_push(H, hn, tp, p, ver[p], sl)
-                    hn += 1
-                    stats[S_PUSHED] += 1
+                    E[ne, 4 + d] = wn[k, d]
+                    E[ne, 7 + d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
+                    E[ne, 10 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
+                    if _STATIC and j >= ns:
+                        E[ne, 10 + d] = E[ne, 7 + d]           # a shape's point: where the sphere touches it
+                ne += 1
+            # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
+            for a in range(nm):
+                b = moved[a]
+                if not changed[b]:                             # its x and u as they came (for F_AGAIN)
+                    for d in range(3):
+                        x_in[b, d] = x[b, d]
+                        u_in[b, d] = u[b, d]
+                for d in range(3):
+                    u[b, d] += dv[b, d]
+                    x[b, d] -= dv[b, d] * t
+                spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
+                changed[b] = True
+            # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
+            if _LISTED:                                    # (pruned from the all-pairs solvers: P is fixed there)
+                P, PI, PJ, nxt, ver, mark, n_swept, flags = listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ,
+                                                                           head, nxt, ver, mark, n_swept, stats,
+                                                                           flags)
+                if hn + P > H.shape[0]:
+                    H = grow_f(H, hn + P)
+            # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
+            for a in range(nm):
+                b = moved[a]
+                node = head[b]
+                while node >= 0:
+                    p = node >> 1
+                    node = nxt[node]
+                    if mark[p] == waves:
+                        continue
+                    mark[p] = waves
+                    ver[p] += 1
+                    i, j = PI[p], PJ[p]
+                    if _STATIC and j >= ns:
+                        hn = shape_push(H, hn, p, ver[p], x, u, r, spd, live, lst, i, j - ns, t, dt, stats)
+                        continue
+                    if not (live[i] and live[j]):
+                        continue
+                    tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
+                                  u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
+                                  r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], t, dt)
+                    if tp >= 0.0:
+                        heap_push(H, hn, tp, p, ver[p], sl)
+                        hn += 1
+                        stats[S_PUSHED] += 1
     stats[S_PAIRS] = P
     stats[S_CONTACTS] = ne
     stats[S_WAVES] = waves
     _shift(t_last, now)
     if flags & F_AGAIN:
         _put_back(keep, x, u, t_last, lst, changed, x_in, u_in)
-    return changed, ev[:ne], ev_n[:ne], ev_x[:ne], stats, flags
+    _, ev, ev_n, ev_x = _events(E, ne, np.int64(0))
+    return changed, ev, ev_n, ev_x, stats, flags
 
 
-_PLAIN = dict(_STATIC=False, _shapes_start=no_shapes_start, _shape_contact=no_shape_contact,
-              _shape_push=no_shape_push, _shape_point=no_shape_point)
-_SHAPES = dict(_STATIC=True, _shapes_start=shapes_start, _shape_contact=shape_contact, _shape_push=shape_push,
-               _shape_point=shape_point)
-
-
-def _solver(name, doc, **pieces):
-    """A solver compiled from :func:`_solve` with ``pieces`` for its names ``_start``, ``_resweep``,
-    ``_stick_fn``, ``_keep``, ``_put_back`` (and the static shapes' ``_STATIC``, ``_shapes_start``,
-    ``_shape_contact``, ``_shape_push``, ``_shape_point``: :data:`_PLAIN` unless given): one compiled unit
-    each, holding only the code its scenes run
+def _solver(name, doc, listed, stick, shapes):
+    """A solver compiled from :func:`_solve`: with the neighbour list's code (``listed``) or every pair a
+    candidate, with the jam path (:func:`stick_cluster`, ``stick``) or F_AGAIN in its place, with the
+    static shapes (``shapes``) or without. The three flags are constants in its globals: numba prunes the
+    branches they rule out before it types the code, so each solver compiles only what its scenes run
     (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
     copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""
     import types
-    scope = dict(globals(), **dict(_PLAIN, **pieces))
+    scope = dict(globals(), _LISTED=listed, _STICK=stick, _STATIC=shapes)
+    scope["_keep"], scope["_put_back"] = ((keep_nothing, put_back_nothing) if stick else
+                                          (keep_listed, put_back_listed) if listed else (keep_pairs, put_back_pairs))
     f = types.FunctionType(_solve.__code__, scope, name)
     f.__qualname__ = name
     f.__doc__ = doc
@@ -360,27 +424,19 @@ _LISTED_DOC = """One step of contacts for bodies on paths ``x + u t`` (``x``, ``
 # The solvers. A scene of few bodies compiles no neighbour-list code, and no scene compiles the jam path
 # (stick_cluster) until one jams: a step that needs it ends with F_AGAIN and its inputs as they came, and the
 # caller runs it again with the _stick variant (the same result, bit for bit, as that variant alone).
-solve_listed = _solver("solve_listed", _LISTED_DOC, _start=listed_start, _resweep=listed_resweep,
-                       _stick_fn=no_stick, _keep=keep_listed, _put_back=put_back_listed)
+solve_listed = _solver("solve_listed", _LISTED_DOC, listed=True, stick=False, shapes=False)
 solve_listed_stick = _solver("solve_listed_stick", ":func:`solve_listed` with the jam path (:func:`stick_cluster`).",
-                             _start=listed_start, _resweep=listed_resweep, _stick_fn=stick_cluster,
-                             _keep=keep_nothing, _put_back=put_back_nothing)
+                             listed=True, stick=True, shapes=False)
 solve_all_pairs = _solver("solve_all_pairs", """:func:`solve_listed` with every pair a candidate (few bodies)
-    and ``lst`` None; with F_AGAIN run :func:`solve_all_pairs_stick`.""",
-                          _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=no_stick,
-                          _keep=keep_pairs, _put_back=put_back_pairs)
+    and ``lst`` None; with F_AGAIN run :func:`solve_all_pairs_stick`.""", listed=False, stick=False, shapes=False)
 solve_all_pairs_stick = _solver("solve_all_pairs_stick", ":func:`solve_all_pairs` with the jam path.",
-                                _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=stick_cluster,
-                                _keep=keep_nothing, _put_back=put_back_nothing)
+                                listed=False, stick=True, shapes=False)
 
 
 # The static-shape variants (planes, boxes: :mod:`.static_shapes`): every pair a candidate, the shapes the
 # last bodies (immovable, not live) and ``lst`` their table. Compiled only for a scene that has shapes.
 solve_static = _solver("solve_static", """:func:`solve_all_pairs` with static shapes: ``lst`` is their
     ``(m, SHAPE_COLS)`` table and they are the last ``m`` bodies (:mod:`driftframe.systems.static_step` arranges it); with
-    F_AGAIN run :func:`solve_static_stick`.""",
-                       _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=no_stick, _keep=keep_pairs,
-                       _put_back=put_back_pairs, **_SHAPES)
+    F_AGAIN run :func:`solve_static_stick`.""", listed=False, stick=False, shapes=True)
 solve_static_stick = _solver("solve_static_stick", ":func:`solve_static` with the jam path.",
-                             _start=unlisted_start, _resweep=unlisted_resweep, _stick_fn=stick_cluster,
-                             _keep=keep_nothing, _put_back=put_back_nothing, **_SHAPES)
+                             listed=False, stick=True, shapes=True)

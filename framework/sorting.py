@@ -37,7 +37,7 @@ def argsort_stable(a, m):
     for k in range(m):
         idx[k] = k
     for s in range(0, m, 16):
-        f = min(s + 16, m)
+        f = s + 16 if s + 16 < m else m
         for k in range(s + 1, f):
             v = idx[k]
             key = a[v]
@@ -53,8 +53,8 @@ def argsort_stable(a, m):
     width = 16
     while width < m:
         for s in range(0, m, 2 * width):
-            mid = min(s + width, m)
-            f = min(s + 2 * width, m)
+            mid = s + width if s + width < m else m
+            f = s + 2 * width if s + 2 * width < m else m
             i = s
             j = mid
             k = s

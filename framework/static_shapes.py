@@ -46,6 +46,9 @@ from driftframe.framework.kernels import kernel
 
 _OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 _INF = math.inf
+# _MINMAX: min and max of two floats are written as conditionals, ``max(a, b)`` as ``b if b > a else a``
+# (what Python's and numba's give, NaN included): numba compiles its min and max as functions of their
+# own per signature, typed again at every call (a cold compile's cost: docs/bench/compile.md).
 
 #: The table's columns, and the kinds.
 SHAPE_COLS = 16
@@ -73,7 +76,7 @@ def _slab(q, w, lo, hi, a, b):
     t2 = (hi - q) / w
     if t1 > t2:
         t1, t2 = t2, t1
-    return max(a, t1), min(b, t2)
+    return (t1 if t1 > a else a), (t2 if t2 < b else b)         # max(a, t1), min(b, t2) (see _MINMAX)
 
 
 @kernel(**_OPTS)
@@ -94,12 +97,12 @@ def _round(ex, ey, ez, wx, wy, wz, r, a, b):
     # the two roots without cancellation: q = -(B + sign(B) sq); roots q / A and C / q
     qq = -(B + sq) if B >= 0.0 else -(B - sq)
     if qq == 0.0:
-        return max(a, 0.0), min(b, 0.0)
+        return (0.0 if 0.0 > a else a), (0.0 if 0.0 < b else b)
     t1 = qq / A
     t2 = C / qq
     if t1 > t2:
         t1, t2 = t2, t1
-    return max(a, t1), min(b, t2)
+    return (t1 if t1 > a else a), (t2 if t2 < b else b)
 
 
 @kernel(**_OPTS)
@@ -162,6 +165,13 @@ def _inside(S, k, qx, qy, qz):
     return side * S[k, 4 + a], side * S[k, 7 + a], side * S[k, 10 + a], -depth
 
 
+@kernel(**_OPTS, inline="always")
+def _clamp(q, h):
+    """``min(max(q, -h), h)``, as Python's min and max give it (see _MINMAX)."""
+    m = -h if -h > q else q
+    return h if h < m else m
+
+
 @kernel(**_OPTS)
 def outward(S, k, px, py, pz):
     """The unit outward normal of shape ``k`` at the sphere centre ``p`` (world), and the centre's
@@ -170,9 +180,9 @@ def outward(S, k, px, py, pz):
         nx, ny, nz = S[k, 4], S[k, 5], S[k, 6]
         return nx, ny, nz, nx * px + ny * py + nz * pz - S[k, 13]
     qx, qy, qz = _local(S, k, px - S[k, 1], py - S[k, 2], pz - S[k, 3])
-    gx = qx - min(max(qx, -S[k, 13]), S[k, 13])
-    gy = qy - min(max(qy, -S[k, 14]), S[k, 14])
-    gz = qz - min(max(qz, -S[k, 15]), S[k, 15])
+    gx = qx - _clamp(qx, S[k, 13])
+    gy = qy - _clamp(qy, S[k, 14])
+    gz = qz - _clamp(qz, S[k, 15])
     dist = math.sqrt(gx * gx + gy * gy + gz * gz)
     if dist == 0.0:
         return _inside(S, k, qx, qy, qz)
@@ -219,7 +229,7 @@ def static_toi(px, py, pz, ux, uy, uz, r, spd, S, k, t, dt):
     return tc, slack
 
 
-@kernel(**_OPTS)
+@kernel(**_OPTS, inline="always")
 def static_heap(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, ns):
     """Add to the heap rows ``H[:hn]`` the first contact of every sphere-shape pair (``PJ[p] >= ns``:
     shape ``PJ[p] - ns``) from t = 0; returns the new row count (``H`` has a row for every pair)."""
@@ -234,8 +244,8 @@ def static_heap(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, ns):
     return hn
 
 
-# The solver's pieces (:mod:`.contact_solve`): the static variant's, and the plain solvers' stand-ins (they
-# have no shapes: ``ns = n``, and no pair reaches the others).
+# The solver's pieces (:mod:`.contact_solve`, its ``_STATIC`` branches). The step's ones are pasted into it
+# (inline="always"): compiled on their own, each would relink and re-optimise static_toi and what it calls.
 @kernel(**_OPTS)
 def shapes_start(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, n):
     """``(ns, hn)``: the first shape's body index (the shapes are the last ``len(S)`` bodies), and the
@@ -245,21 +255,11 @@ def shapes_start(H, hn, PI, PJ, P, x, u, r, live, spd, dt, S, n):
 
 
 @kernel(**_OPTS)
-def no_shapes_start(H, hn, PI, PJ, P, x, u, r, live, spd, dt, lst, n):
-    return n, hn
-
-
-@kernel(**_OPTS)
 def shape_contact(S, k, x, u, i, t):
     """The contact normal from sphere ``i`` to shape ``k`` at ``t`` (minus the shape's outward normal)
     and the normal relative velocity ``n . (0 - u_i)`` (< 0: approaching)."""
     ox, oy, oz, _ = outward(S, k, x[i, 0] + u[i, 0] * t, x[i, 1] + u[i, 1] * t, x[i, 2] + u[i, 2] * t)
     return -ox, -oy, -oz, ox * u[i, 0] + oy * u[i, 1] + oz * u[i, 2]
-
-
-@kernel(**_OPTS, inline="always")    # a stub the plain solvers' dead branches name: never compiled alone
-def no_shape_contact(S, k, x, u, i, t):
-    return 0.0, 0.0, 0.0, 0.0
 
 
 @kernel(**_OPTS)
@@ -273,21 +273,3 @@ def shape_push(H, hn, p, v, x, u, r, spd, live, S, i, k, t, dt, stats):
             hn += 1
             stats[S_PUSHED] += 1
     return hn
-
-
-@kernel(**_OPTS, inline="always")    # a stub the plain solvers' dead branches name: never compiled alone
-def no_shape_push(H, hn, p, v, x, u, r, spd, live, S, i, k, t, dt, stats):
-    return hn
-
-
-@kernel(**_OPTS)
-def shape_point(ev_x, k, j, ns):
-    """Event ``k``'s point on body ``j``, when it is a shape (``j >= ns``): where the sphere touches it."""
-    if j >= ns:
-        for d in range(3):
-            ev_x[k, 3 + d] = ev_x[k, d]
-
-
-@kernel(**_OPTS)
-def no_shape_point(ev_x, k, j, ns):
-    pass
