@@ -88,13 +88,13 @@ def _rails(r, v) -> None:
 
 
 def collisions() -> None:
-    """The sphere solvers: the collision demos but billiards, the all-pairs solvers called directly (a demo's
-    first steps may all be quiet, which framework/quiet_step.py answers without the solver), the neighbour
-    list's in a world, and the static-shape solver's jam-path variant."""
+    """The collision solvers: the collision demos, the all-pairs solvers called directly (a demo's first
+    steps may all be quiet, which framework/quiet_step.py answers without the solver), and the neighbour
+    list's and the static-shape solvers in a world; each without and with the jam path."""
     import numpy as np
 
     from driftframe.framework import contact
-    _demos(("asteroids", "cradle", "swarm"))
+    _demos(("asteroids", "billiards", "cradle", "swarm"))
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])          # two unit balls touching, closing at 2 m/s
     u = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
     pi, pj = contact.all_pairs(2)
@@ -103,18 +103,17 @@ def collisions() -> None:
                                               np.ones(2, np.bool_), np.full(2, -np.inf), 0.0, pi, pj, 1.0 / 60.0,
                                               contact.TC / 60.0, contact.CAP, None), stick=stick)
         _collision_world(stick, _row)
-    _collision_world(True, _shapes)
+        _collision_world(stick, _shapes)
 
 
 def orbits_and_the_rest() -> None:
-    """Everything else: the other demos (billiards' cushions: the static-shape solver), Kepler propagation of
-    enough bodies for the compiled loops, the n-body kernels, one frame through the NV12 converter."""
+    """Everything else: the other demos, Kepler propagation of a few bodies and of enough for the compiled
+    loops (on rails in a world too), the n-body kernels, one frame through the NV12 converter."""
     import numpy as np
 
     from driftframe.framework import kepler
     from driftframe.framework.yuv import rgba_to_nv12
-    _demos(("rotation", "spin", "billiards", "orbit"))
-    _collision_world(False, _shapes)
+    _demos(("rotation", "spin", "orbit"))
     n = kepler.COMPILED_MIN
     angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1

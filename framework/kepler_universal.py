@@ -364,9 +364,11 @@ class Epoch:
         it compiled with its bits (:mod:`~driftframe.framework.kepler_small`)."""
         n = self.r0.shape[0]
         if chi is not None and n >= COMPILED_MIN:
-            dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,)))
+            # writable copies: a read-only array (np.broadcast_to's view) is another numba type, and each
+            # combination of them was a compile of its own (three of this loop after the warm-up)
+            dt = np.array(np.broadcast_to(np.asarray(dt, dtype=np.float64), (n,)))
             # (a guess that is not finite fails the loop's bracket test and is replaced there)
-            guess = np.ascontiguousarray(np.broadcast_to(np.asarray(chi, dtype=np.float64), (n,)))
+            guess = np.array(np.broadcast_to(np.asarray(chi, dtype=np.float64), (n,)))
             out_r = np.empty((n, 3))
             out_v = np.empty((n, 3))
             out_chi = np.empty(n)
