@@ -11,11 +11,10 @@ import numpy as np
 import pytest
 
 from driftframe.components.body import Mass, Transform, Velocity
-from driftframe.components.collision import BoxCollider, CollisionEvent, PlaneCollider, SphereCollider
+from driftframe.components.collision import BoxCollider, PlaneCollider, SphereCollider
 from driftframe.framework import frame as fr
-from driftframe.systems.collision import CollisionSystem
-from driftframe.systems.movement import MovementSystem
 from driftframe.systems.static_step import StaticShapes, signed_distances
+from test_static_colliders import hits, pos, systems, vel   # the same scene helpers
 
 DT = 1.0 / 60.0
 
@@ -23,25 +22,6 @@ DT = 1.0 / 60.0
 def ball(world, x, v=None, r=0.5, e=1.0, m=1.0):
     parts = [Transform(x), Mass(m), SphereCollider(r, e)]
     return world.create_entity(*parts, *([] if v is None else [Velocity(v)]))
-
-
-def systems(world):
-    world.add_system(MovementSystem())
-    world.add_system(CollisionSystem())
-
-
-def hits(world):
-    out = []
-    world.subscribe(CollisionEvent, out.append)
-    return out
-
-
-def vel(e):
-    return np.array(esper.component_for_entity(e, Velocity).linear)
-
-
-def pos(e):
-    return np.array(esper.component_for_entity(e, Transform).position)
 
 
 def overlap_warnings(record):
