@@ -60,6 +60,7 @@ class NeighbourList:
         self.j = np.empty(0, np.intp)
         self.centre = np.empty((3, 0))
         self.radius = np.empty(0)
+        self._r_median = np.nan                          # the median of ``radius`` (see _prepare)
         self.skin = np.empty(0)
         self.reach = np.empty(0)
         self.swept = np.zeros(0, bool)
@@ -71,17 +72,22 @@ class NeighbourList:
     def build(self, centres: np.ndarray, radii: np.ndarray, step_disp: np.ndarray) -> None:
         """(Re)build from centres (3, n), radii (n,) and each body's displacement per step (n,), m."""
         from driftframe.framework.broadphase import ALL_PAIRS_MAX, sphere_pairs
-        c = np.array(centres, np.float64, order="C")      # C order: the compiled kernels take one layout
-        r = np.array(radii, np.float64)
-        d = np.asarray(step_disp, np.float64)
+        x = np.asarray(centres, np.float64).T                 # (n, 3): a view of the caller's x.T (no copy)
+        if not (x.flags.c_contiguous and x.flags.writeable):  # (one layout and a writable type: one compile)
+            x = np.array(x, order="C")
+        r = np.ascontiguousarray(radii, np.float64)
+        d = np.ascontiguousarray(step_disp, np.float64)
         n = len(r)
-        skin, swept, reach = _territory(r, d, self.skin_steps * self.scale)   # one compiled pass (medians and all)
-        n_slow = n - int(np.count_nonzero(swept))
+        # one compiled pass: the centres' (3, n) copy, the radii's, the territories (medians and all), the
+        # grid's cells and the x order of the territories (one call: each kernel called in a rebuild found
+        # its data cold, between steps)
+        (c, r, self._r_median, skin, swept, reach, n_slow, grid, self._order, self._lo_x,
+         self._width) = _prepare(x, r, d, self.skin_steps * self.scale, self.radius, self._r_median)
         got = None
         if self.method in ("auto", "grid") and n_slow > ALL_PAIRS_MAX:
             # one compiled pass: counting sort into a dense grid, then the exact sphere test over the
             # half stencil (the same pairs as sphere_pairs; their order does not matter to the solver)
-            got = _grid_build(c, reach, swept, n_slow, self._scratch)
+            got = _grid_build(c, reach, swept, n_slow, grid, self._scratch)
         if got is not None:
             self.i, self.j, self._scratch = got
         else:
@@ -89,8 +95,6 @@ class NeighbourList:
             i, j = sphere_pairs(c[:, slow], reach[slow], self.method, soa=True)
             self.i, self.j = slow[i], slow[j]
         self.centre, self.radius, self.skin, self.reach, self.swept = c, r, skin, reach, swept
-        # x order of the territories' low ends, for territories()
-        self._order, self._lo_x, self._width = _x_order(c, reach, swept)
         # each swept body costs a query per step, a build ~n log n: allow a few
         self.budget = 2 + n // 128
         self.builds += 1
@@ -192,11 +196,12 @@ def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     return new, total
 
 
-def _grid_build(c, reach, swept, n_slow, scratch):
+def _grid_build(c, reach, swept, n_slow, grid, scratch):
     """Pairs of not-swept territories that overlap, by :func:`_grid_pairs`, and the scratch arrays it
     used; None when the scene spans too many cells for int64 keys (the caller falls back on sort and
-    sweep). ``scratch``: ``(int64, float64)`` arrays from the last build, grown here when too small."""
-    h, hh, bx, by, bz, nx, ny, nz = _grid_setup(c, reach, swept)
+    sweep). ``grid``: :func:`_grid_setup`'s cells; ``scratch``: ``(int64, float64)`` arrays from the last
+    build, grown here when too small."""
+    h, hh, bx, by, bz, nx, ny, nz = grid
     if not h > 0 or max(nx, ny, nz) > _KEY_SPAN:
         return None
     # a dense table of cells when they are few; a hash table of the occupied cells when the scene is
@@ -222,6 +227,37 @@ def _grid_build(c, reach, swept, n_slow, scratch):
         if p <= cap:
             return oi[:p], oj[:p], (wi, wf)
         cap = p
+
+
+@kernel(no_cfunc_wrapper=True)
+def _prepare(x, r, d, skin_steps, last_r, last_median):
+    """What :meth:`NeighbourList.build` needs before the pairs, in one call: the centres ``x`` (n, 3) as a
+    (3, n) copy, a copy of the radii ``r`` and their median, the territories (:func:`_territories`: skin,
+    swept, reach), the bodies not swept, the grid's cells (:func:`_grid_setup`) and the x order
+    (:func:`_x_order`). The radii's median is ``last_median`` when they are ``last_r``'s bit for bit (the
+    last build's: radii seldom change, and the selection cost a tenth of a rebuild)."""
+    n = x.shape[0]
+    c = np.empty((3, n))
+    for k in range(n):
+        for a in range(3):
+            c[a, k] = x[k, a]
+    rc = np.empty(n)
+    same = last_r.shape[0] == n
+    rb = r.view(np.int64)
+    lb = last_r.view(np.int64)
+    for k in range(n):
+        rc[k] = r[k]
+        if same and rb[k] != lb[k]:
+            same = False
+    r_median = last_median if same else sorting.median(rc)
+    skin, swept, reach = _territories(rc, d, skin_steps, r_median)
+    m = 0
+    for k in range(n):
+        if not swept[k]:
+            m += 1
+    grid = _grid_setup(c, reach, swept)
+    order, lo_x, width = _x_order(c, reach, swept)
+    return c, rc, r_median, skin, swept, reach, m, grid, order, lo_x, width
 
 
 #: Cells per axis at most (with the ghost layers), so that a cell key (x * ny + y) * nz + z fits in int64.
@@ -487,6 +523,12 @@ def step_lengths(u, dt):
 
 @kernel(no_cfunc_wrapper=True)
 def _territory(r, d, skin_steps):
+    """:func:`_territories` with the radii's median computed here."""
+    return _territories(r, d, skin_steps, sorting.median(r))
+
+
+@kernel(no_cfunc_wrapper=True)
+def _territories(r, d, skin_steps, r_median):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
     Room for ``skin_steps`` steps at the body's own speed ``d`` per step (at least the median's, and at
@@ -494,7 +536,7 @@ def _territory(r, d, skin_steps):
     so the bodies an impact sets moving stay inside their territory instead of each being swept again
     in every wave of the impact); a body whose skin dwarfs the
     others' (more than 8 median skins + 4 largest radii; a bullet among asteroids) would make huge
-    cells and many pairs: it is swept instead."""
+    cells and many pairs: it is swept instead. ``r_median``: the radii's median (``sorting.median(r)``)."""
     n = r.shape[0]
     skin = np.empty(n)
     swept = np.zeros(n, np.bool_)
@@ -504,7 +546,7 @@ def _territory(r, d, skin_steps):
     # the skins' middle two are those of the displacements mapped (the map never decreases): one
     # selection serves both medians, bit for bit
     d_lo, d_hi = sorting.middle(d)
-    floor_ = max(d_hi if n & 1 else (d_lo + d_hi) / 2, 0.02 * sorting.median(r))
+    floor_ = max(d_hi if n & 1 else (d_lo + d_hi) / 2, 0.02 * r_median)
     for k in range(n):
         skin[k] = skin_steps * max(d[k], floor_)
     big = r[0]
