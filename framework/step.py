@@ -224,6 +224,15 @@ class StepContext:
         """Close without a commit (the step failed: the components keep the start of the step)."""
         self.step = -1
 
+    def refill(self) -> None:
+        """The open columns' buffers filled again from the tables (a dry step's commit then writes back the
+        bytes they hold: ``World.prepare``'s rehearsal); closed, nothing."""
+        if self.step < 0:
+            return
+        self._x.begin()
+        if self._v_open:
+            self._v.begin()
+
 
 class Commit(esper.Processor):
     """Reads the step context; writes Transform.position, Velocity.linear.  The step's end state into the
@@ -243,3 +252,8 @@ class Commit(esper.Processor):
         ctx = self.world.step_context
         if ctx.step >= 0:
             ctx.end()
+
+    def rehearse(self, dt: float) -> None:
+        """``World.prepare``'s dry step: the commit's code, writing back the bytes the tables hold."""
+        self.world.step_context.refill()
+        Commit.process(self, dt)

@@ -73,6 +73,21 @@ SystemRefs = str | type | Iterable[str | type]
 PathLike = str | os.PathLike[str]
 
 
+#: How many dry steps :meth:`World.prepare` runs (each after the one before has trained the caches further:
+#: docs/bench/collision_stress.md), and the cost of one above which it runs no more (s).
+REHEARSALS = 3
+REHEARSAL_BUDGET = 1e-3
+
+
+class _Dry:
+    """A system's stand-in in a dry step: its ``process`` is the system's ``rehearse``."""
+
+    __slots__ = ("process",)
+
+    def __init__(self, rehearse: Callable[[float], None]) -> None:
+        self.process = rehearse
+
+
 class WorldBrokenError(RuntimeError):
     """A step of this world raised after one of its systems had run: the world is half-stepped (some
     systems moved it, the rest did not), so it refuses to step or save until a save is loaded into it."""
@@ -596,7 +611,8 @@ class World:
     def prepare(self) -> None:
         """Do now the one-time work the first step would do: reconcile the tables with esper and let
         every system that has a ``prepare()`` build what it caches for the current entities (packed
-        rows, buffers). Call it when a level has loaded, so the first frame is not the slow one; it
+        rows, buffers), then run the step's built-in stages dry (:meth:`_rehearse`: no other system
+        runs). Call it when a level has loaded, so the first frame is not the slow one; it
         changes no state (the hash is the same with and without it), and the systems rebuild
         whatever a later change of entities makes stale, as they always do."""
         self.activate()
@@ -610,6 +626,47 @@ class World:
         for phase in ("step", "frame"):
             self._plans.pop(phase, None)
             self._plan(phase)                   # which systems have nothing to do (see add_system's requires)
+        self._rehearse()
+
+    def _rehearse(self) -> None:
+        """A dry step, run up to :data:`REHEARSALS` times: the step's systems that have a ``rehearse(dt)``
+        (the built-in movement, collision and commit stages) call it, in the step's order, through the
+        step loop; no other system runs, the step count, the events and the profile stay as they were.
+        Why: the first step after a level's load otherwise runs its code and data out of the CPU's caches
+        (and untrained branch predictors) after the load's other work, several times a tiny scene's
+        median step (docs/bench/collision_stress.md, "First step"). A ``rehearse`` writes only into the
+        step context, which is closed here uncommitted (the commit's writes back the bytes the tables
+        hold), and its own system's caches: the state is the same (its hash too). A dry step that costs
+        more than :data:`REHEARSAL_BUDGET` seconds is not repeated (a large scene's first step is not
+        slow for its caches: its own work dwarfs them)."""
+        kept = self._plans.get("step")
+        if kept is None or self.broken is not None:
+            return
+        dry = tuple((e, _Dry(s.rehearse), key, first, False) for e, s, key, first, _ in kept[2]
+                    if callable(getattr(s, "rehearse", None)))
+        if not dry:
+            return
+        profile, total = dict(self.profile), dict(self.profile_total)
+        # what step() itself changes, put back after each dry step (World.step: a subclass's step is not called)
+        kept_step = self.step_count, self.events, self.previous_events, self._rendered
+        self._plans["step"] = kept[:2] + (dry,) + kept[3:]
+        try:
+            for _ in range(REHEARSALS):
+                t = time.perf_counter()
+                World.step(self)
+                self.step_count, self.events, self.previous_events, self._rendered = kept_step
+                if time.perf_counter() - t > REHEARSAL_BUDGET:
+                    break
+        except BaseException:
+            self.broken = self._broken_by = None        # (nothing was changed: the world is whole, as it was)
+            raise
+        finally:
+            self.step_context.close()
+            self.step_count, self.events, self.previous_events, self._rendered = kept_step
+            self._plans["step"] = kept
+            self.profile.update(profile)
+            self.profile_total.clear()
+            self.profile_total.update(total)
 
     def close(self) -> None:
         """Release what every system and resource holds (GL objects included), free the tables,

@@ -58,9 +58,9 @@ from driftframe.components.gravity import Orbiting
 from driftframe.framework import broadphase as bp
 from driftframe.framework import contact, kernels
 from driftframe.framework.quiet_step import gather_quiet, quiet_all_pairs, write_changed
+from driftframe.framework.step import StepContext
+from driftframe.systems.collider_state import Layout, State, WithoutOrbiting
 from driftframe.systems.static_step import StaticShapes, load, solve_with_shapes
-from driftframe.framework.step import StepContext, advance
-from driftframe.framework.store import as_index, in_sorted, to_indices
 
 if TYPE_CHECKING:
     from driftframe.framework.world import World
@@ -88,162 +88,6 @@ def kernel_events(ents, ev, ev_n, ev_x, t0: float, step: int, method: str = "con
         else:
             add(event(b, a, t0 + t, t, (pts[3], pts[4], pts[5]), (-nrm[0], -nrm[1], -nrm[2]), lam, method, step))
     return out
-
-
-class _Layout:
-    """Packed per-collider rows into the world's tables (from its cached query), rebuilt when it changes.
-
-    Packed order is ascending entity id, so results are independent of
-    esper's set order. ``*_idx`` are index arrays (-1: the entity lacks that
-    component); ``*_rows`` what to gather with (a slice when contiguous).
-    """
-
-    def __init__(self, q):
-        self.version = q.version                    # (a tuple for a query filtered by _WithoutOrbiting)
-        self.n = n = len(q)
-        self.entities = q.entities
-        self.t_rows = q.rows(Transform)
-        self.c_rows = q.rows(SphereCollider)
-        self.t_idx = np.ascontiguousarray(to_indices(self.t_rows), np.intp)
-        self.c_idx = np.ascontiguousarray(to_indices(self.c_rows), np.intp)
-
-        def optional(T):
-            k = np.asarray(q.rows(T), np.intp)
-            sel = np.flatnonzero(k >= 0)
-            return k, sel, (as_index(k[sel]) if len(sel) else k[sel])
-
-        self.v_idx, self.v_sel, self.v_rows = optional(Velocity)
-        self.m_idx, self.m_sel, self.m_rows = optional(Mass)
-        self.a_idx, self.a_sel, self.a_rows = optional(Acceleration)
-        # the five index arrays as the rows of one (the quiet-step kernel takes them packed), each a view
-        self.idx = np.stack([self.t_idx, self.v_idx, self.a_idx, self.m_idx, self.c_idx]).astype(np.intp)
-        self.t_idx, self.v_idx, self.a_idx, self.m_idx, self.c_idx = self.idx
-        self.all_v = len(self.v_sel) == n
-        self.all_m = len(self.m_sel) == n
-        # the Transform rows of the bodies that move (have a Velocity), for the write-back
-        self.tv_rows = as_index(self.t_idx[self.v_sel]) if len(self.v_sel) else self.t_idx[self.v_sel]
-        self.state = None                           # the State of this layout (see State.of)
-        self.entity_list: list | None = None        # the entities as a list of ints (see CollisionSystem._emit)
-
-
-class _WithoutOrbiting:
-    """The collider query less the bodies the gravity system integrates (marked Orbiting): their path
-    over the step is a conic the gravity system has already followed, not this system's straight
-    chord, so they are left out here. The gravity system finds their contacts on the conics: with a
-    well's surface, with each other about the same well, and (about a root well) with the colliders
-    gravity does not move (see systems/gravity.py); the other contacts between an orbiting body and
-    a collider that is not orbiting are not modelled."""
-
-    def __init__(self, q, orbiting):
-        keep = ~in_sorted(q.entities, orbiting.entities)
-        self.version = (q.version, orbiting.version)
-        self.entities = q.entities[keep]
-        self._rows = {}
-        for T in q.types:
-            self._rows[T] = as_index(to_indices(q.rows(T))[keep])
-        for T in q.optional:
-            self._rows[T] = np.asarray(q.rows(T), np.intp)[keep]
-
-    def rows(self, T):
-        return self._rows[T]
-
-    def __len__(self) -> int:
-        return len(self.entities)
-
-
-class State:
-    """The colliders' start-of-step state, gathered in packed order (ascending entity id) in one
-    compiled pass (:func:`~driftframe.framework.contact.gather_bodies`), with the solver's copies
-    ``x`` (= ``x0``) and ``u`` (the step's mean velocity ``v0 + a dt/2``).
-
-    One per layout (:meth:`of`): its arrays are made once and refilled by :meth:`gather` every step;
-    ``x0, v0, x, u`` are the rows of one ``(4, n, 3)`` array and ``inv, r, e`` of one ``(3, n)`` (each a
-    contiguous view), which the quiet-step kernel takes packed."""
-
-    def __init__(self, world, lay: _Layout):
-        n = lay.n
-        self._b3, self._b1 = np.empty((4, n, 3)), np.empty((3, n))
-        self.x0, self.v0, self.x, self.u = self._b3
-        self.inv, self.r, self.e = self._b1
-        self.a = np.empty((n, 3)) if len(lay.a_sel) else None
-        self.live = np.empty(n, np.bool_)
-        self.n_bad, self.moving = 0, False
-        self._world = world
-        self._epoch = -1
-        self._args = None
-        self._quiet: tuple | None = None             # the quiet-step kernel's arguments (see gather_quiet)
-
-    @staticmethod
-    def of(world, lay: _Layout) -> "State":
-        """The layout's state (made on first use)."""
-        st = lay.state
-        if st is None:
-            st = lay.state = State(world, lay)
-        return st
-
-    def columns(self, lay: _Layout) -> tuple:
-        """The world's columns the gather reads and the end of step writes, and the gather's arguments.
-        A table's arrays are replaced only when rows are added (its entities change): kept for the
-        world's structure epoch."""
-        world = self._world
-        if self._epoch != world.epoch or self._args is None:
-            pos, vel = world.table(Transform).data["position"], world.table(Velocity).data["linear"]
-            acc = world.table(Acceleration).data["linear"] if self.a is not None else _NO_N3
-            col = world.table(SphereCollider).data
-            self._args = (pos, vel, acc, world.table(Mass).data["kg"], col["radius"], col["restitution"],
-                          lay.t_idx, lay.v_idx, lay.a_idx, lay.m_idx, lay.c_idx)
-            self._out = (self.x0, self.v0, self.a if self.a is not None else _NO_N3, self.inv, self.r, self.e,
-                         self.x, self.u, self.live)
-            self._quiet = None
-            self._epoch = world.epoch
-        return self._args
-
-    def gather(self, lay: _Layout, dt: float) -> "State":
-        """Fill the arrays with the start of this step (see the class docstring)."""
-        args = self.columns(lay)
-        self.n_bad, self.moving = contact.gather_bodies(*args, float(dt), *self._out)
-        return self
-
-    def gather_quiet(self, lay: _Layout, dt: float, pairs: np.ndarray) -> bool:
-        """:meth:`gather`, and whether the step is quiet for the candidate pairs (``pairs``: ``(2, m)``, the
-        rows ``pi, pj``; see :func:`~driftframe.framework.quiet_step.gather_quiet`: False when a body is not
-        valid or none moves). The kernel's arguments are kept while the world's structure epoch, ``dt``
-        and the pairs are the same (a small scene's step is little more than this call)."""
-        self.n_bad, self.moving, quiet = gather_quiet(*self.quiet_call(lay, dt, pairs))
-        return quiet
-
-    def quiet_call(self, lay: _Layout, dt: float, pairs: np.ndarray) -> tuple:
-        """The quiet-step kernel's arguments (see :meth:`gather_quiet`), kept while the world's structure
-        epoch, ``dt`` and the pairs are the same."""
-        call = self._quiet
-        if call is None or self._epoch != self._world.epoch or call[7] != dt or call[12] is not pairs:
-            args = self.columns(lay)
-            call = self._quiet = args[:6] + (lay.idx, float(dt), self._b3, self._out[2], self._b1, self.live,
-                                             pairs)
-        return call
-
-    def end_of_step(self, dt: float):
-        """x1, v1 of every body in free flight (no contact)."""
-        return advance(self.x0, self.v0, self.a, dt)
-
-    def bad(self, lay: _Layout) -> np.ndarray | None:
-        """Bodies with a non-finite or invalid field, or None (found by the gather)."""
-        return ~self.live if self.n_bad else None
-
-    def describe(self, k: int) -> str:
-        """Which field of body k is bad, and its value."""
-        for name, val in (("Transform.position", self.x0[k]), ("Velocity.linear", self.v0[k]),
-                          ("Acceleration.linear", None if self.a is None else self.a[k]),
-                          ("SphereCollider.radius", self.r[k]), ("SphereCollider.restitution", self.e[k])):
-            if val is None:
-                continue
-            if not np.isfinite(val).all():
-                return f"{name} = {np.asarray(val).tolist()!r}"
-        if not (self.r[k] > 0):
-            return f"SphereCollider.radius = {float(self.r[k])!r}"
-        if not (0 <= self.e[k] <= 1):
-            return f"SphereCollider.restitution = {float(self.e[k])!r}"
-        return f"Mass.kg = {1.0 / float(self.inv[k]) if self.inv[k] else math.inf!r}"
 
 
 class CollisionSystem(esper.Processor):
@@ -292,7 +136,7 @@ class CollisionSystem(esper.Processor):
         self.contact_time = contact_time
         self.max_contacts = int(max_contacts)
         self._world = None
-        self._layout: _Layout | None = None
+        self._layout: Layout | None = None
         self._layout_epoch = -1
         self._list = bp.NeighbourList(skin_steps, "grid" if broadphase in ("auto", "all") else broadphase)
         self._list_layout = None
@@ -311,6 +155,7 @@ class CollisionSystem(esper.Processor):
         self._quick: tuple | None = None             # the shortest path's call, kept (see _quick_path)
         self._solver_entry = None                    # the all-pairs solver's entry point (_all_pairs_solver)
         self._shapes: StaticShapes | None = None     # static planes and boxes, when the world has any (_refresh)
+        self._dry: tuple | None = None               # prepare()'s finding that the next step is quiet (rehearse)
 
     @property
     def requires(self) -> tuple[type, ...]:
@@ -329,7 +174,7 @@ class CollisionSystem(esper.Processor):
         self._world = w
 
     # -- bookkeeping ----------------------------------------------------------
-    def _refresh(self) -> _Layout:
+    def _refresh(self) -> Layout:
         world = self.world
         world.sync()
         lay = self._layout
@@ -341,7 +186,7 @@ class CollisionSystem(esper.Processor):
         orbiting.refresh()
         version = (q.version, orbiting.version) if len(orbiting) else q.version
         if lay is None or lay.version != version:
-            lay = self._layout = _Layout(_WithoutOrbiting(q, orbiting) if len(orbiting) else q)
+            lay = self._layout = Layout(WithoutOrbiting(q, orbiting) if len(orbiting) else q)
         self._layout_epoch = world.epoch
         shapes = self._shapes or StaticShapes(world)       # (a scene with none: None, and no other cost)
         self._shapes = shapes if shapes.present() else None
@@ -349,9 +194,12 @@ class CollisionSystem(esper.Processor):
 
     def prepare(self) -> None:
         """The packed layout of the current colliders, the buffers a step fills and, where the step
-        uses one, the neighbour list of the bodies as they are now (see :meth:`World.prepare`): the
-        first step then costs what the others do. (The list is checked every step against where the
-        bodies are, so one built here for a state changed before the step is rebuilt then.)"""
+        uses one, the neighbour list of the bodies as they are now (see :meth:`World.prepare`); the
+        solvers loaded and rehearsed on copies (:meth:`_rehearse`), and whether the coming step is quiet,
+        for the world's dry steps (:meth:`rehearse`): the first step then costs what the others do. (The
+        list is checked every step against where the bodies are, so one built here for a state changed
+        before the step is rebuilt then.)"""
+        self._dry = None
         lay = self._refresh()
         if not lay.n:
             return
@@ -374,24 +222,36 @@ class CollisionSystem(esper.Processor):
             load(self._inputs(st, t_last, dt, *self._all_pairs(n)), self._shapes.refresh())
         elif n >= 2 and st.bad(lay) is None and self.method == "continuous":
             self._load_solvers(st, t_last, dt, listed)
-            if st.moving and not quiet:
-                self._rehearse(st, t_last, dt, listed)
+            if st.moving:
+                quiet = self._rehearse(st, t_last, dt, listed)
+        if self.method == "continuous" and self._shapes is None and st.bad(lay) is None and not self._bad \
+                and (n < 2 or not st.moving or quiet):
+            self._dry = (self.world.epoch, dt)                   # (see rehearse)
 
-    def _rehearse(self, st: State, t_last: np.ndarray, dt: float, listed: bool) -> None:
-        """The first step's kernels run once on copies of what they change, their results dropped: the
-        step then finds most of the solver's temporaries in memory already mapped (the heap's first growth:
-        ~25 page faults in a field of 500's first step, ~130 in a gas of 2,000's; 9 and ~65 after this) and
-        its code and data in the CPU's caches (a field of 500's first step after prepare() was 3.3x its
-        median step, 2.2x with this; a second rehearsal gained nothing). Nothing the step reads changes."""
+    def rehearse(self, dt: float) -> None:
+        """``World.prepare``'s dry step, which follows :meth:`prepare` at once: :meth:`process`, where prepare
+        found this step quiet (no pair meets, no body is invalid or strays from the neighbour list: the step
+        then changes nothing but :attr:`stats`, which then hold the coming step's counts); a step with work
+        prepare rehearsed on copies."""
+        dry = self._dry
+        if dry is not None and dry[0] == self.world.epoch and dry[1] == dt:
+            CollisionSystem.process(self, dt)
+
+    def _rehearse(self, st: State, t_last: np.ndarray, dt: float, listed: bool) -> bool:
+        """The first step's kernels run once on copies of what they change, their results dropped, whether
+        or not the step has a contact: the step, or the first contact step after a few quiet ones, then finds
+        most of the solver's temporaries in memory already mapped (the heap's first growth: page faults)
+        and its code and data in the CPU's caches (figures: docs/bench/collision_stress.md, "First step").
+        Nothing the step reads changes. Returns whether the coming step is quiet: no pair meets, and no
+        body strays from the neighbour list (see :meth:`rehearse`)."""
         x, u, r = st.x.copy(), st.u.copy(), st.r
         if listed:
             nl = self._list
             swept = nl.swept.copy()
             new, total = bp.mark_strays(x, u, dt, nl.centre, nl.skin, swept, r, nl.radius)
             if new < 0 or (new > 0 and total > nl.budget):
-                return                                       # the step rebuilds first (as _continuous)
-            if total == 0 and quiet_all_pairs(x, u, r, st.inv, st.live, self._pi, self._pj, dt):
-                return                                       # a quiet step: no solver
+                return False                                 # the step rebuilds first (as _continuous)
+            quiet = total == 0 and quiet_all_pairs(x, u, r, st.inv, st.live, self._pi, self._pj, dt)
             centre, skin, reach, order, lo_x, width = nl.kernel_arrays()
             # (the path boxes and the scratch are the step's own: every step fills them before it reads them)
             lst = contact.ListedArrays(swept, self._blo, self._bhi, centre, skin, reach, order, lo_x, float(width),
@@ -400,9 +260,11 @@ class CollisionSystem(esper.Processor):
         else:
             lst = None
             pi, pj = self._pairs
+            quiet = quiet_all_pairs(x, u, r, st.inv, st.live, pi, pj, dt)
         t_c = self.contact_time if self.contact_time is not None else contact.TC * dt
         contact.solve_step(contact.StepInputs(x, u, r, st.inv, st.e, st.live, t_last.copy(), self._now(), pi, pj,
                                               float(dt), float(t_c), self.max_contacts, lst), stick=self._stick)
+        return quiet
 
     def _load_solvers(self, st: State, t_last: np.ndarray, dt: float, listed: bool) -> None:
         """Load (from the kernel cache, or compile) the solver this scene's steps call, without calling it,
@@ -548,7 +410,7 @@ class CollisionSystem(esper.Processor):
             ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
         return ctx
 
-    def _write(self, lay: _Layout, x1: np.ndarray, v1: np.ndarray, dt: float) -> None:
+    def _write(self, lay: Layout, x1: np.ndarray, v1: np.ndarray, dt: float) -> None:
         """Position and velocity at the end of the step of every collider that has a Velocity."""
         if len(lay.v_sel) == 0:
             return
@@ -560,7 +422,7 @@ class CollisionSystem(esper.Processor):
             ctx.position[lay.tv_rows] = x1[lay.v_sel]
             ctx.velocity[lay.v_rows] = v1[lay.v_sel]
 
-    def _finish(self, lay: _Layout, st: State, changed: np.ndarray, dt: float) -> None:
+    def _finish(self, lay: Layout, st: State, changed: np.ndarray, dt: float) -> None:
         """The end of the step of the bodies a contact changed, ``x + u dt`` with ``u`` (plus the second
         ``a dt/2``), into the step context; the others keep the movement stage's prediction (in a world
         without a movement stage, their free flight is written here)."""
@@ -575,7 +437,7 @@ class CollisionSystem(esper.Processor):
         write_changed(changed, lay.t_idx, lay.v_idx, st.x, st.u, st.a if st.a is not None else _NO_N3, float(dt),
                       ctx.position, ctx.open_velocity())
 
-    def _t_last_of(self, lay: _Layout) -> np.ndarray:
+    def _t_last_of(self, lay: Layout) -> np.ndarray:
         """The last contact of each body of the layout (absolute time, s; -inf: none yet), kept across
         steps for the TC model; new for a new layout (from a restored save's, by entity, after a load)."""
         if self._t_last_layout is not lay:
@@ -619,7 +481,7 @@ class CollisionSystem(esper.Processor):
             self._pairs_n = n
         return self._pairs
 
-    def _continuous(self, lay: _Layout, st: State, dt: float) -> None:
+    def _continuous(self, lay: Layout, st: State, dt: float) -> None:
         """The continuous solver's step (on the all-pairs path, :meth:`process` has found it not quiet)."""
         n = lay.n
         bad = st.bad(lay)
@@ -711,7 +573,7 @@ class CollisionSystem(esper.Processor):
         return contact.StepInputs(st.x, st.u, r, inv, e, st.live, t_last, self._now(), pi, pj, float(dt),
                                   float(t_c), self.max_contacts, None)
 
-    def _result(self, lay: _Layout, st: State, res, dt: float, ents: list | None = None) -> None:
+    def _result(self, lay: Layout, st: State, res, dt: float, ents: list | None = None) -> None:
         """A solved step's stats, flags, end of step and events (``ents``: the entity of each kernel body,
         when not the layout's: the static shapes' step). ``res``: a :class:`contact.StepResult`, or the
         solver's own 6-tuple (the same first six fields, the stats as the solver's array)."""

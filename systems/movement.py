@@ -121,6 +121,10 @@ class MovementSystem(esper.Processor):
         self._views_key = (world.epoch, ctx.position, ctx.velocity_buffer)
         return tuple(out)
 
+    def rehearse(self, dt: float) -> None:
+        """``World.prepare``'s dry step: this step's prediction (it writes only into the step context)."""
+        MovementSystem.process(self, dt)
+
     def process(self, dt: float) -> None:
         world = self.world
         # the rows change only when entities gain or lose components (the world's epoch)

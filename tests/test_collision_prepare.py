@@ -91,3 +91,70 @@ def test_prepare_rehearses_the_first_step_and_changes_nothing(name, monkeypatch)
     with_prepare, without = run(True), run(False)
     assert with_prepare[2][0][0] > 0                                  # the first step has contacts
     assert with_prepare == without
+
+
+def _pair_world(gap: float, n_extra: int = 0):
+    """Two spheres head on, ``gap`` m between their surfaces, closing at 2 m/s, and ``n_extra`` spheres
+    at rest in a row far off (more than 32 colliders: the neighbour list's path)."""
+    x = [(-0.5 - gap / 2, 0.0, 0.0), (0.5 + gap / 2, 0.0, 0.0)] + [(10.0 + 3.0 * k, 50.0, 0.0) for k in range(n_extra)]
+    v = [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)] + [(0.0, 0.01 * (k % 3), 0.0) for k in range(n_extra)]
+    n = len(x)
+    w = World()
+    w.add_system(MovementSystem())
+    cs = w.add_system(CollisionSystem())
+    w.create_entities(Transform.bulk(n, position=np.array(x)), Velocity.bulk(n, linear=np.array(v)),
+                      Mass.bulk(n, kg=np.ones(n)), SphereCollider.bulk(n, radius=np.full(n, 0.5),
+                                                                        restitution=np.ones(n)))
+    return w, cs
+
+
+class _Counter:
+    """A user's system: counts its calls (a dry step must never call it)."""
+
+    stage = "collision"
+    reads = ()
+    writes = ()
+
+    def __init__(self):
+        self.calls = 0
+
+    def process(self, dt):
+        self.calls += 1
+
+
+@pytest.mark.parametrize("extra", [0, 40], ids=["all pairs", "neighbour list"])
+@pytest.mark.parametrize("gap", [0.5, 0.02], ids=["quiet first step", "contact in the first step"])
+def test_the_dry_steps_change_nothing_and_run_no_user_system(extra, gap, monkeypatch):
+    """World.prepare's dry steps (World._rehearse): the built-in movement, collision and commit stages run, a
+    user's system does not; the state, the step count, the events and the profile totals are as they were;
+    every step after is the same, bit for bit, as without prepare()."""
+    def run(prepared):
+        w, cs = _pair_world(gap, extra)
+        user = w.add_system(_Counter(), after="collision")
+        calls = {}
+        for system in (cs, w.get_system(MovementSystem)):
+            inner = system.rehearse
+
+            def counted(dt, inner=inner, name=type(system).__name__):
+                calls[name] = calls.get(name, 0) + 1
+                inner(dt)
+            monkeypatch.setattr(system, "rehearse", counted)
+        hashes, events = [], []
+        w.subscribe(CollisionEvent, lambda ev: events.append((ev.step, ev.a, ev.b, ev.time, ev.impulse)))
+        if prepared:
+            w.step(0)                                        # (the events' double buffer as a step leaves it)
+            before = (w.state_hash(), w.step_count, list(w.events), dict(w.profile_total))
+            w.prepare()
+            assert (w.state_hash(), w.step_count, list(w.events), dict(w.profile_total)) == before
+            assert user.calls == 0 and not w.step_context.open
+            assert calls == {"CollisionSystem": 3, "MovementSystem": 3}
+        for _ in range(30):
+            w.step()
+            hashes.append(w.state_hash())
+        assert user.calls == 30
+        w.close()
+        return hashes, events
+
+    with_prepare, without = run(True), run(False)
+    assert with_prepare == without
+    assert with_prepare[1]                                    # the pair meets within the 30 steps
