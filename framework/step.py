@@ -252,8 +252,3 @@ class Commit(esper.Processor):
         ctx = self.world.step_context
         if ctx.step >= 0:
             ctx.end()
-
-    def rehearse(self, dt: float) -> None:
-        """``World.prepare``'s dry step: the commit's code, writing back the bytes the tables hold."""
-        self.world.step_context.refill()
-        Commit.process(self, dt)

@@ -73,19 +73,25 @@ SystemRefs = str | type | Iterable[str | type]
 PathLike = str | os.PathLike[str]
 
 
-#: How many dry steps :meth:`World.prepare` runs (each after the one before has trained the caches further:
-#: docs/bench/collision_stress.md), and the cost of one above which it runs no more (s).
-REHEARSALS = 3
+#: How many dry steps :meth:`World.prepare` runs at most (CPython 3.11 quickens a code object after 8 calls and
+#: then specialises its instructions: a fresh process's first step needs about 12 runs of the step's code
+#: before it, docs/bench/collision_stress.md), and the time after which it runs no more (s): a large scene's
+#: first step is not slow for its caches and its interpreter, its own work dwarfs them.
+REHEARSALS = 12
 REHEARSAL_BUDGET = 1e-3
 
 
-class _Dry:
-    """A system's stand-in in a dry step: its ``process`` is the system's ``rehearse``."""
+class _Refill:
+    """The dry step's stand-in just before the commit: the step context refilled from the tables, so that the
+    commit writes back the bytes they hold (:meth:`StepContext.refill`)."""
 
-    __slots__ = ("process",)
+    __slots__ = ("ctx",)
 
-    def __init__(self, rehearse: Callable[[float], None]) -> None:
-        self.process = rehearse
+    def __init__(self, ctx: StepContext) -> None:
+        self.ctx = ctx
+
+    def process(self, dt: float) -> None:
+        self.ctx.refill()
 
 
 class WorldBrokenError(RuntimeError):
@@ -629,30 +635,39 @@ class World:
         self._rehearse()
 
     def _rehearse(self) -> None:
-        """A dry step, run up to :data:`REHEARSALS` times: the step's systems that have a ``rehearse(dt)``
-        (the built-in movement, collision and commit stages) call it, in the step's order, through the
-        step loop; no other system runs, the step count, the events and the profile stay as they were.
-        Why: the first step after a level's load otherwise runs its code and data out of the CPU's caches
-        (and untrained branch predictors) after the load's other work, several times a tiny scene's
-        median step (docs/bench/collision_stress.md, "First step"). A ``rehearse`` writes only into the
-        step context, which is closed here uncommitted (the commit's writes back the bytes the tables
-        hold), and its own system's caches: the state is the same (its hash too). A dry step that costs
-        more than :data:`REHEARSAL_BUDGET` seconds is not repeated (a large scene's first step is not
-        slow for its caches: its own work dwarfs them)."""
+        """A dry step, run up to :data:`REHEARSALS` times: the step's built-in stages whose ``process`` now
+        changes nothing but the step context and their own caches (``dry_run_safe(dt)``: the movement
+        stage, and the collision stage where its prepare() found the coming step quiet), then the
+        commit, which writes back the bytes the tables hold (the context refilled from them first);
+        through World.step itself, the systems' own ``process`` (the same calls as a step: a dry step
+        of stand-ins left the first step 2x slower than one of the systems). No other system runs; the
+        step count, the events and the profile are put back. Why: the first step after a level's load
+        otherwise runs its code and data out of the CPU's caches (and untrained branch predictors) after
+        the load's other work, and in a fresh process on code objects the interpreter has not yet
+        quickened, several times a tiny scene's median step (docs/bench/collision_stress.md, "First
+        step"). The state is the same (its hash too). No dry step starts after :data:`REHEARSAL_BUDGET`
+        seconds of them."""
         kept = self._plans.get("step")
         if kept is None or self.broken is not None:
             return
-        dry = tuple((e, _Dry(s.rehearse), key, first, False) for e, s, key, first, _ in kept[2]
-                    if callable(getattr(s, "rehearse", None)))
-        if not dry:
-            return
+        dt, ctx = self.dt, self.step_context
+        dry: list = []
+        for e, s, key, first, _ in kept[2]:
+            if type(s) is Commit:
+                dry += [(e, _Refill(ctx), key, first, False), (e, s, key, False, False)]
+                continue
+            safe = getattr(s, "dry_run_safe", None)
+            if callable(safe) and safe(dt):
+                dry.append((e, s, key, first, False))
+        if all(type(d[1]) in (Commit, _Refill) for d in dry):
+            return                                      # (nothing but the commit to rehearse)
         profile, total = dict(self.profile), dict(self.profile_total)
         # what step() itself changes, put back after each dry step (World.step: a subclass's step is not called)
         kept_step = self.step_count, self.events, self.previous_events, self._rendered
-        self._plans["step"] = kept[:2] + (dry,) + kept[3:]
+        self._plans["step"] = kept[:2] + (tuple(dry),) + kept[3:]
         try:
+            t = time.perf_counter()
             for _ in range(REHEARSALS):
-                t = time.perf_counter()
                 World.step(self)
                 self.step_count, self.events, self.previous_events, self._rendered = kept_step
                 if time.perf_counter() - t > REHEARSAL_BUDGET:
@@ -661,7 +676,7 @@ class World:
             self.broken = self._broken_by = None        # (nothing was changed: the world is whole, as it was)
             raise
         finally:
-            self.step_context.close()
+            ctx.close()
             self.step_count, self.events, self.previous_events, self._rendered = kept_step
             self._plans["step"] = kept
             self.profile.update(profile)

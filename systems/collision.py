@@ -155,7 +155,7 @@ class CollisionSystem(esper.Processor):
         self._quick: tuple | None = None             # the shortest path's call, kept (see _quick_path)
         self._solver_entry = None                    # the all-pairs solver's entry point (_all_pairs_solver)
         self._shapes: StaticShapes | None = None     # static planes and boxes, when the world has any (_refresh)
-        self._dry: tuple | None = None               # prepare()'s finding that the next step is quiet (rehearse)
+        self._dry: tuple | None = None               # prepare()'s finding that the next step is quiet (dry_run_safe)
 
     @property
     def requires(self) -> tuple[type, ...]:
@@ -196,7 +196,7 @@ class CollisionSystem(esper.Processor):
         """The packed layout of the current colliders, the buffers a step fills and, where the step
         uses one, the neighbour list of the bodies as they are now (see :meth:`World.prepare`); the
         solvers loaded and rehearsed on copies (:meth:`_rehearse`), and whether the coming step is quiet,
-        for the world's dry steps (:meth:`rehearse`): the first step then costs what the others do. (The
+        for the world's dry steps (:meth:`dry_run_safe`): the first step then costs what the others do. (The
         list is checked every step against where the bodies are, so one built here for a state changed
         before the step is rebuilt then.)"""
         self._dry = None
@@ -226,16 +226,14 @@ class CollisionSystem(esper.Processor):
                 quiet = self._rehearse(st, t_last, dt, listed)
         if self.method == "continuous" and self._shapes is None and st.bad(lay) is None and not self._bad \
                 and (n < 2 or not st.moving or quiet):
-            self._dry = (self.world.epoch, dt)                   # (see rehearse)
+            self._dry = (self.world.epoch, dt)                   # (see dry_run_safe)
 
-    def rehearse(self, dt: float) -> None:
-        """``World.prepare``'s dry step, which follows :meth:`prepare` at once: :meth:`process`, where prepare
-        found this step quiet (no pair meets, no body is invalid or strays from the neighbour list: the step
-        then changes nothing but :attr:`stats`, which then hold the coming step's counts); a step with work
-        prepare rehearsed on copies."""
-        dry = self._dry
-        if dry is not None and dry[0] == self.world.epoch and dry[1] == dt:
-            CollisionSystem.process(self, dt)
+    def dry_run_safe(self, dt: float) -> bool:
+        """Whether :meth:`process` may run in ``World.prepare``'s dry steps, which follow :meth:`prepare` at
+        once: where prepare found this step quiet (no pair meets, no body is invalid or strays from the
+        neighbour list), it changes nothing but :attr:`stats`, which then hold the coming step's counts (a
+        step with work prepare rehearsed on copies)."""
+        return self._dry == (self.world.epoch, dt) and type(self).process is CollisionSystem.process
 
     def _rehearse(self, st: State, t_last: np.ndarray, dt: float, listed: bool) -> bool:
         """The first step's kernels run once on copies of what they change, their results dropped, whether
@@ -243,7 +241,7 @@ class CollisionSystem(esper.Processor):
         most of the solver's temporaries in memory already mapped (the heap's first growth: page faults)
         and its code and data in the CPU's caches (figures: docs/bench/collision_stress.md, "First step").
         Nothing the step reads changes. Returns whether the coming step is quiet: no pair meets, and no
-        body strays from the neighbour list (see :meth:`rehearse`)."""
+        body strays from the neighbour list (see :meth:`dry_run_safe`)."""
         x, u, r = st.x.copy(), st.u.copy(), st.r
         if listed:
             nl = self._list

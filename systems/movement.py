@@ -121,9 +121,10 @@ class MovementSystem(esper.Processor):
         self._views_key = (world.epoch, ctx.position, ctx.velocity_buffer)
         return tuple(out)
 
-    def rehearse(self, dt: float) -> None:
-        """``World.prepare``'s dry step: this step's prediction (it writes only into the step context)."""
-        MovementSystem.process(self, dt)
+    def dry_run_safe(self, dt: float) -> bool:
+        """Whether :meth:`process` may run in ``World.prepare``'s dry steps: it writes only into the step
+        context (unless a subclass changed it)."""
+        return type(self).process is MovementSystem.process
 
     def process(self, dt: float) -> None:
         world = self.world

@@ -125,20 +125,20 @@ class _Counter:
 @pytest.mark.parametrize("extra", [0, 40], ids=["all pairs", "neighbour list"])
 @pytest.mark.parametrize("gap", [0.5, 0.02], ids=["quiet first step", "contact in the first step"])
 def test_the_dry_steps_change_nothing_and_run_no_user_system(extra, gap, monkeypatch):
-    """World.prepare's dry steps (World._rehearse): the built-in movement, collision and commit stages run, a
-    user's system does not; the state, the step count, the events and the profile totals are as they were;
+    """World.prepare's dry steps (World._rehearse): the built-in movement, collision (where the first step is
+    quiet) and commit stages run, a user's system does not; the state, the step count, the events and the profile totals are as they were;
     every step after is the same, bit for bit, as without prepare()."""
     def run(prepared):
         w, cs = _pair_world(gap, extra)
         user = w.add_system(_Counter(), after="collision")
-        calls = {}
+        calls = {"CollisionSystem": 0, "MovementSystem": 0}
         for system in (cs, w.get_system(MovementSystem)):
-            inner = system.rehearse
+            inner = system.process
 
             def counted(dt, inner=inner, name=type(system).__name__):
-                calls[name] = calls.get(name, 0) + 1
+                calls[name] += 1
                 inner(dt)
-            monkeypatch.setattr(system, "rehearse", counted)
+            monkeypatch.setattr(system, "process", counted)
         hashes, events = [], []
         w.subscribe(CollisionEvent, lambda ev: events.append((ev.step, ev.a, ev.b, ev.time, ev.impulse)))
         if prepared:
@@ -147,7 +147,9 @@ def test_the_dry_steps_change_nothing_and_run_no_user_system(extra, gap, monkeyp
             w.prepare()
             assert (w.state_hash(), w.step_count, list(w.events), dict(w.profile_total)) == before
             assert user.calls == 0 and not w.step_context.open
-            assert calls == {"CollisionSystem": 3, "MovementSystem": 3}
+            # the collision stage runs dry only where the coming step is quiet
+            assert calls["MovementSystem"] >= 1
+            assert calls["CollisionSystem"] == (calls["MovementSystem"] if gap > 0.1 else 0)
         for _ in range(30):
             w.step()
             hashes.append(w.state_hash())
