@@ -17,8 +17,8 @@ bodies made in bulk, then ``world.prepare()``, as a game does when a level has l
 threshold 0, no friction, no damping, no sleeping, ``contactERP = 0``; Bullet multiplies the two
 bodies' restitutions, so each gets sqrt(e)).
 
-Each round builds both anew, times each one's first step, then steps them in turn, a block of steps
-each (driftframe first in even rounds, pybullet first in odd ones), every step timed in CPU time
+Each round builds both anew, each one's first step timed right after its own build, then steps them in turn, a
+block of steps each (driftframe first in even rounds, pybullet first in odd ones), every step timed in CPU time
 of this thread and in wall time; the clock's own cost (two back-to-back reads, calibrated in the same
 run) is taken off each step. Median and worst step are over the steps after the first of all rounds;
 "mean, first included" is each round's mean over all its steps, the median of the rounds.
@@ -168,11 +168,14 @@ def run_scene(make, steps: int, rounds: int, block: int, engines: list[str], cos
     for rnd in range(rounds):
         scene = make()
         order = engines if rnd % 2 == 0 else engines[::-1]
-        sims = {k: (Drift if k == "driftframe" else Bullet)(scene) for k in order}
+        sims = {}
         run = {k: ([], []) for k in order}
         gcs = {k: [] for k in order}
         cts = {k: [] for k in order}
-        done = 0
+        for k in order:            # each engine's first step right after its own build (a game's first frame)
+            sims[k] = (Drift if k == "driftframe" else Bullet)(scene)
+            timed_steps(sims[k].step, 1, *run[k], cost, gcs[k], getattr(sims[k], "contacts", None), cts[k])
+        done = 1
         while done < steps:
             k_steps = min(block, steps - done)
             for k in order:
@@ -327,7 +330,9 @@ Per-step CPU time of this thread, in microseconds, of `world.step()` with the st
 `stepSimulation()` (the tuned elastic setup of `collision_scaling`), the same scenes in the same process,
 stepped in turn in blocks of 25 steps; {rounds} rounds, each from a fresh build ({steps} steps a round).
 Median and worst: over every step after the first. First: the first step of a fresh build, median of the
-rounds. Mean: each round's mean step with its first step included, median of the rounds. The clocks' own
+rounds, each engine's taken right after its own build (driftframe's after `world.prepare()`, which ends
+with dry steps of the built-in stages: collision_stress.md's "First step"), before the other engine is
+built; the blocks follow. Mean: each round's mean step with its first step included, median of the rounds. The clocks' own
 cost ({cost[0]} ns for two reads of the thread's CPU clock, {cost[1]} ns of the wall clock, measured in the
 same run) is taken off every step. Load average (1, 5, 15 min) before -> after: {loads}.
 {'' if bullet else 'pybullet is not installed here: its columns are empty.'}
