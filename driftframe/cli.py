@@ -155,5 +155,5 @@ def _main(argv: list[str] | None) -> int:
 
 
 if __name__ == "__main__":
-    from driftframe.cli_compile import exit_if_compiling
-    sys.exit(exit_if_compiling(main()))
+    from driftframe.__main__ import run      # the entry point's ending: a late signal is 128 + n too
+    sys.exit(run())

@@ -331,3 +331,27 @@ def test_a_signal_while_the_kernels_compile_stops_cleanly_and_says_so(tmp_path, 
     assert "compiled the kernels in" not in err and "Traceback" not in err
     assert f"interrupted ({signame})" in err and not out.exists()
     assert not [p for p in tmp_path.iterdir() if p.name != "numba"]      # no output, no part file
+
+
+# a stop signal sent by the process to itself after the command's own handlers: as main() returns (the
+# command has printed everything and given the signals back), and in the interpreter's shutdown (atexit)
+_LATE = {
+    "main returning": "real = cli._SignalsInterrupt.__exit__; "
+                      "cli._SignalsInterrupt.__exit__ = lambda self, *e: (real(self, *e), os.kill(os.getpid(), {sig}))[0]",
+    "shutdown": "atexit.register(os.kill, os.getpid(), {sig})",
+}
+
+
+# (SIGTERM as main() returns is the default's death by the signal, which the shell reports as 143 too)
+@pytest.mark.parametrize("when,signame", [("main returning", "SIGINT"), ("shutdown", "SIGINT"), ("shutdown", "SIGTERM")])
+def test_a_signal_after_the_command_finished_is_one_line_and_128_plus_n(when, signame):
+    # Ctrl-C landing after `driftframe warm` printed its last line (a quiet machine, a test's fixed sleep):
+    # Python re-raised the KeyboardInterrupt at exit (status -2, a traceback), or printed it from atexit
+    import signal
+    code = ("import atexit, os, signal, sys; import driftframe.cli as cli, driftframe.__main__ as entry; "
+            "sys.argv[1:] = ['keys']; " + _LATE[when].format(sig=f"signal.{signame}") + "; sys.exit(entry.run())")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 128 + getattr(signal, signame), (res.returncode, res.stderr)
+    assert res.stderr == f"driftframe: interrupted ({signame})\n", res.stderr
+    from driftframe.framework.bindings import bindings_toml
+    assert res.stdout == bindings_toml(None)                  # the command's output, all of it, before the line

@@ -238,7 +238,12 @@ def test_ctrl_c_during_warm_leaves_a_cache_the_next_warm_completes_and_uses(tmp_
     proc = subprocess.Popen(EXE + ["warm"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     first = proc.stderr.readline()
     assert first.startswith("driftframe: compiling the physics kernels"), first
-    time.sleep(4.0)                                                   # some kernels done, one in the middle
+    # the Ctrl-C once the progress line shows a solver compiling (seconds of it; a fixed sleep could land
+    # after the compile on a quiet machine): the line names the kernel numba is in, written as it begins
+    seen = [first]
+    while not re.search(r"compiling \d+ of \d+ kernels, \d+ s: .*contact_solve\.solve_", seen[-1]):
+        seen.append(proc.stderr.readline())
+        assert seen[-1].startswith("driftframe: compiling "), seen         # (not the end of the compile)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
