@@ -112,7 +112,7 @@ def rgba_to_nv12(rgba, width: int, height: int, out: np.ndarray | None = None) -
     flat = _checked_out(out, w, h)
     if src.ctypes.data % 8:                        # the uint64 view needs aligned memory (bytes objects are)
         src = src.copy()
-    _nv12(src.view(np.uint32).reshape(h, w), src.view(np.uint64).reshape(h, w // 2), flat, w, h, 0)
+    _nv12(*_read_only(src.view(np.uint32).reshape(h, w), src.view(np.uint64).reshape(h, w // 2)), flat, w, h, 0)
     return out
 
 
@@ -148,7 +148,7 @@ class BandedNV12:
             n = min(rows, h - y)
             band = self._buf[:n * w * 4]
             self.bands.append((y, n, band))
-            self._views[y] = band.view(np.uint32).reshape(n, w), band.view(np.uint64).reshape(n, w // 2)
+            self._views[y] = _read_only(band.view(np.uint32).reshape(n, w), band.view(np.uint64).reshape(n, w // 2))
 
     def convert(self, first_row: int, out: np.ndarray) -> None:
         """Convert the band that starts at ``first_row`` (read into its buffer) into its rows of ``out``."""
@@ -157,6 +157,15 @@ class BandedNV12:
         except (KeyError, TypeError):
             raise ValueError(f"no band starts at row {first_row!r}; they start at {list(self._views)}") from None
         _nv12(u32, u64, _checked_out(out, self.width, self.height), self.width, self.height, first_row)
+
+
+def _read_only(*views: np.ndarray) -> tuple:
+    """``views`` marked read-only (their memory stays writable through its other views): the kernel only
+    reads them, and numba types a read-only array apart from a writable one, so every caller (a frame
+    given as bytes is read-only; a band buffer or an array is not) hands it the one type, one compile."""
+    for v in views:
+        v.flags.writeable = False
+    return views
 
 
 def _even_size(width, height) -> tuple[int, int]:
