@@ -1,5 +1,6 @@
-"""CollisionSystem.prepare() rehearses the first step's solver on copies (systems/collision.py's _rehearse):
-the steps after it are the same, bit for bit, as without prepare()."""
+"""CollisionSystem.prepare() rehearses the first step's solver on copies (systems/collision.py's _rehearse), and
+World.prepare() then runs the step's built-in stages dry (framework/world.py's _rehearse): the steps after it
+are the same, bit for bit, as without prepare(), and no user system runs in it."""
 from __future__ import annotations
 
 import numpy as np
