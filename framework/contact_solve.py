@@ -56,7 +56,7 @@ def body_scratch(n):
     contacts; the wave that last kicked it, joined it in an island, counted its contact, took it into a
     stuck cluster; union-find parents; the cluster's queue; the wave's moved bodies and their velocity
     changes. Then a dense island's scratch (A, y, sub, act: :func:`island_dense`) and a lone contact's
-    order (``[0]``)."""
+    order (``[0]``); the events' first rows (``E`` in :func:`_solve`)."""
     changed = np.empty(n, np.bool_)
     burst = np.empty(n, np.int64)
     count = np.empty(n, np.int64)
@@ -77,10 +77,10 @@ def body_scratch(n):
     return (changed, np.empty((n, 3), np.float64), np.empty((n, 3), np.float64), burst, count, bmark, ustamp, kstamp,
             sseen, parent, np.empty(n, np.int64), np.empty(n, np.int64), dv,
             np.empty((DENSE_MAX, DENSE_MAX), np.float64), np.empty(DENSE_MAX, np.float64),
-            np.empty(DENSE_MAX, np.int64), np.empty(DENSE_MAX, np.bool_), one)
+            np.empty(DENSE_MAX, np.int64), np.empty(DENSE_MAX, np.bool_), one, np.empty((64, 13), np.float64))
 
 
-@kernel(**_OPTS, inline="always")
+@kernel(**_OPTS)
 def _step_arrays(u):
     """The step's stats (zeros) and each body's speed ``|u|``."""
     stats = np.empty(N_STATS, np.float64)
@@ -163,9 +163,8 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
         P, PI, PJ, head, nxt, ver, mark = pair_structures(pi, pj, n)
     # -- per body bookkeeping --
     (changed, x_in, u_in, burst, count, bmark, ustamp, kstamp, sseen, parent, squeue, moved, dv, A, y, sub, act,
-     one) = body_scratch(n)
+     one, E) = body_scratch(n)                             # E: the events, a row each (see _events)
     same = SLACK_MAX * dt
-    E = np.empty((64, 13), np.float64)                     # events, a row each: see _events
     ne = np.int64(0)                     # see contact_params._NOT_LITERAL
     waves = 0
     limit = 64 * (n + P) + 100_000

@@ -165,13 +165,6 @@ def _inside(S, k, qx, qy, qz):
     return side * S[k, 4 + a], side * S[k, 7 + a], side * S[k, 10 + a], -depth
 
 
-@kernel(**_OPTS, inline="always")
-def _clamp(q, h):
-    """``min(max(q, -h), h)``, as Python's min and max give it (see _MINMAX)."""
-    m = -h if -h > q else q
-    return h if h < m else m
-
-
 @kernel(**_OPTS)
 def outward(S, k, px, py, pz):
     """The unit outward normal of shape ``k`` at the sphere centre ``p`` (world), and the centre's
@@ -180,9 +173,13 @@ def outward(S, k, px, py, pz):
         nx, ny, nz = S[k, 4], S[k, 5], S[k, 6]
         return nx, ny, nz, nx * px + ny * py + nz * pz - S[k, 13]
     qx, qy, qz = _local(S, k, px - S[k, 1], py - S[k, 2], pz - S[k, 3])
-    gx = qx - _clamp(qx, S[k, 13])
-    gy = qy - _clamp(qy, S[k, 14])
-    gz = qz - _clamp(qz, S[k, 15])
+    hx, hy, hz = S[k, 13], S[k, 14], S[k, 15]
+    mx = -hx if -hx > qx else qx                   # clamp(q, -h, h) = min(max(q, -h), h) (see _MINMAX)
+    my = -hy if -hy > qy else qy
+    mz = -hz if -hz > qz else qz
+    gx = qx - (hx if hx < mx else mx)
+    gy = qy - (hy if hy < my else my)
+    gz = qz - (hz if hz < mz else mz)
     dist = math.sqrt(gx * gx + gy * gy + gz * gz)
     if dist == 0.0:
         return _inside(S, k, qx, qy, qz)
