@@ -75,6 +75,15 @@ def _wait_for(cond, proc, timeout=240.0, what=""):
     return seen | _descendants(proc.pid)
 
 
+def _left_after(children, seconds: float) -> list[int]:
+    """Those of ``children`` still running ``seconds`` from now, or none as soon as all have ended (the
+    check a fixed sleep of ``seconds`` then :func:`_alive` makes, without waiting out the sleep)."""
+    deadline = time.monotonic() + seconds
+    while _alive(children) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return _alive(children)
+
+
 def _outputs(folder: Path, frames: int) -> list[str]:
     """Every output in ``folder`` is whole (``frames`` frames), no temporary file is left; their names."""
     names = sorted(p.name for p in folder.iterdir() if p.name not in SUMMARY)
@@ -113,8 +122,7 @@ def test_a_stop_signal_stops_the_batch_keeps_what_finished_and_reports_the_signa
     assert sorted(Path(r.split(",")[COLUMNS.index("output")]).name for r in rows) == names
     assert len((out / "journal.jsonl").read_text().splitlines()) == len(names) < 6
     assert f"Stopped by {name}" in (out / "summary.md").read_text()
-    time.sleep(0.5)
-    assert not _alive(children), "processes left behind"
+    assert not _left_after(children, 0.5), "processes left behind"
     # --resume runs the rest, and only the rest
     res = subprocess.run(EXE + ["batch", str(tmp_path / "s.toml"), "-o", str(out), "--quiet", "--resume", "-j", "1"],
                          cwd=HERE, capture_output=True, text=True, timeout=120)
@@ -199,8 +207,8 @@ def test_sigkill_of_the_batch_leaves_no_process_behind(tmp_path, moment):
     assert len(children) >= 2
     os.kill(proc.pid, signal.SIGKILL)       # the batch process alone: its workers must notice by themselves
     _, stderr = proc.communicate(timeout=10)    # (read to the end: the workers share the pipe)
-    time.sleep(2.0)
-    assert not _alive(children), f"left behind: {_alive(children)}"
+    left = _left_after(children, 2.0)
+    assert not left, f"left behind: {left}"
     assert "Traceback" not in stderr and "Exception ignored" not in stderr, stderr
     # no worker's part file left (the batch process's own run, SIGKILLed, leaves its part: the next run
     # writing that output removes it, as for any killed process; framework/output.py)
