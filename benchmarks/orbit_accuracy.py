@@ -573,7 +573,8 @@ def main(argv=None) -> int:
     body.append(f"Cost at {n:,} bodies (mixed e <= 0.9, 100 steps per orbit), ns per body-step, median of "
                 f"{reps} interleaved repeats, wall time (the bar) and this process's CPU time (the machine is "
                 "shared: numpy's many passes over memory suffer more from the neighbours than one C loop):\n")
-    rows = [[m, float(cost[m]), float(worst[m]), float(cost_cpu[m])] for m in methods + [WHFAST0, sys_name] if m in cost]
+    rows = [[m, float(cost[m]), float(worst[m]), float(cost_cpu[m])] for m in methods + [WHFAST0, sys_name]
+            if m in cost]
     body.append(common.table(["method", "ns per body-step", "worst", "CPU ns per body-step"], rows) + "\n")
     if ias_steps is not None:
         body.append(f"(IAS15 is adaptive: {ias_steps} of its own steps per 10 of the others here; its cost "
@@ -594,11 +595,11 @@ def main(argv=None) -> int:
     if wf is not None:
         bars.append("- " + world_bar(n, cost, cost_cpu, load_cost) + " From "
                     f"{kepler.COMPILED_MIN} bodies on, Epoch.at runs one compiled (numba) loop per step, and the "
-                    "system's usual step (one well, no thrust, no edit, no contact due) is one pass of it that "
-                    "also makes the guess and moves the result to the well; what is left over the kernel is the "
-                    "step's copies and compares (the step context, the edit check, the movement prediction), "
-                    "which the interleaved methods leave cold in the cache. Kepler step to step is the numpy path (about 170 passes over the "
-                    "columns per step).")
+                    "system's usual step (one well, no thrust, no edit, no contact due) is one compiled call "
+                    "straight from the tables: the gathers, the checks, the pass (the guess, the solution, the "
+                    "move to the well) and the writes into the step context; what is left over the kernel is the "
+                    "world's own step (the movement system's prediction, the step context's copies, the commit). "
+                    "Kepler step to step is the numpy path (about 170 passes over the columns per step).")
     fw, fo = free["with"][0], free["without"][0]
     bars.append(f"- A scene without a well: the standard step on {n:,} free bodies costs {fw:.1f} ns per body with "
                 f"the gravity, autopilot and warp systems scheduled and {fo:.1f} without (ratio {fw / fo:.3f}; "

@@ -403,6 +403,49 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
 
 
 @kernel
+def _quiet_rails(c, dd_ome, ep_t, ep_chi, ep_well, ep_contact, pos, vel, t_idx, v_idx, w_t, w_v, last_x, last_v,
+                 t1, dt, mu, xs, vs, well, out_r, out_v, ctx_pos, ctx_vel):
+    """The gravity system's quiet step on rails (one well, no thrust) in one call, from the tables: False,
+    and nothing written but ``xs, vs``, unless every body is where the last step left it (``pos[t_idx]``,
+    ``vel[v_idx]`` equal to ``last_x``, ``last_v``: no one else moved it), its epoch is about the well
+    (``ep_well == 0``) and its next surface contact is after ``t1``; then the bodies' states (``xs, vs``),
+    the well's at the step's start and end (``well`` (4, 3): ``X0 = pos[w_t]``, ``V0 = vel[w_v]`` or 0
+    when ``w_v < 0``, ``X1 = X0 + V0 dt``, ``V1 = V0``) and :func:`_at_compiled`'s step on rails from the
+    epoch columns ``c`` (:meth:`Epoch._columns`) into ``out_r, out_v`` (``ep_chi`` in place), written also
+    into the step context's rows (``ctx_pos[t_idx]``, ``ctx_vel[v_idx]``): the same
+    numbers as the system's numpy gathers, compares and ``Epoch.step_from``, in one call (a numpy call is
+    dear when the step's code and data are cold, as between a game's other work: docs/bench/orbit_accuracy.md)."""
+    n = t_idx.shape[0]
+    for i in range(n):
+        if ep_well[i] != 0 or not ep_contact[i] > t1:
+            return False
+        ti = t_idx[i]
+        vi = v_idx[i]
+        for k in range(3):
+            x = pos[ti, k]
+            v = vel[vi, k]
+            if x != last_x[i, k] or v != last_v[i, k]:
+                return False
+            xs[i, k] = x
+            vs[i, k] = v
+    for k in range(3):
+        x0 = pos[w_t, k]
+        v0 = vel[w_v, k] if w_v >= 0 else 0.0
+        well[0, k] = x0
+        well[1, k] = v0
+        well[2, k] = x0 + v0 * dt
+        well[3, k] = v0
+    _at_compiled(c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12], c[13], c[14],
+                 c[15], c[16], c[17], c[18], c[19], c[20], c[21], dd_ome, ep_t, ep_chi, out_r, out_v, ep_chi, xs, vs,
+                 well, t1, mu, dt)
+    for i in range(n):
+        for k in range(3):
+            ctx_pos[t_idx[i], k] = out_r[i, k]
+            ctx_vel[v_idx[i], k] = out_v[i, k]
+    return True
+
+
+@kernel
 def _arc_boxes_compiled(p, w, pe, we, span, mu, surface, ball, grow_by, lo, hi, accel, rho_out):
     for i in range(p.shape[0]):
         rn = np.sqrt(p[i, 0] ** 2 + p[i, 1] ** 2 + p[i, 2] ** 2)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _at_compiled, _dd_div, _dd_dot2,
+from driftframe.framework.kepler_kernels import (_C2_SERIES, _C3_SERIES, _at_compiled, _quiet_rails, _dd_div, _dd_dot2,
                                                  _dd_sqrt, _fast_two_sum, _focal1, _focal_dd, _focal_dd_constants,
                                                  _focal_dd_constants_hyp, _focal_dd_hyp, _hyp_half,
                                                  _next_chi_compiled, _two_prod, _two_sum)
@@ -355,6 +355,17 @@ class Epoch:
         _at_compiled(*self._columns(), FOCAL_DD_OME, t_epoch, chi, out_x, out_v, chi, np.ascontiguousarray(x),
                      np.ascontiguousarray(v), np.ascontiguousarray(well, dtype=np.float64), float(t1), float(mu),
                      float(step))
+
+    def quiet_step(self, t_epoch, chi, ep_well, ep_contact, pos, vel, t_idx, v_idx, w_t, w_v, last_x, last_v,
+                   t1, dt, mu, xs, vs, well, out_x, out_v, ctx_pos, ctx_vel) -> bool:
+        """:meth:`step_from` for the gravity system's quiet step, straight from the tables, with its checks, in
+        one compiled call (``kepler_kernels._quiet_rails``): False, and nothing written but ``xs, vs``, unless
+        the bodies at rows ``t_idx, v_idx`` of ``pos, vel`` are at ``last_x, last_v``, every ``ep_well`` is 0
+        and every ``ep_contact`` after ``t1``; the end states also into rows ``t_idx, v_idx`` of ``ctx_pos,
+        ctx_vel``."""
+        return _quiet_rails(self._columns(), FOCAL_DD_OME, t_epoch, chi, ep_well, ep_contact, pos, vel, t_idx, v_idx,
+                            w_t, w_v, last_x, last_v, float(t1), float(dt), float(mu), xs, vs, well, out_x, out_v,
+                            ctx_pos, ctx_vel)
 
     def at(self, dt, chi=None):
         """``r, v, chi`` after ``dt`` s (scalar or ``(n,)``); ``chi``: a first guess (:func:`next_chi`).

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from driftframe.components.body import Transform, Velocity
 from driftframe.components.gravity import SurfaceContact
 from driftframe.framework import kepler
 from driftframe.systems.gravity.context import GravityStep, RailsEnd
 
 #: Most surface contacts one body may have in one step (a grazing bounce is one; more is rounding).
 MAX_CONTACTS = 4
+#: A step's obstacle states where there are none (read-only).
+_NO_OBSTACLES = np.zeros((0, 3))
+_NO_OBSTACLES.flags.writeable = False
 
 
 class Rails:
@@ -59,6 +63,48 @@ class Rails:
         self._epoch(0, self._every, mu).step_from(step.t1, self.ep_t, self.ep_chi, step.x, step.v, well, mu,
                                                   step.dt, step.x1, step.v1)
         return True
+
+    def _quiet_from_tables(self, dt: float) -> GravityStep | None:
+        """:meth:`_quiet` before :meth:`_begin`, straight from the tables in one compiled call
+        (``Epoch.quiet_step``: the gathers, the checks, the well's states, the pass and the writes into the
+        step context), the same numbers:
+        the step, or None (nothing changed) where that call finds it is not a quiet step or where the
+        usual path must decide (more than one well, n-body bodies, a body with an Acceleration, fewer than
+        ``COMPILED_MIN`` bodies, the epochs not derived yet). Why: between a game's other work each numpy
+        call of the usual path (about 20 a step) finds its code and data cold (docs/bench/orbit_accuracy.md)."""
+        n = self._n
+        wells = self._wells
+        if len(wells) != 1 or n < kepler.COMPILED_MIN or self._n_nb or self._has_a.size:
+            return None
+        cached = self._epochs.get(0)
+        if cached is None or cached[0] != (0, self._epoch_version, n):
+            return None
+        world = self.world
+        t0, t1 = world.step_count * dt, (world.step_count + 1) * dt
+        pos_t = world.table(Transform).data["position"]
+        vel_t = world.table(Velocity).data["linear"]
+        xs, vs, well = self._quiet_bufs[self._quiet_flip]
+        mu = wells.mu[0]
+        # the step context opened now (at the step's end on the usual path: no stage writes a table, so it
+        # holds the same rows either way), so that the pass writes the bodies' rows of it too
+        ctx = world.step_context
+        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+        if not cached[2].quiet_step(self.ep_t, self.ep_chi, self.ep_well, self.ep_contact, pos_t, vel_t, self._t_idx,
+                                    self._v_idx, int(wells.t_rows[0]), int(wells.v_rows[0]), self.last_x,
+                                    self.last_v, t1, dt, mu, xs, vs, well, self._x1_next, self._v1_next,
+                                    ctx.position, ctx.open_velocity()):
+            return None
+        self._quiet_flip ^= 1                             # (the last step's arrays stay as they were)
+        self.ep_cross = None
+        if self._n_ob:
+            has = self.ob_v_rows >= 0
+            ob_x = pos_t[self.ob_t_rows]
+            ob_v = np.where(has[:, None], vel_t[np.maximum(self.ob_v_rows, 0)], 0.0)
+        else:
+            ob_x = ob_v = _NO_OBSTACLES
+        return GravityStep(t0=t0, t1=t1, dt=dt, X0=well[0:1], V0=well[1:2], X1=well[2:3], V1=well[3:4],
+                           wA=np.zeros(1), x=xs, v=vs, a=self._no_a, thrust=self._none, edited=self._none,
+                           ob_x=ob_x, ob_v=ob_v, x1=self._x1_next, v1=self._v1_next, events=[])
 
     def _rails(self, step: GravityStep, sel, wi: int, look: bool, done=None, crossed=None) -> RailsEnd:
         """Bodies ``sel`` on rails about well ``wi``: their epochs for the step, the surface contacts of

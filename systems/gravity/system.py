@@ -175,6 +175,12 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
         # is made and freed each step (at 10,000 bodies each costs its page faults again, ~1 ns a body)
         self._x1_next = np.empty((n, 3))
         self._v1_next = np.empty((n, 3))
+        # the quiet step from the tables (Rails._quiet_from_tables): row numbers as arrays, and two sets of
+        # its start states (bodies' x, v and the well's), one for this step and one kept as the last step's
+        self._t_idx = to_indices(self.t_rows).astype(np.int64)
+        self._v_idx = to_indices(self.v_rows).astype(np.int64)
+        self._quiet_bufs = [(np.empty((n, 3)), np.empty((n, 3)), np.empty((4, 3))) for _ in range(2)]
+        self._quiet_flip = 0
         self._epoch_version += 1
         orbiting = world.query(Orbiting)
         orbiting.refresh()
@@ -275,18 +281,22 @@ class GravitySystem(LookAhead, SphereContacts, ContactMovers, Crossings, Rails, 
             self._build_obstacles(oq)
         if not self._n:
             return
-        step = self._begin(dt)
-        self._last_step = step                            # (the look-ahead evaluates from the last step)
         # sphere contacts are looked for where two or more colliders move, or one and an obstacle
         movers = self._n_col + self._n_nb_col
         look = movers >= 2 or (movers and self._n_ob)
         self._spheres_may_meet = bool(look)               # (else an n-body collider may drift on its conic)
-        if look or not self._quiet(step):
-            self._stages(step, look)
-        ctx = world.step_context
-        ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
-        ctx.position[self.t_rows] = step.x1
-        ctx.velocity[self.v_rows] = step.v1
+        step = None if look else self._quiet_from_tables(dt)
+        written = step is not None                        # (its end states are in the step context already)
+        if step is None:
+            step = self._begin(dt)
+            if look or not self._quiet(step):
+                self._stages(step, look)
+        self._last_step = step                            # (the look-ahead evaluates from the last step)
+        if not written:
+            ctx = world.step_context
+            ctx.begin(world.step_count, dt, world.table(Transform), world.table(Velocity))
+            ctx.position[self.t_rows] = step.x1
+            ctx.velocity[self.v_rows] = step.v1
         self.last_x, self._x1_next = step.x1, self.last_x
         self.last_v, self._v1_next = step.v1, self.last_v
         for ev in step.events:
