@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from driftframe.framework import broadphase as bp
-from driftframe.framework import broadphase_list
+from driftframe.framework import broadphase_list, sorting
 
 METHODS = ["all", "sweep", "grid", "kdtree", "auto"]
 
@@ -228,7 +228,8 @@ def test_step_lengths_and_territories_are_numpys_formulas_bit_for_bit():
         assert d.tobytes() == (np.sqrt((u * u).sum(axis=1)) * (1.0 / 60.0)).tobytes()
         d[: n // 3] = 0.0                                    # bodies at rest: the floor of 2 % of a radius
         r = rng.uniform(0.1, 1.0, n)
-        skin, swept, reach = broadphase_list._territory(r, d, 8.0)
+        # as NeighbourList.build's compiled pass calls them (so the kernels load from the warm cache)
+        skin, swept, reach = broadphase_list._territories(r, d, 8.0, sorting.median(r))
         want = 8.0 * np.maximum(d, max(np.median(d), 0.02 * np.median(r)))
         assert skin.tobytes() == want.tobytes() and reach.tobytes() == (r + want).tobytes()
         assert np.array_equal(swept, want > 8.0 * np.median(want) + 4.0 * r.max())
