@@ -522,12 +522,6 @@ def step_lengths(u, dt):
 
 
 @kernel(no_cfunc_wrapper=True)
-def _territory(r, d, skin_steps):
-    """:func:`_territories` with the radii's median computed here."""
-    return _territories(r, d, skin_steps, sorting.median(r))
-
-
-@kernel(no_cfunc_wrapper=True)
 def _territories(r, d, skin_steps, r_median):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
