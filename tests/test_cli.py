@@ -286,8 +286,17 @@ def test_a_first_run_shows_the_compile_kernel_by_kernel_and_a_warm_run_says_noth
     assert out.index("driftframe: compiled") < out.index("recording s.mp4") < out.index("wrote ")
     warm = run(*args, env=env)
     assert warm.returncode == 0 and "compil" not in warm.stderr, warm.stderr
+    # --quiet on a first run says nothing of its compile: a cache lacking one kernel (the NV12 converter,
+    # the cheapest), copied from the one just made, so that it compiles one kernel, not the scene's all
+    import shutil
+    shutil.copytree(tmp_path / "numba", tmp_path / "numba2")
+    lacking = [p for p in (tmp_path / "numba2").rglob("yuv._nv12-*")]
+    assert lacking, sorted(p.name for p in (tmp_path / "numba2").rglob("*"))
+    for p in lacking:
+        p.unlink()
     quiet = run(*args, "--quiet", env={"NUMBA_CACHE_DIR": str(tmp_path / "numba2")})
     assert quiet.returncode == 0 and "compil" not in quiet.stderr, quiet.stderr
+    assert list((tmp_path / "numba2").rglob("yuv._nv12-*.nbi")), "the --quiet run compiled nothing"
 
 
 def test_warm_with_a_warm_cache_loads_every_kernel_quietly_and_names_the_folder(tmp_path):
