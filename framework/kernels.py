@@ -110,10 +110,11 @@ def kernel(fn=None, **options):
     def declare(f):
         from numba import njit
 
-        from driftframe.framework import kernel_cache
+        from driftframe.framework import kernel_cache, typing_memo
 
         if not _registry:
             _blas_without_scipy()
+            typing_memo.install()           # a cold compile's typing, once per call signature (its docstring)
 
         dispatcher = njit(**options)(f)
         dispatcher._cache = kernel_cache.KernelCache(f)   # what njit(cache=True) sets, ours
