@@ -336,7 +336,9 @@ class Epoch:
         """The compiled loops' inputs: contiguous copies, made once per epoch."""
         c = self._compiled
         if c is None:
-            c = self._compiled = tuple(np.ascontiguousarray(a) for a in (
+            # writable as well as contiguous: a read-only column (a 1-body mu, a crossing's r0/v0 view)
+            # would be another numba type, another signature of the loops to compile (seconds each)
+            c = self._compiled = tuple(np.require(a, requirements="CW") for a in (
                 self.r0, self.v0, self.mu, self.sqmu, self.r0n, self.alpha, self.sigma0, self.period,
                 self.chi_turn, self.span_rate[0], self.span_rate[1], *self.focal))
         return c
