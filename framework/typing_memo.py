@@ -11,11 +11,11 @@ included), the keyword types, the typing context, and the flags of the compile i
 implementation is compiled under them: ``error_model``, ``fastmath``, ...). Only answers are kept; a call
 that fails to type goes to numba every time, so its error is numba's own.
 
-What it changes: nothing in the code numba generates (checked: the optimised LLVM IR of all 108 kernel
-instances ``driftframe warm`` compiles, with and without, equal up to numba's serial numbers in symbol
-names and the order of two reference-count increments), only the time: ``driftframe warm`` on an empty
-cache 107.5 -> 78.8 s of CPU. ``DRIFTFRAME_TYPING_MEMO=0`` leaves numba as it is; so does a numba whose
-internals differ from those this was written for (0.60-0.68: the method and attributes it relies on are
+What it changes: nothing in the code numba generates (checked: the optimised LLVM IR of every kernel
+instance ``driftframe warm`` compiles, with and without, equal up to numba's serial numbers in symbol
+names and the order of two reference-count increments), only the time a cold compile takes
+(docs/bench/compile.md). ``DRIFTFRAME_TYPING_MEMO=0`` leaves numba as it is; so does a numba whose
+internals differ from those this was written for (the method's parameters and the flags' ``_values`` are
 checked first).
 """
 from __future__ import annotations
