@@ -12,6 +12,8 @@ path imports them from here).
 """
 from __future__ import annotations
 
+import types
+
 import numpy as np
 
 from driftframe.framework.kernels import kernel
@@ -56,13 +58,7 @@ _C2_NB = _C2_SERIES.copy()
 _C3_NB = _C3_SERIES.copy()
 
 
-def _inline(fn):
-    """A kernel's helper, compiled inline into each kernel that calls it (numba's ``register_jitable``)."""
-    from numba.extending import register_jitable
-    return register_jitable(inline="always")(fn)
-
-
-@_inline
+@kernel(inline="always")
 def _next_chi1(chi, r0, r1, r2, v0, v1, v2, mu, step):
     """:func:`next_chi` of one body, its state ``(r0, r1, r2), (v0, v1, v2)`` about the well."""
     rn2 = r0 * r0 + r1 * r1 + r2 * r2
@@ -82,10 +78,27 @@ def _next_chi_compiled(chi, r, v, X, V, mu, step, out):
                             v[i, 0] - V[0], v[i, 1] - V[1], v[i, 2] - V[2], mu, step)
 
 
+# The kernels call the compiled twins of the helpers below, ``compiled._focal_dd(...)``, not the helpers.
+# Why: numba knows a ``register_jitable(inline="always")`` helper (as these were) only as an overload, and
+# types and compiles it anew at each call site while typing the kernel, and so again for every helper it
+# calls: typing cost ~ sum over call sites of (helper + its callees). A dispatcher with inline="always"
+# has its untyped IR pasted into the caller before typing (twins within twins too), so the kernel and its
+# helpers are typed once: _at_compiled's cold compile ~3.5x less CPU, _at_small's ~2.4x
+# (docs/bench/compile.md). The same operations in the same order: the same bits. The numpy path keeps the
+# plain function (a dispatcher called on numpy columns would compile itself for arrays); the twin is a
+# second function over the same code whose globals are the module ``compiled``, where each helper's name
+# is its twin (numba resolves a callee's names in its globals) and numba inlines ``module.name(...)``.
+compiled = types.ModuleType(f"{__name__}.compiled", "The compiled (inline) twins of kepler_kernels' helpers.")
+compiled.np = np
+
+
 def _both(fn):
-    """One source for numpy and the kernels: ``fn`` stays a plain function (elementwise on numpy columns)
-    and compiles inline into any kernel that calls it (:func:`_inline`)."""
-    return _inline(fn)
+    """One source for numpy and the kernels: ``fn`` stays a plain function (elementwise on numpy columns);
+    ``compiled.<its name>`` is its twin for kernels (the comment above)."""
+    from numba import njit
+    twin = types.FunctionType(fn.__code__, vars(compiled), fn.__name__, fn.__defaults__, fn.__closure__)
+    setattr(compiled, fn.__name__, njit(inline="always")(twin))
+    return fn
 
 
 # Error-free transformations (Dekker 1971, Knuth's TwoSum) for the focal state of very eccentric
@@ -368,24 +381,24 @@ def _at_compiled(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, 
         if t == 0.0:
             f_, g_, fd, gd = 1.0, 0.0, 0.0, 1.0
         if focal[i] and t != 0.0 and al < 0:             # a hyperbola: its focal state in double-double
-            xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd_hyp(-a[i], -ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
-                                                           ddc[i, 3], ddc[i, 4], ddc[i, 5],
-                                                           _hyp_half(sh0[i], ch0[i], al, chi))
+            xh, xl, yh, yl, uh, ul, wh, wl = compiled._focal_dd_hyp(-a[i], -ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
+                                                                    ddc[i, 3], ddc[i, 4], ddc[i, 5],
+                                                                    compiled._hyp_half(sh0[i], ch0[i], al, chi))
             for k in range(3):
-                out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
-                out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
+                out_r[i, k] = compiled._dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
+                out_v[i, k] = compiled._dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
         elif focal[i] and t != 0.0:                      # eccentric conics: from the focal frame
             if chi_half == chi and s_half == s_half:        # the solver's sin(x/2), cos(x/2) at this chi
-                x, y, vx, vy, s, c = _focal1_sc(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i],
-                                                np.copysign(s_half, chi), c_half)
+                x, y, vx, vy, s, c = compiled._focal1_sc(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i],
+                                                         np.copysign(s_half, chi), c_half)
             else:
-                x, y, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
+                x, y, vx, vy, s, c = compiled._focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], al, chi)
             if ome[i] < dd_ome:
-                xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
-                                                           ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
+                xh, xl, yh, yl, uh, ul, wh, wl = compiled._focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
+                                                                    ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
                 for k in range(3):
-                    out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
-                    out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
+                    out_r[i, k] = compiled._dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
+                    out_v[i, k] = compiled._dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
             else:
                 for k in range(3):
                     out_r[i, k] = x * P[i, k] + y * Q[i, k]

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.kepler_kernels import _C2_SERIES, _C3_SERIES, _K, _dd_dot2, _focal1, _focal_dd
+from driftframe.framework.kepler_kernels import _C2_SERIES, _C3_SERIES, _K, compiled
 from driftframe.framework.kernels import kernel
 
 _C3_SERIES_ABS = np.abs(_C3_SERIES)
@@ -240,13 +240,13 @@ def _at_small(r0, v0, mu, sqmu, r0n, alpha, sigma0, period, chi_turn, span0, spa
         if use[i]:
             if not alpha[i] > 0.0:
                 return NUMPY                             # a hyperbola's focal state: cosh, sinh
-            fx, fy, vx, vy, s, c = _focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], alpha[i], x)
+            fx, fy, vx, vy, s, c = compiled._focal1(a[i], ome[i], sh0[i], ch0[i], hn[i], mu[i], alpha[i], x)
             if ome[i] < dd_ome:
-                xh, xl, yh, yl, uh, ul, wh, wl = _focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
-                                                           ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
+                xh, xl, yh, yl, uh, ul, wh, wl = compiled._focal_dd(a[i], ome[i], ddc[i, 0], ddc[i, 1], ddc[i, 2],
+                                                                    ddc[i, 3], ddc[i, 4], ddc[i, 5], s, c)
                 for k in range(3):
-                    out_r[i, k] = _dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
-                    out_v[i, k] = _dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
+                    out_r[i, k] = compiled._dd_dot2(xh, xl, P[i, k], Pl[i, k], yh, yl, Q[i, k], Ql[i, k])
+                    out_v[i, k] = compiled._dd_dot2(uh, ul, P[i, k], Pl[i, k], wh, wl, Q[i, k], Ql[i, k])
             else:
                 for k in range(3):
                     out_r[i, k] = fx * P[i, k] + fy * Q[i, k]
