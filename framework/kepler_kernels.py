@@ -95,9 +95,8 @@ compiled.np = np
 def _both(fn):
     """One source for numpy and the kernels: ``fn`` stays a plain function (elementwise on numpy columns);
     ``compiled.<its name>`` is its twin for kernels (the comment above)."""
-    from numba import njit
     twin = types.FunctionType(fn.__code__, vars(compiled), fn.__name__, fn.__defaults__, fn.__closure__)
-    setattr(compiled, fn.__name__, njit(inline="always")(twin))
+    setattr(compiled, fn.__name__, kernel(inline="always")(twin))       # (never compiled on its own)
     return fn
 
 
