@@ -89,7 +89,7 @@ def _next_chi_compiled(chi, r, v, X, V, mu, step, out):
 # second function over the same code whose globals are the module ``compiled``, where each helper's name
 # is its twin (numba resolves a callee's names in its globals) and numba inlines ``module.name(...)``.
 compiled = types.ModuleType(f"{__name__}.compiled", "The compiled (inline) twins of kepler_kernels' helpers.")
-compiled.np = np
+compiled.np = np                   # the twins' only other global: a helper reading another one needs it here
 
 
 def _both(fn):
