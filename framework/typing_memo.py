@@ -47,6 +47,7 @@ def install() -> bool:
         return False
 
     memo: dict = {}
+    answered = [0]                              # calls answered from the memo (what the tests look at)
 
     def get_call_type(self, context, args, kws):
         flags = top()
@@ -57,6 +58,7 @@ def install() -> bool:
         except TypeError:                       # an unhashable type: numba's own way
             return original(self, context, args, kws)
         if sig is not None and sig.args in self._impl_keys:
+            answered[0] += 1
             return sig
         sig = original(self, context, args, kws)
         if sig is not None:
@@ -64,6 +66,7 @@ def install() -> bool:
         return sig
 
     get_call_type.__wrapped__ = original
+    get_call_type.answered = answered
     functions.BaseFunction.get_call_type = get_call_type
     _installed = True
     return True
