@@ -1,6 +1,6 @@
 """numba's function cache, pointed at driftframe's folder and checked on every load (see :mod:`.kernels`).
 
-numba's own ``FunctionCache`` with three changes: the folder is
+numba's own ``FunctionCache`` with four changes: the folder is
 :func:`kernels.cache_dir` (keyed by the digest of every kernel module), the
 source stamp is that digest (so an index written for other sources is stale
 even in the same folder), and each file is ``sha256(payload) + payload``
@@ -8,7 +8,8 @@ with each compiled entry saved beside its index key. A file that fails the
 check, or an entry under another key (two processes that numbered their
 entries alike, numba issue 4807), is treated as missing: compiled again and
 written anew. A folder that cannot be written: one warning, then the kernels
-are compiled in this process only.
+are compiled in this process only. And a load sets up only numba's runtime,
+not its whole compiler (:meth:`KernelCache.load_overload`).
 """
 from __future__ import annotations
 
@@ -128,6 +129,29 @@ class KernelCache(FunctionCache):
     def has_entries(self) -> bool:
         """Whether the index lists anything usable (compiled entries for these sources)."""
         return self._cache_file.has_entries()
+
+    def load_overload(self, sig, target_context):
+        """numba's load, without its ``target_context.refresh()``; on a miss, ready the compile that follows.
+
+        numba refreshes the whole target context before every cache load: it
+        imports and installs every typing and lowering registry (NumPy's,
+        the typed containers', jitclass', ...), once per process, which only
+        a compile uses (its cost: docs/bench/startup.md). A cached kernel is object code
+        plus its signature; to run it needs numba's runtime (NRT: the
+        allocator its arrays call), which is all that is set up here. A
+        compile refreshes the context itself (``numba.core.compiler``), so a
+        kernel compiled later in the process is typed as before. On a miss
+        (numba compiles next) :func:`kernels.before_compile` runs first.
+        """
+        from numba.core.runtime import rtsys
+
+        rtsys.initialize(target_context)    # idempotent; what refresh() does first for the CPU target
+        with self._guard_against_spurious_io_errors():
+            loaded = self._load_overload(sig, target_context)
+            if loaded is None:
+                kernels.before_compile()
+            return loaded
+        return None     # the guard swallowed an OSError (numba's own handling): compile
 
     def save_overload(self, sig, data):
         try:

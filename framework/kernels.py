@@ -113,7 +113,6 @@ def kernel(fn=None, **options):
         from driftframe.framework import kernel_cache, typing_memo
 
         if not _registry:
-            _blas_without_scipy()
             typing_memo.install()           # a cold compile's typing, once per call signature (its docstring)
 
         dispatcher = njit(**options)(f)
@@ -124,10 +123,16 @@ def kernel(fn=None, **options):
     return declare(fn) if fn is not None else declare
 
 
-def _blas_without_scipy() -> None:
-    """Spare the first kernel load an import of scipy.linalg (0.17 s of CPU of 0.30 s here).
+def before_compile() -> None:
+    """What the first compile of a process needs first (:meth:`kernel_cache.KernelCache.load_overload` calls it
+    when a load misses): numba's NumPy support imported without scipy (:func:`_blas_without_scipy`)."""
+    _blas_without_scipy()
 
-    numba's CPU target, set up at the first compile or cache load, imports
+
+def _blas_without_scipy() -> None:
+    """Spare the first compile an import of scipy.linalg (0.17 s of CPU of 0.30 s here).
+
+    numba's CPU target, set up at the first compile, imports
     ``numba.np.arraymath``, which imports ``scipy.linalg.cython_blas`` only to
     learn whether BLAS is there (``_HAVE_BLAS``, which picks how
     ``np.correlate`` sums). That answer is taken here from whether scipy is

@@ -369,6 +369,27 @@ def test_import_driftframe_imports_none_of_the_heavy_libraries():
     assert "module 'driftframe' has no attribute 'NoSuchName'" in res.stderr
 
 
+def test_a_cached_kernel_loads_without_numbas_compiler_and_a_compile_after_it_still_types_numpy(tmp_path):
+    # the NV12 kernel compiled into a fresh folder, then loaded in a second process: the load sets up numba's
+    # runtime only (no registry imported, no scipy.linalg), and a user's own kernel compiled after it is typed with
+    # numba's NumPy support as usual (np.sum of an array, np.empty, math)
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+    assert _nv12(env)[1] == 1
+    code = (NV12 + "; import sys; "
+            "print(sorted(m for m in ('numba.np.arraymath', 'numba.np.npyimpl', 'numba.typed.typeddict', "
+            "'numba.experimental.jitclass.base', 'scipy.linalg') if m in sys.modules)); "
+            "import numba, numpy as np, math\n"
+            "@numba.njit\ndef mine(a):\n    b = np.empty(a.size)\n    b[:] = a * 2.0\n    return np.sum(b) + math.sqrt(4.0)\n"
+            "print(mine(np.arange(4.0)), 'numba.np.arraymath' in sys.modules, "
+            "sum(_nv12.stats.cache_misses.values()))")
+    res = _py(code, env=env)
+    assert res.returncode == 0, res.stderr
+    loaded, imported, compiled = res.stdout.split("\n")[:3]
+    assert loaded.split() == [str(_nv12(env)[0]), "0"]           # loaded, same result, nothing compiled
+    assert imported == "[]", imported
+    assert compiled.split() == ["14.0", "True", "0"], compiled
+
+
 # warm's own work swapped for one kernel (a second): what is tested here is the lock and the order
 _CHEAP = ("import numpy as np; from driftframe import warmup; from driftframe.framework import kernels, yuv; "
           "warmup.PARTS = (lambda: yuv.rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4),); ")
