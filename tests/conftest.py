@@ -16,6 +16,12 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _ROOT]
 for _bare in ("framework", "components", "systems", "demos"):
     assert _bare not in sys.modules, f"{_bare!r} was imported as a top-level module"
 
+# pytest keeps each test module's rewritten bytecode in tests/__pycache__ unless bytecode writing is off
+# (PYTHONDONTWRITEBYTECODE, set on some machines): then every worker rewrites and compiles all ~90 test modules
+# again (~3 s of CPU each). This process only: the environment, and so every child process, keeps the setting
+# (tests that edit a copy's sources rely on no stale bytecode there).
+sys.dont_write_bytecode = False
+
 from driftframe.framework import access_check
 from driftframe.framework.world import World
 
