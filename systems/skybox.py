@@ -109,20 +109,33 @@ def texture_rng(seed: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(zlib.crc32(b"textures"),)))
 
 
+# Each face's direction is linear in (1, tc, sc): d = FACE_BASIS[face] @ (1, tc, sc), the OpenGL cube-map table
+# (e.g. +x: (1, -tc, -sc)); every entry is 0 or +-1, so the products are exact.
+FACE_BASIS = np.array([
+    [[1, 0, 0], [0, -1, 0], [0, 0, -1]],    # +x: ( 1, -tc, -sc)
+    [[-1, 0, 0], [0, -1, 0], [0, 0, 1]],    # -x: (-1, -tc,  sc)
+    [[0, 0, 1], [1, 0, 0], [0, 1, 0]],      # +y: (sc,   1,  tc)
+    [[0, 0, 1], [-1, 0, 0], [0, -1, 0]],    # -y: (sc,  -1, -tc)
+    [[0, 0, 1], [0, -1, 0], [1, 0, 0]],     # +z: (sc, -tc,   1)
+    [[0, 0, -1], [0, -1, 0], [-1, 0, 0]],   # -z: (-sc, -tc, -1)
+], dtype=np.float64)
+
+
+def _texel_coords(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """(tc, sc), each (size, size): texel ``(i, j)``'s ``(2t - 1, 2s - 1)`` at its centre."""
+    c = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    return np.meshgrid(c, c, indexing="ij")
+
+
 def face_directions(size: int) -> np.ndarray:
     """(6, size, size, 3) unit view directions of every cube-map texel centre, OpenGL face order.
 
     Faces +x, -x, +y, -y, +z, -z; texel ``(row i, column j)`` has
     ``s = (j + 0.5)/size``, ``t = (i + 0.5)/size`` and ``(sc, tc) = (2s - 1, 2t - 1)``
-    map to directions as the OpenGL cube-map table says (e.g. +x: ``(1, -tc, -sc)``).
+    map to directions as the OpenGL cube-map table says (e.g. +x: ``(1, -tc, -sc)``), :data:`FACE_BASIS`.
     """
-    c = (np.arange(size) + 0.5) / size * 2.0 - 1.0
-    tc, sc = np.meshgrid(c, c, indexing="ij")
-    one = np.ones_like(sc)
-    d = np.stack([
-        np.stack([one, -tc, -sc], -1), np.stack([-one, -tc, sc], -1),
-        np.stack([sc, one, tc], -1), np.stack([sc, -one, -tc], -1),
-        np.stack([sc, -tc, one], -1), np.stack([-sc, -tc, -one], -1)])
+    tc, sc = _texel_coords(size)
+    d = np.stack([np.ones_like(sc), tc, sc], -1) @ FACE_BASIS.transpose(0, 2, 1)[:, None]
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
@@ -142,6 +155,44 @@ def direction_to_texel(d: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray
     return face, row, col
 
 
+HAZE = np.array([0.030, 0.032, 0.045])     # the band's faint blue-grey haze, RGB at glow 1
+
+
+def band_glow(band: np.ndarray, lumps: np.ndarray, weight: np.ndarray, size: int) -> np.ndarray:
+    """(6, size, size) glow of the galactic band with pole ``band``: ``exp(-(d . n)^2 / 2w^2) (0.35 + patch)``.
+
+    ``w = 0.16`` rad; ``patch`` is the sum of von Mises lumps ``weight exp(6 (d . lump - 1))``,
+    scaled to a maximum of 1. Face by face on (size, size) planes: ``d . n = (p . (1, tc, sc)) / |(1, tc, sc)|``
+    with ``p = n FACE_BASIS[face]``, so no (6, size, size, 3) array of directions is made.
+    """
+    # the patches are broad (about 25 degrees): work them out on a 4x coarser grid, each value covers 4x4 texels
+    k = 4 if size % 4 == 0 else 1
+    coarse = face_directions(size // k)
+    patch = np.zeros(coarse.shape[:-1])
+    for c, wgt in zip(lumps, weight):                 # patch += wgt exp(6 (d . c - 1)), in place
+        e = coarse @ c
+        e -= 1.0
+        e *= 6.0
+        patch += np.multiply(wgt, np.exp(e, out=e), out=e)
+    lift = 0.35 + patch / max(patch.max(), 1e-12)
+    tc, sc = _texel_coords(size)
+    norm = np.sqrt(1.0 + tc * tc + sc * sc)          # |(1, tc, sc)|, the same on every face
+    glow = np.empty((6, size, size))
+    tmp = np.empty((size, size))
+    for f, p in enumerate(band @ FACE_BASIS):         # p: d . n = (p0 + p1 tc + p2 sc) / norm
+        g = glow[f]
+        np.multiply(tc, p[1], out=g)
+        g += p[0]
+        g += np.multiply(sc, p[2], out=tmp)
+        g /= norm
+        g /= 0.16
+        g *= g
+        g *= -0.5
+        np.exp(g, out=g)
+        g.reshape(size // k, k, size // k, k)[...] *= lift[f][:, None, :, None]
+    return glow
+
+
 def starfield_faces(rng: np.random.Generator, size: int = 512, stars: int = 9000) -> np.ndarray:
     """(6, size, size, 3) uint8 cube-map faces: ``stars`` stars and a faint galactic band.
 
@@ -150,7 +201,7 @@ def starfield_faces(rng: np.random.Generator, size: int = 512, stars: int = 9000
     power law (few bright, many faint); colour from blue-white to orange.
     Each is a small Gaussian splat (sigma 0.6 texel) added to its face.
     The band: a soft glow ``exp(-(d . n)^2 / 2w^2)`` broken up by a few dozen
-    broad random patches, very dim against the stars. Only numpy and ``rng``:
+    broad random patches, very dim against the stars (:func:`band_glow`). Only numpy and ``rng``:
     the same generator state gives the same bytes.
     """
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or not 16 <= size <= 4096:
@@ -161,21 +212,11 @@ def starfield_faces(rng: np.random.Generator, size: int = 512, stars: int = 9000
     band = rng.normal(size=3)
     band /= np.linalg.norm(band)                     # the band's pole
     # glow: band profile times patchiness (von Mises lumps centred near the band)
-    d = face_directions(size)
-    across = d @ band
     lumps = rng.normal(size=(40, 3))
     lumps -= np.outer(lumps @ band, band) * 0.9       # mostly in the band's plane
     lumps /= np.linalg.norm(lumps, axis=1, keepdims=True)
     weight = rng.uniform(0.3, 1.0, len(lumps))
-    # the patches are broad (about 25 degrees): work them out on a 4x coarser grid, repeat each value 4x4
-    k = 4 if size % 4 == 0 else 1
-    coarse = face_directions(size // k)
-    patch = np.zeros(coarse.shape[:-1])
-    for c, wgt in zip(lumps, weight):
-        patch += wgt * np.exp(6.0 * (coarse @ c - 1.0))
-    patch = patch.repeat(k, axis=1).repeat(k, axis=2)
-    glow = np.exp(-0.5 * (across / 0.16) ** 2) * (0.35 + patch / max(patch.max(), 1e-12))
-    img = glow[..., None] * np.array([0.030, 0.032, 0.045])          # a faint blue-grey haze
+    glow = band_glow(band, lumps, weight, size)
     # stars: uniform ones, and extra faint ones crowded towards the band
     n_band = stars // 3
     u = rng.normal(size=(stars, 3))
@@ -187,18 +228,37 @@ def starfield_faces(rng: np.random.Generator, size: int = 512, stars: int = 9000
     bright = np.minimum(bright, 3.0)
     warm = rng.uniform(0.0, 1.0, len(dirs)) ** 2                        # most stars white-blue, a few orange
     tint = np.column_stack([0.80 + 0.20 * warm, 0.85 + 0.05 * warm, 1.0 - 0.45 * warm])
+    # the haze alone, texel = round(255 glow HAZE): glow <= 1.35 and HAZE <= 0.045, so nothing to clip
+    out = np.empty((6, size, size, 3), np.uint8)
+    buf = np.empty((size, size))
+    for f in range(6):                               # a face at a time: the buffer is reused while cached
+        for ch, c in enumerate(HAZE):
+            np.multiply(glow[f], c, out=buf)
+            buf *= 255.0
+            buf += 0.5
+            out[f, :, :, ch] = buf                   # float -> uint8 truncates: + 0.5 rounds
+    # the texels under a star's 4 x 4 splat (all 16 offsets at once, offset-major as the sum's order below)
     face, row, col = direction_to_texel(dirs, size)
     r0, c0 = np.floor(row).astype(int), np.floor(col).astype(int)
-    flat = img.reshape(-1, 3)
-    for di in (-1, 0, 1, 2):
-        for dj in (-1, 0, 1, 2):
-            rr, cc = r0 + di, c0 + dj
-            ok = (rr >= 0) & (rr < size) & (cc >= 0) & (cc < size)
-            wgt = np.exp(-((rr - row) ** 2 + (cc - col) ** 2) / (2 * 0.6 ** 2)) * bright
-            idx = (face * size + rr) * size + cc
-            for ch in range(3):
-                np.add.at(flat[:, ch], idx[ok], (wgt * tint[:, ch])[ok])
-    return (np.clip(img, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    rr = r0 + np.array([-1, 0, 1, 2])[:, None, None]             # (4, 1, n) rows
+    cc = c0 + np.array([-1, 0, 1, 2])[None, :, None]             # (1, 4, n) columns
+    wgt = np.exp(-((rr - row) ** 2 + (cc - col) ** 2) / (2 * 0.6 ** 2)) * bright     # (4, 4, n)
+    ok = ((rr >= 0) & (rr < size) & (cc >= 0) & (cc < size)).ravel()
+    texel = ((face * size + rr) * size + cc).ravel()[ok]
+    star = np.broadcast_to(np.arange(len(dirs)), wgt.shape).ravel()[ok]
+    wgt = wgt.ravel()[ok]
+    # each lit texel: its haze plus the splats in the order above (as the whole-image sum made them), clipped to 1
+    covered = np.zeros(6 * size * size, bool)
+    covered[texel] = True
+    lit = np.flatnonzero(covered)                    # the lit texels, ascending; slot: their place in img
+    slot = np.empty(6 * size * size, np.int32)
+    slot[lit] = np.arange(len(lit), dtype=np.int32)
+    slot = slot[texel]
+    img = glow.reshape(-1)[lit, None] * HAZE
+    for ch in range(3):
+        np.add.at(img[:, ch], slot, wgt * tint[star, ch])
+    out.reshape(-1, 3)[lit] = (np.clip(img, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    return out
 
 
 STAR_VERTEX_SHADER = """

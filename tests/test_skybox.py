@@ -136,6 +136,62 @@ def test_starfield_texture_is_the_same_for_a_seed_and_differs_between_seeds():
     assert np.median(a) < 12 and all((f.max(axis=-1) > 60).sum() >= 3 for f in a)
 
 
+def _whole_image_starfield(rng, size, stars):
+    """The cube map as first written: every sum on one (6, size, size, 3) float image. starfield_faces's reference."""
+    band = rng.normal(size=3)
+    band /= np.linalg.norm(band)
+    across = sb.face_directions(size) @ band
+    lumps = rng.normal(size=(40, 3))
+    lumps -= np.outer(lumps @ band, band) * 0.9
+    lumps /= np.linalg.norm(lumps, axis=1, keepdims=True)
+    weight = rng.uniform(0.3, 1.0, len(lumps))
+    k = 4 if size % 4 == 0 else 1
+    coarse = sb.face_directions(size // k)
+    patch = np.zeros(coarse.shape[:-1])
+    for c, wgt in zip(lumps, weight):
+        patch += wgt * np.exp(6.0 * (coarse @ c - 1.0))
+    patch = patch.repeat(k, axis=1).repeat(k, axis=2)
+    glow = np.exp(-0.5 * (across / 0.16) ** 2) * (0.35 + patch / max(patch.max(), 1e-12))
+    img = glow[..., None] * np.array([0.030, 0.032, 0.045])
+    n_band = stars // 3
+    u = rng.normal(size=(stars, 3))
+    v = rng.normal(size=(n_band, 3))
+    v -= np.outer(v @ band, band) * (1.0 - rng.uniform(0.0, 0.25, n_band))[:, None]
+    dirs = np.vstack([u, v])
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    bright = np.concatenate([rng.pareto(2.2, stars) * 0.10 + 0.05, rng.pareto(3.0, n_band) * 0.06 + 0.03])
+    bright = np.minimum(bright, 3.0)
+    warm = rng.uniform(0.0, 1.0, len(dirs)) ** 2
+    tint = np.column_stack([0.80 + 0.20 * warm, 0.85 + 0.05 * warm, 1.0 - 0.45 * warm])
+    face, row, col = sb.direction_to_texel(dirs, size)
+    r0, c0 = np.floor(row).astype(int), np.floor(col).astype(int)
+    flat = img.reshape(-1, 3)
+    for di in (-1, 0, 1, 2):
+        for dj in (-1, 0, 1, 2):
+            rr, cc = r0 + di, c0 + dj
+            ok = (rr >= 0) & (rr < size) & (cc >= 0) & (cc < size)
+            wgt = np.exp(-((rr - row) ** 2 + (cc - col) ** 2) / (2 * 0.6 ** 2)) * bright
+            idx = (face * size + rr) * size + cc
+            for ch in range(3):
+                np.add.at(flat[:, ch], idx[ok], (wgt * tint[:, ch])[ok])
+    return (np.clip(img, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+@pytest.mark.parametrize("seed, size, stars", [(0, 64, 800), (5, 128, 3000), (2, 33, 200), (9, 16, 0)])
+def test_starfield_faces_equal_the_whole_image_sum_byte_for_byte(seed, size, stars):
+    """Face by face, without a (6, size, size, 3) float image, the bytes are the plain formula's."""
+    np.testing.assert_array_equal(sb.starfield_faces(sb.texture_rng(seed), size, stars),
+                                  _whole_image_starfield(sb.texture_rng(seed), size, stars))
+
+
+def test_the_default_starfield_of_seed_0_keeps_its_bytes():
+    """The sky every recording shows by default: its digest from the whole-image code (before 2026-12-03)."""
+    import hashlib
+    faces = sb.starfield_faces(sb.texture_rng(0))
+    assert hashlib.sha256(faces.tobytes()).hexdigest() == \
+        "58d9f076d4f3cc767557e723a9bf010eb7eafba480a058ea637fa85f248729fa"
+
+
 def test_the_textures_stream_is_not_the_scenes_stream():
     """The sky is made from its own stream: adding it does not change the random numbers a scene is built with."""
     scene = np.random.default_rng(5).random(8)
