@@ -196,10 +196,13 @@ def grid(data: dict, out_dir, *, name: str = "batch", check: bool = True, overwr
     ov_keys = [k.split(".", 1)[1] for k in keys[7:]]
     ov_memo: dict = {}
     fill_memo: dict = {}
+    skies: dict = {}
     stats = tuple(stats)
     specs = []
     for index, combo in enumerate(itertools.product(*axes.values())):
         what, seed, seconds, fps, size, camera, sky = combo[:7]
+        if sky is None:                         # the scene's own, as Spec.check fills it: a run is then built in
+            sky = _known_sky(kind, what, skies)  # its checked form, which the check keeps (no copy of 10^6 runs)
         if type(fps) is int:
             fps = float(fps)
         if type(seconds) is int:
@@ -381,6 +384,15 @@ def _own_sky(kind, what) -> str:
         return default_sky(demos.load(what))
     except (LookupError, ValueError, TypeError):
         return "default"
+
+
+def _known_sky(kind, what, memo: dict) -> str | None:
+    """:func:`_own_sky` once per demo (``memo``); None where it is not known (the run's check names why)."""
+    try:
+        sky = memo[what] if what in memo else memo.setdefault(what, _own_sky(kind, what))
+    except TypeError:                           # an unhashable demo value: the check names it
+        return None
+    return None if sky == "default" else sky
 
 
 def check_out_dir(out_dir) -> Path:

@@ -115,11 +115,12 @@ class Spec:
         output = None
         if self.output is not None:
             output = os.fspath(self.output)
-            folder = os.path.dirname(output)
-            if check_folder and (memo is None or ("folder", folder) not in memo):
-                _check_output(output, self._err)
-                if memo is not None:
-                    memo[("folder", folder)] = True
+            if check_folder:                    # (its folder is not needed otherwise: 10^6 dirname calls saved)
+                folder = os.path.dirname(output)
+                if memo is None or ("folder", folder) not in memo:
+                    _check_output(output, self._err)
+                    if memo is not None:
+                        memo[("folder", folder)] = True
         seconds, fps, size, stats, sky = filled
         if (seconds, fps, size, stats, sky, output) == (self.seconds, self.fps, self.size, self.stats, self.sky,
                                                         self.output) \

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from driftframe.batch import Spec, SpecError
+from driftframe.batch import Spec, SpecError, check_all
 from driftframe.batch_file import load
 
 
@@ -30,3 +30,7 @@ def test_a_batch_file_without_a_sky_records_the_starfield(tmp_path: Path):
     specs = load(f, tmp_path / "out")
     assert [(s.demo, s.sky) for s in specs] == [("cradle", "starfield"), ("rotation", "lines")]
     assert [Path(s.output).name for s in specs] == ["cradle-starfield.mp4", "rotation-lines.mp4"]
+    # the grid builds each run with its sky filled in: checking it keeps the very run (10^6 runs, no copies)
+    unchecked = load(f, tmp_path / "out", check=False)
+    assert [s.sky for s in unchecked] == ["starfield", "lines"]
+    assert all(a is b for a, b in zip(check_all(unchecked), unchecked))
