@@ -28,9 +28,20 @@ def test_list_names_every_demo_with_a_description():
 
 def test_version_and_help_show_the_keys():
     assert run("--version").stdout.startswith("driftframe ")
-    help_text = run("play", "--help").stdout
-    for key in ("W", "ESCAPE", "F12", "kill rotation"):
-        assert key in help_text
+    for help_text in (run("play", "--help").stdout, run("--help").stdout):
+        for key in ("keys while playing", "W", "ESCAPE", "F12", "kill rotation"):
+            assert key in help_text
+    assert "keys while playing" not in run("record", "--help").stdout
+
+
+def test_the_parser_makes_the_keys_help_only_when_help_is_printed():
+    """Every command builds the parser; the key list (framework.input) is only for --help."""
+    code = ("import sys; from driftframe.cli_parser import build_parser; p = build_parser(); "
+            "print('driftframe.framework.input' in sys.modules); p.format_help(); "
+            "print('driftframe.framework.input' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "True"]
 
 
 @pytest.mark.gl
