@@ -45,6 +45,31 @@ def test_the_parser_makes_the_keys_help_only_when_help_is_printed():
 
 
 @pytest.mark.gl
+def test_record_sets_up_without_the_cyclic_collector_and_records_with_it(tmp_path):
+    """The set-up's objects are frozen (never walked again), and the frames run with the collector on."""
+    code = (
+        "import gc, sys\n"
+        "import driftframe.app as app, driftframe.framework.recorder as rec\n"
+        "seen = {}\n"
+        "make, record = app.make_world, rec.record\n"
+        "def make_world(*a, **k):\n"
+        "    seen['setup'] = gc.isenabled()\n"
+        "    return make(*a, **k)\n"
+        "def recording(*a, **k):\n"
+        "    seen['frames'] = (gc.isenabled(), gc.get_freeze_count())\n"
+        "    return record(*a, **k)\n"
+        "app.make_world, rec.record = make_world, recording\n"
+        "from driftframe.cli import main\n"
+        f"rc = main(['record', 'cradle', '--seconds', '0.1', '--size', '64x48', '--quiet', '-o', {str(tmp_path / 'c.gif')!r}])\n"
+        "print(rc, seen['setup'], *seen['frames'])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    rc, setup, frames_on, frozen = out.stdout.splitlines()[-1].split()
+    assert (rc, setup, frames_on) == ("0", "False", "True")
+    assert int(frozen) > 10_000          # numpy's, numba's, the scene's objects
+
+
+@pytest.mark.gl
 def test_record_mp4_end_to_end(tmp_path):
     out = tmp_path / "cradle.mp4"
     res = run("record", "cradle", "--seconds", "0.5", "--size", "320x180", "--quiet", "-o", str(out))
