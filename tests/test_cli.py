@@ -44,6 +44,28 @@ def test_the_parser_makes_the_keys_help_only_when_help_is_printed():
     assert out.stdout.split() == ["False", "True"]
 
 
+@pytest.mark.parametrize("given, expected", [(None, "1"), ("3", "3")])
+def test_the_command_runs_one_openblas_thread_unless_told_otherwise(given, expected):
+    """Set before numpy loads OpenBLAS (its idle worker spins on the other core); a user's setting is kept."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    code = ("import os, sys\n"
+            "seen = []\n"
+            "class AtNumpy:\n"             # notes the setting when numpy (and with it OpenBLAS) is first imported
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name == 'numpy' and not seen:\n"
+            "            seen.append(os.environ.get('OPENBLAS_NUM_THREADS'))\n"
+            "sys.meta_path.insert(0, AtNumpy())\n"
+            "sys.argv = ['driftframe', 'list']\n"
+            "from driftframe.__main__ import run\n"
+            "run()\n"
+            "print(seen)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines()[-1] == repr([expected])
+
+
 @pytest.mark.gl
 def test_record_sets_up_without_the_cyclic_collector_and_records_with_it(tmp_path):
     """The set-up's objects are frozen (never walked again), and the frames run with the collector on."""
@@ -280,8 +302,10 @@ def _can_mount_tmpfs():
 def test_a_full_disk_is_one_clear_line_and_leaves_nothing(tmp_path, name):
     disk = tmp_path / "disk"
     disk.mkdir()
-    script = (f'mount -t tmpfs -o size=96k tmpfs "{disk}" || exit 99; '
-              f'"{sys.executable}" -m driftframe record cradle --seconds 60 --size 320x180 --quiet '
+    # spin: its frames change, so the MP4 fills the disk in ~300 frames (2 s of CPU); the cradle's near-still
+    # frames (~150 bytes each) took 1,865 before FFmpeg reported the full disk (7-8 s), whatever the disk's size
+    script = (f'mount -t tmpfs -o size=48k tmpfs "{disk}" || exit 99; '
+              f'"{sys.executable}" -m driftframe record spin --seconds 60 --size 320x180 --quiet '
               f'-o "{disk}/{name}"; echo "rc=$?"; echo "left:"; ls -A "{disk}"')
     res = subprocess.run(["unshare", "-r", "-m", "sh", "-c", script], capture_output=True, text=True,
                          timeout=300)
