@@ -313,7 +313,9 @@ class StarfieldSystem(esper.Processor):
                 or faces.shape[3] != 3:
             raise ValueError(f"StarfieldSystem faces must be (6, N, N, 3) uint8, got {faces.dtype} {faces.shape}")
         self._tex = ctx.texture_cube((faces.shape[1], faces.shape[1]), 3, faces.tobytes())
-        self._tex.build_mipmaps()
+        # the mipmaps are made at the first frame that samples them (process): llvmpipe compiles its mipmap
+        # pass on first use, ~0.08 s of CPU a process, which a frame that magnifies the sky never needs
+        self.mipmapped = False
         self._texels = faces.shape[1]
         self._filter = None
         self._prog = ctx.program(vertex_shader=STAR_VERTEX_SHADER, fragment_shader=STAR_FRAGMENT_SHADER)
@@ -330,6 +332,9 @@ class StarfieldSystem(esper.Processor):
         texels_per_px = 0.5 * self._texels / (0.5 * r.size[1] * r.projection[1, 1])
         wanted = (moderngl.LINEAR_MIPMAP_LINEAR if texels_per_px > 1.0 else moderngl.LINEAR, moderngl.LINEAR)
         if wanted != self._filter:
+            if wanted[0] == moderngl.LINEAR_MIPMAP_LINEAR and not self.mipmapped:
+                self._tex.build_mipmaps()
+                self.mipmapped = True
             self._tex.filter = self._filter = wanted
         inv = np.linalg.inv(r.projection @ r.view_rotation_only)
         self._prog["u_inv_view_proj"].write(inv.astype(np.float32).T.tobytes())
