@@ -191,11 +191,14 @@ def _entry_time(r0, v0, rm0, vm0, soi, t_hi):
     return 0.5 * (lo + hi)
 
 
-@pytest.mark.parametrize("dt", [1.0, 100.0, 1000.0, 4000.0])
+# (the shortest step was 1 s: 8,000 steps, 6 s of CPU on the few-body Python rails path; on rails each
+# step is the conic from the epoch, so the count of steps changes nothing compared, and 10 s still puts
+# the sphere's crossing and the contact in steps of their own)
+@pytest.mark.parametrize("dt", [10.0, 100.0, 1000.0, 4000.0])
 def test_a_ship_that_falls_into_a_moons_sphere_hits_the_moon_at_the_same_time_at_any_step(dt):
     """Patched conics with exact crossings: the ship changes well at the time its conic meets the
     moon's sphere of influence, inside the step, so a step of 4,000 s (which carries it from outside
-    the sphere to past the moon) still hits the surface, at the time a 1 s step finds."""
+    the sphere to past the moon) still hits the surface, at the time a 10 s step finds."""
     w = make(dt=dt)
     try:
         planet, moon, rm0, vm0 = _planet_and_moon(w)
