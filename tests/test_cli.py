@@ -424,3 +424,30 @@ def test_a_signal_after_the_command_finished_is_one_line_and_128_plus_n(when, si
     assert res.stderr == f"driftframe: interrupted ({signame})\n", res.stderr
     from driftframe.framework.bindings import bindings_toml
     assert res.stdout == bindings_toml(None)                  # the command's output, all of it, before the line
+
+
+@pytest.mark.parametrize("warm, name, scratch_worlds", [
+    (True, "spin", 0), (False, "spin", 1), (True, "mygame.scene:build", 1), (False, "mygame.scene:build", 1)])
+def test_the_kernels_scratch_world_is_built_unless_the_cache_folder_is_warm_for_a_demo(monkeypatch, warm, name,
+                                                                                       scratch_worlds):
+    """`driftframe warm` ran every demo into a warm folder: a demo's kernels load at its first step. A scene of
+    one's own may have kernels of its own: it is stepped once first, where a compile shows its progress."""
+    import driftframe.app as app
+    from driftframe.framework import kernels
+
+    built = []
+
+    class Scratch:
+        def step(self):
+            built[-1] += "+step"
+
+        def close(self):
+            built[-1] += "+close"
+
+    def make_world(n, seed=0):
+        built.append(n)
+        return Scratch(), None
+    monkeypatch.setattr(kernels, "is_warm", lambda folder=None: warm)
+    monkeypatch.setattr(app, "make_world", make_world)
+    app.load_kernels(name, seed=3)
+    assert built == [f"{name}+step+close"] * scratch_worlds
