@@ -132,11 +132,22 @@ def _cache_files(folder: Path, pattern: str) -> list[Path]:
     return sorted(folder.rglob(pattern))
 
 
-@pytest.mark.parametrize("damage", ["flip a byte", "truncate", "empty", "garbage index"])
-def test_a_damaged_cache_file_is_compiled_again_never_loaded(tmp_path, damage):
-    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+@pytest.fixture(scope="module")
+def nv12_cache(tmp_path_factory):
+    """A cache folder holding the NV12 kernel, compiled and then loaded from it, that each damage case
+    copies: one compile and one load for the four cases (each made its own: two processes, ~2 s of CPU)."""
+    root = tmp_path_factory.mktemp("nv12") / "nc"
+    env = _env(NUMBA_CACHE_DIR=root)
     total, compiled, _ = _nv12(env)
     assert compiled == 1 and _nv12(env)[1] == 0                      # cached, then loaded
+    return root, total
+
+
+@pytest.mark.parametrize("damage", ["flip a byte", "truncate", "empty", "garbage index"])
+def test_a_damaged_cache_file_is_compiled_again_never_loaded(tmp_path, damage, nv12_cache):
+    cached, total = nv12_cache
+    shutil.copytree(cached, tmp_path / "nc")
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
     (data,) = _cache_files(tmp_path / "nc", "yuv._nv12-*.nbc")
     (index,) = _cache_files(tmp_path / "nc", "yuv._nv12-*.nbi")
     blob = data.read_bytes()
