@@ -110,10 +110,11 @@ def kernel(fn=None, **options):
     def declare(f):
         from numba import njit
 
-        from driftframe.framework import kernel_cache, typing_memo
+        from driftframe.framework import kernel_cache, kernel_shortcuts, typing_memo
 
         if not _registry:
             typing_memo.install()           # a cold compile's typing, once per call signature (its docstring)
+            kernel_shortcuts.install(lambda d: any(d is k for k in _registry))   # a cheaper compile, same code
 
         dispatcher = njit(**options)(f)
         dispatcher._cache = kernel_cache.KernelCache(f)   # what njit(cache=True) sets, ours
