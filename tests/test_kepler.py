@@ -129,20 +129,35 @@ def test_vectorised_over_mixed_conics_is_the_same_as_one_at_a_time():
         np.testing.assert_allclose(v[k], vk, rtol=1e-13, atol=1e-9)
 
 
+SHORT_STEPS_E = (0.0, 0.5, 0.9, 0.99)
+
+
+@pytest.fixture(scope="module")
+def many_short_steps():
+    """The four orbits of the test below (4 rows each, a = 1e7 m: one period P), stepped together in one
+    batch: (start, end) states. Each row is propagated on its own (the same drift, within a rounding or two
+    of a batch of its own), in a quarter of the calls (3,000 instead of 12,000: 8 s of CPU -> 3.4 s)."""
+    a = 1e7
+    start = [np.vstack([np.repeat(s[None], 4, 0) for s in periapsis_state(a, e)]) for e in SHORT_STEPS_E]
+    r = np.vstack([s[:4] for s in start])
+    v = np.vstack([s[4:] for s in start])
+    r0, v0 = r.copy(), v.copy()
+    P = 2 * np.pi * np.sqrt(a ** 3 / MU)
+    for _ in range(3_000):
+        r, v = kepler.propagate(r, v, MU, P / 10)
+    return (r0, v0), (r, v)
+
+
 @pytest.mark.parametrize("e, bound", [(0.0, 1e-12), (0.5, 1e-12), (0.9, 1e-10), (0.99, 1e-8)])
-def test_energy_and_angular_momentum_kept_in_many_short_steps(e, bound):
+def test_energy_and_angular_momentum_kept_in_many_short_steps(e, bound, many_short_steps):
     """300 orbits at 10 steps per orbit, each step from the last (as a thrusting body goes):
     the drift is the rounding of the state, repeated at the same phases every orbit (v^2/2 and
     mu/r cancel by 2/(1 - e) at periapsis). On rails the gravity system propagates from an epoch
     instead, which keeps a single rounding however long it runs (test_gravity.py)."""
-    a = 1e7
-    r, v = periapsis_state(a, e)
-    r = np.repeat(r[None], 4, 0)
-    v = np.repeat(v[None], 4, 0)
-    P = 2 * np.pi * np.sqrt(a ** 3 / MU)
-    E0, h0 = energy(r, v), np.linalg.norm(np.cross(r, v), axis=1)
-    for _ in range(3_000):
-        r, v = kepler.propagate(r, v, MU, P / 10)
+    rows = slice(4 * SHORT_STEPS_E.index(e), 4 * SHORT_STEPS_E.index(e) + 4)
+    (r0, v0), (r, v) = ((x[rows] for x in pair) for pair in many_short_steps)
+    assert np.array_equal(r0, np.repeat(periapsis_state(1e7, e)[0][None], 4, 0))     # this e's orbit
+    E0, h0 = energy(r0, v0), np.linalg.norm(np.cross(r0, v0), axis=1)
     assert np.max(np.abs(energy(r, v) / E0 - 1)) < bound
     assert np.max(np.abs(np.linalg.norm(np.cross(r, v), axis=1) / h0 - 1)) < bound
 
