@@ -82,7 +82,8 @@ def test_record_sets_up_without_the_cyclic_collector_and_records_with_it(tmp_pat
         "    return record(*a, **k)\n"
         "app.make_world, rec.record = make_world, recording\n"
         "from driftframe.cli import main\n"
-        f"rc = main(['record', 'cradle', '--seconds', '0.1', '--size', '64x48', '--quiet', '-o', {str(tmp_path / 'c.gif')!r}])\n"
+        f"rc = main(['record', 'cradle', '--seconds', '0.1', '--size', '64x48', '--quiet',\n"
+        f"           '-o', {str(tmp_path / 'c.gif')!r}])\n"
         "print(rc, seen['setup'], *seen['frames'])\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr

@@ -343,7 +343,7 @@ def test_starfield_uses_mipmaps_only_where_the_view_shrinks_the_texture(ctx):
 def test_cube_map_levels_halve_down_to_one_texel_by_rounded_halvings_rows_first():
     from driftframe.framework import cube_mipmaps
     faces = np.zeros((6, 16, 16, 3), np.uint8)
-    faces[0, 0, 1] = 1                          # one texel of one 2 x 2 block: (0 + 1 + 1) >> 1 = 1, then (1 + 0 + 1) >> 1
+    faces[0, 0, 1] = 1                  # one texel of a 2 x 2 block: (0 + 1 + 1) >> 1 = 1, then (1 + 0 + 1) >> 1
     faces[1] = 200
     lv = cube_mipmaps.levels(faces)
     assert [a.shape for a in lv] == [(6, 8, 8, 3), (6, 4, 4, 3), (6, 2, 2, 3), (6, 1, 1, 3)]
