@@ -22,7 +22,7 @@ import esper
 import moderngl
 import numpy as np
 
-from driftframe.framework import cube_mipmaps, validate
+from driftframe.framework import validate
 from driftframe.framework.gl import RenderTarget
 from driftframe.framework.model_cache import ModelCache, check_colour
 
@@ -313,11 +313,9 @@ class StarfieldSystem(esper.Processor):
                 or faces.shape[3] != 3:
             raise ValueError(f"StarfieldSystem faces must be (6, N, N, 3) uint8, got {faces.dtype} {faces.shape}")
         self._tex = ctx.texture_cube((faces.shape[1], faces.shape[1]), 3, faces.tobytes())
-        # the mipmaps are made at the first frame that samples them (process), with numpy where the GL library
-        # can be reached (framework.cube_mipmaps: llvmpipe's own levels, without the ~0.08 s its mipmap pass
-        # costs to compile), else by GL; a frame that magnifies the sky (1280x720) needs none
+        # the mipmaps are made at the first frame that samples them (process): llvmpipe compiles its mipmap
+        # pass on first use, ~0.08 s of CPU a process, which a frame that magnifies the sky never needs
         self.mipmapped = False
-        self._faces = faces
         self._texels = faces.shape[1]
         self._filter = None
         self._prog = ctx.program(vertex_shader=STAR_VERTEX_SHADER, fragment_shader=STAR_FRAGMENT_SHADER)
@@ -335,10 +333,8 @@ class StarfieldSystem(esper.Processor):
         wanted = (moderngl.LINEAR_MIPMAP_LINEAR if texels_per_px > 1.0 else moderngl.LINEAR, moderngl.LINEAR)
         if wanted != self._filter:
             if wanted[0] == moderngl.LINEAR_MIPMAP_LINEAR and not self.mipmapped:
-                if not cube_mipmaps.write_levels(self._tex, self._faces):
-                    self._tex.build_mipmaps()
+                self._tex.build_mipmaps()
                 self.mipmapped = True
-                self._faces = None
             self._tex.filter = self._filter = wanted
         inv = np.linalg.inv(r.projection @ r.view_rotation_only)
         self._prog["u_inv_view_proj"].write(inv.astype(np.float32).T.tobytes())
@@ -361,4 +357,4 @@ class StarfieldSystem(esper.Processor):
             self._vao.release()
             self._prog.release()
             self._tex.release()
-        self._prog = self._vao = self._tex = self._faces = None
+        self._prog = self._vao = self._tex = None

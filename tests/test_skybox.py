@@ -340,45 +340,6 @@ def test_starfield_uses_mipmaps_only_where_the_view_shrinks_the_texture(ctx):
     assert filters[(160, 90)] == ((moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR), True)
 
 
-def test_cube_map_levels_halve_down_to_one_texel_by_rounded_halvings_rows_first():
-    from driftframe.framework import cube_mipmaps
-    faces = np.zeros((6, 16, 16, 3), np.uint8)
-    faces[0, 0, 1] = 1                  # one texel of a 2 x 2 block: (0 + 1 + 1) >> 1 = 1, then (1 + 0 + 1) >> 1
-    faces[1] = 200
-    lv = cube_mipmaps.levels(faces)
-    assert [a.shape for a in lv] == [(6, 8, 8, 3), (6, 4, 4, 3), (6, 2, 2, 3), (6, 1, 1, 3)]
-    assert lv[0][0, 0, 0].tolist() == [1, 1, 1] and lv[0][0].sum() == 3
-    assert all((a[1] == 200).all() for a in lv) and all((a[2:] == 0).all() for a in lv)
-
-
-def test_the_starfields_mipmaps_made_with_numpy_draw_what_the_drivers_own_draw(ctx, monkeypatch):
-    """The levels written from numpy (no mipmap pass for llvmpipe to compile) are llvmpipe's own: a sky that
-    the view shrinks (160 x 90) is drawn the same, byte for byte; another driver filters its own way."""
-    from driftframe.framework import cube_mipmaps
-    written, real = [], cube_mipmaps.write_levels
-    frames = {}
-    for way in ("numpy", "driver"):
-        monkeypatch.setattr(cube_mipmaps, "write_levels",
-                            (lambda t, f: written.append(real(t, f)) or written[-1]) if way == "numpy"
-                            else (lambda t, f: False))
-        w = World()
-        try:
-            eye = w.create_entity(Transform(orientation=fr.quat_from_rotvec(np.array([0.3, -0.8, 0.2]))))
-            w.create_entity(Camera(target=eye, mode="cockpit", fov=70.0))
-            render = attach(w, ctx, (160, 90), skybox=False)
-            stars = w.add_system(sb.StarfieldSystem(ctx, render, seed=4, size=256, stars=4000))
-            frames[way] = shot(w, render)
-            assert stars.mipmapped
-        finally:
-            w.close()
-    assert written == [True]
-    assert (frames["numpy"][..., :3].max(axis=-1) > 20).sum() >= 5          # stars in view, dimmed by the mipmaps
-    if "llvmpipe" in ctx.info["GL_RENDERER"]:
-        np.testing.assert_array_equal(frames["numpy"], frames["driver"])
-    else:
-        assert np.abs(frames["numpy"].astype(int) - frames["driver"]).max() <= 2
-
-
 @pytest.mark.parametrize("kind", ["lines", "starfield"])
 def test_a_sky_added_before_its_render_system_still_draws_behind_the_models(ctx, kind):
     from driftframe.framework.gl import RenderTarget
