@@ -174,8 +174,8 @@ def load_kernels(name: str, *, seed: int = 0) -> None:
 
     Nothing is done for a demo when ``driftframe warm`` finished in the kernel cache folder
     (:func:`framework.kernels.is_warm`): it ran every demo, so each kernel a demo steps with loads from the
-    cache at its first call (0.04 s of CPU saved for spin; more for the larger demos). A scene of your own may
-    bring kernels of its own: its scratch world is always built.
+    cache at its first call, and the scene is built once. A scene of your own may bring kernels of its own:
+    its scratch world is always built, so that a compile shows its progress before the window or the bar.
     """
     from driftframe.framework import kernels
     if not is_scene_path(name) and kernels.is_warm():
