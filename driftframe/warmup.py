@@ -87,14 +87,47 @@ def _rails(r, v) -> None:
         world.close()
 
 
-def collisions() -> None:
-    """The collision solvers: the collision demos, the all-pairs solvers called directly (a demo's first
-    steps may all be quiet, which framework/quiet_step.py answers without the solver), and the neighbour
-    list's and the static-shape solvers in a world; each without and with the jam path."""
+def claimed(part):
+    """``part``, run only when this process claims it (:func:`framework.kernels.claim`): during a warm-up on
+    two cores the helper runs the parts after the first in order and the first process, done with its own,
+    takes them from the far end, so that neither waits while the other compiles and no part runs in both."""
+    import functools
+
+    @functools.wraps(part)
+    def run() -> None:
+        if kernels.claim(part.__name__):
+            part()
+    return run
+
+
+def static_scenes() -> None:
+    """The static-shape solvers and the pieces every solver shares (compiled first, here, so that the
+    other parts load them): billiards and the cradle, a ball against a plane and a box."""
+    _demos(("billiards", "cradle"))
+    for stick in (False, True):
+        _collision_world(stick, _shapes)
+
+
+@claimed
+def listed_scenes() -> None:
+    """The neighbour list (its grid and sweep) and its solver with the jam path: the asteroids and the swarm."""
+    _demos(("asteroids", "swarm"))
+
+
+@claimed
+def listed_rows() -> None:
+    """The neighbour list's solver without the jam path, and with it: a row of balls in touch."""
+    for stick in (False, True):
+        _collision_world(stick, _row)
+
+
+@claimed
+def all_pairs() -> None:
+    """The all-pairs solvers called directly (a demo's first steps may all be quiet, which
+    framework/quiet_step.py answers without the solver), without and with the jam path."""
     import numpy as np
 
     from driftframe.framework import contact
-    _demos(("asteroids", "billiards", "cradle", "swarm"))
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])          # two unit balls touching, closing at 2 m/s
     u = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
     pi, pj = contact.all_pairs(2)
@@ -102,18 +135,17 @@ def collisions() -> None:
         contact.solve_step(contact.StepInputs(x.copy(), u.copy(), np.full(2, 0.5), np.ones(2), np.ones(2),
                                               np.ones(2, np.bool_), np.full(2, -np.inf), 0.0, pi, pj, 1.0 / 60.0,
                                               contact.TC / 60.0, contact.CAP, None), stick=stick)
-        _collision_world(stick, _row)
-        _collision_world(stick, _shapes)
 
 
+@claimed
 def orbits_and_the_rest() -> None:
-    """Everything else: the other demos, Kepler propagation of a few bodies and of enough for the compiled
-    loops (on rails in a world too), the n-body kernels, one frame through the NV12 converter."""
+    """Everything else: Kepler propagation of a few bodies and of enough for the compiled loops (on rails in
+    a world too), the n-body kernels, one frame through the NV12 converter, the other demos (last: by then
+    the first process has saved the movement kernels they share with it)."""
     import numpy as np
 
     from driftframe.framework import kepler
     from driftframe.framework.yuv import rgba_to_nv12
-    _demos(("rotation", "spin", "orbit"))
     n = kepler.COMPILED_MIN
     angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     r = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1)     # circular orbits, radius 1, mu 1
@@ -134,11 +166,16 @@ def orbits_and_the_rest() -> None:
     mercurius.near_pairs(r[:3].copy(), np.ones(3))   # (the gravity system's n-body switch)
     wh.kepler_drift(r[:2].copy(), v[:2].copy(), 1.0, 0.1)
     rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4)
+    _demos(("rotation", "spin", "orbit"))
 
 
-#: The warm-up in two halves of about equal compile time, run side by side on two cores
-#: (:func:`framework.kernels.warm`); together they reach every kernel.
-PARTS = (collisions, orbits_and_the_rest)
+#: The warm-up in parts (:func:`framework.kernels.warm`): on two cores the first runs here while a helper
+#: process runs the others in order, and this process then takes those from the far end (each part runs
+#: in one of the two: :func:`claimed`). The order is by the compile times of an empty cache (CPU s, one
+#: process: static scenes ~16, orbits ~25, asteroids and swarm ~13, the rows ~5, all pairs ~8), so that the
+#: two processes end together and a part that calls the pieces the first one compiles starts after it.
+#: Together they reach every kernel.
+PARTS = (static_scenes, orbits_and_the_rest, all_pairs, listed_rows, listed_scenes)
 
 
 def workload() -> None:

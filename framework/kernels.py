@@ -402,8 +402,9 @@ def warm(parts, watch: CompileWatch | None = None) -> list:
     per cache folder (a file lock), then mark the folder warm.
 
     With several parts and more than one core, the parts after the first run at the same time in a helper
-    process (:mod:`.warm_helper`), then again here (loading what the helper compiled, and compiling
-    whatever it did not finish), so a cold compile takes two cores.
+    process (:mod:`.warm_helper`), in order; this process, done with the first, takes them from the far
+    end (parts that ask :func:`claim` run in one process only), then runs them all again (loading what
+    the helper compiled, and compiling whatever it did not finish), so a cold compile takes two cores.
 
     Returns the kernels still with nothing compiled or cached (the parts did not reach them).
     ``watch``: a :class:`CompileWatch` already entered, to show progress; every kernel with nothing
@@ -430,6 +431,8 @@ def _cores() -> int:
 
 
 def _warm(parts, watch, lock_fd=None) -> list:
+    import shutil
+    global _claims
     folder = cache_dir()
     kernels = registry()
     parts = [parts] if callable(parts) else list(parts)
@@ -442,21 +445,38 @@ def _warm(parts, watch, lock_fd=None) -> list:
             for d in cold:
                 watch.expected.setdefault(id(d), d)
     helper = None
+    claims = folder / "warm.claims"
     if len(parts) > 1 and cold and _cores() > 1 and lock_fd is not None:
         from driftframe.framework import warm_helper
-        helper = warm_helper.start(parts[1:], lock_fd)
+        try:                                    # (under the lock: no other warm-up uses this folder)
+            shutil.rmtree(claims, ignore_errors=True)
+            claims.mkdir(parents=True)
+            os.environ[CLAIMS_ENV] = str(claims)    # the helper's: Popen copies the environment
+        except OSError:
+            pass                                # parts then run in both processes, as without claims
+        try:
+            helper = warm_helper.start(parts[1:], lock_fd)
+        finally:
+            _claims = os.environ.pop(CLAIMS_ENV, None)
         relay = threading.Thread(target=warm_helper.relay, args=(helper, watch), daemon=True)
         relay.start()
     try:
         parts[0]()
         if helper is not None:
+            # the helper runs parts[1:] in order; this process, done with the first, takes them from the far
+            # end: a part claimed by one process (:func:`claim`) returns at once in the other
+            for part in reversed(parts[2:]):
+                part()
             helper.wait()
             relay.join()
+        _claims = None
         for part in parts[1:]:   # loads what the helper compiled; compiles what it left (or lost to a race)
             part()
     finally:
+        _claims = None
         if helper is not None:
             warm_helper.stop(helper)
+            shutil.rmtree(claims, ignore_errors=True)
     try:                          # what the warm-up did not reach compiles at its first call, as numba does
         (folder / WARM_MARK).write_text(f"{__version__} {source_digest()}\n")
     except OSError as e:
@@ -464,6 +484,28 @@ def _warm(parts, watch, lock_fd=None) -> list:
     prune(folder)
     # a kernel loaded from the cache as a caller's callee has no overload of its own: its entries count
     return [d for d in kernels if needs_compile(d)]
+
+
+#: The environment variable that gives a warm-up helper process the folder where parts are claimed.
+CLAIMS_ENV = "DRIFTFRAME_WARM_CLAIMS"
+_claims: str | None = None       # that folder in the process that started the helper, during its warm-up
+
+
+def claim(name: str) -> bool:
+    """Whether this process runs warm-up part ``name`` now (:data:`driftframe.warmup.PARTS` ask it first):
+    True outside a warm-up with a helper process, and for the first of the two processes to ask; False
+    in the other. The first process runs every part again after the helper ended, loading what the
+    helper compiled (:func:`warm`). One file per part in the claims folder, created exclusively."""
+    folder = _claims or os.environ.get(CLAIMS_ENV)
+    if not folder:
+        return True
+    try:
+        os.close(os.open(os.path.join(folder, name), os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+    except FileExistsError:
+        return False
+    except OSError:              # (the folder gone: the warm-up ended) run it, as without claims
+        return True
+    return True
 
 
 #: Cache folders of other driftframe versions or sources kept beside this one (the newest warmed first):
