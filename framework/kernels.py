@@ -453,11 +453,12 @@ def _warm(parts, watch, lock_fd=None) -> list:
             claims.mkdir(parents=True)
             os.environ[CLAIMS_ENV] = str(claims)    # the helper's: Popen copies the environment
         except OSError:
-            pass                                # parts then run in both processes, as without claims
+            pass                                # no claims: the helper runs parts[1:], as before there were any
         try:
             helper = warm_helper.start(parts[1:], lock_fd)
         finally:
-            _claims = os.environ.pop(CLAIMS_ENV, None)
+            given = os.environ.pop(CLAIMS_ENV, None)
+        _claims = given                         # (only once the helper runs: parts are shared from here on)
         relay = threading.Thread(target=warm_helper.relay, args=(helper, watch), daemon=True)
         relay.start()
     try:
@@ -465,7 +466,7 @@ def _warm(parts, watch, lock_fd=None) -> list:
         if helper is not None:
             # the helper runs parts[1:] in order; this process, done with the first, takes them from the far
             # end: a part claimed by one process (:func:`claim`) returns at once in the other
-            for part in reversed(parts[2:]):
+            for part in reversed(parts[2:] if _claims else ()):
                 part()
             helper.wait()
             relay.join()
