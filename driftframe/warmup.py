@@ -171,10 +171,9 @@ def orbits_and_the_rest() -> None:
 
 #: The warm-up in parts (:func:`framework.kernels.warm`): on two cores the first runs here while a helper
 #: process runs the others in order, and this process then takes those from the far end (each part runs
-#: in one of the two: :func:`claimed`). The order is by the compile times of an empty cache (CPU s, one
-#: process: static scenes ~16, orbits ~25, asteroids and swarm ~13, the rows ~5, all pairs ~8), so that the
-#: two processes end together and a part that calls the pieces the first one compiles starts after it.
-#: Together they reach every kernel.
+#: in one of the two: :func:`claimed`). The order follows the parts' compile times on an empty cache
+#: (docs/bench/compile.md, "Fourth pass"), so that the two processes end together and a part that calls the
+#: solver pieces the first one compiles starts after it has saved them. Together they reach every kernel.
 PARTS = (static_scenes, orbits_and_the_rest, all_pairs, listed_rows, listed_scenes)
 
 

@@ -1,19 +1,18 @@
 """A cold compile made cheaper in four ways that leave the code numba generates unchanged.
 
-A cold compile is mostly numba's own Python (docs/bench/compile.md). A sampling profile of billiards' cold
-compile (py-spy, numba 0.68.1) found:
+A cold compile is mostly numba's own Python. A sampling profile of billiards' cold compile (numba 0.68.1;
+the shares are in docs/bench/compile.md, "Fourth pass") found:
 
-- **Python's cyclic garbage collector** (~10 % of the compile): a compile allocates millions of small
-  objects (numba IR, types, llvmlite instructions), so the collector runs over and over (billiards: ~1,200
-  young, ~100 middle and 9 full collections) and each full one walks every object alive, to free almost
-  nothing. It is paused while one of driftframe's kernels compiles (numba's ``numba:compile`` events, the
+- **Python's cyclic garbage collector**: a compile allocates millions of small objects (numba IR, types,
+  llvmlite instructions), so the collector runs over and over, and each full collection walks every
+  object alive, to free almost nothing. It is paused while one of driftframe's kernels compiles (numba's ``numba:compile`` events, the
   outermost compile of one of ours: the callees and numba's own overloads it compiles are inside it) and
   resumed after, as it was.
 
 and three places where numba's Python does work whose result is thrown away or recomputed, each replaced
 here by a function that returns exactly what numba's returns:
 
-- **Liveness** (``numba.core.analysis.compute_live_map``, 6 % of the compile). numba runs it after most of
+- **Liveness** (``numba.core.analysis.compute_live_map``). numba runs it after most of
   its passes (``PostProcessor``). Its first fix-point (``def_reach``) collects, for every block, every
   variable defined or used in any block that can reach it, and then only ever intersects those sets with
   the live variables, which are all in some block's *use* set. Most of a kernel's variables are
@@ -22,11 +21,11 @@ here by a function that returns exactly what numba's returns:
   and unrestricted fix-points agree on those (both are the least fix-point of the same monotone union
   equations, and restricting to a set commutes with union and intersection), so the live map returned is
   the same.
-- **ABI sizes** (``BaseContext.get_abi_sizeof``, 2 %). llvmlite answers it by printing a module with one
+- **ABI sizes** (``BaseContext.get_abi_sizeof``). llvmlite answers it by printing a module with one
   global of the type and parsing it with LLVM, every time; numba asks it for every user variable it
   allocates (for debug info it then discards unless ``debug=True``). Remembered per data layout and type
   text, for types that name no identified (named) struct, whose text alone would not say what they are.
-- **Error-message markup** (``HighlightColorScheme._markup``, 2 %): typing tries templates that fail, and
+- **Error-message markup** (``HighlightColorScheme._markup``): typing tries templates that fail, and
   every failure builds a highlighted message (``NumbaError``, ``Loc.strformat``) that is then thrown away.
   When colorama is installed numba wraps and unwraps ``sys.stdout``/``sys.stderr`` for each piece of text
   it highlights (``ColorShell``); the text it makes is the colour codes, the message, and a reset code,
