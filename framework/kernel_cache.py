@@ -27,6 +27,10 @@ from numba.core.serialize import dumps
 from driftframe.framework import kernels
 
 _DIGEST = 32                      # bytes of SHA-256 in front of each file's payload
+# A kernel that calls one of numba's NumPy functions written in numba.np.arraymath (np.round: the Kepler
+# kernels) carries that module's name in its cached environment, and unpickling it imports the module, which
+# imports scipy.linalg unless kernels.before_compile() has imported it first (kernels._blas_without_scipy)
+_ARRAYMATH = b"numba.np.arraymath"
 
 
 class _Locator(_CacheLocator):
@@ -110,7 +114,10 @@ class _CheckedFile(IndexDataCacheFile):
             return None
         try:
             with open(self._data_path(name), "rb") as f:
-                saved_key, data = self._checked(f.read())
+                blob = f.read()
+            if _ARRAYMATH in blob:
+                kernels.before_compile()
+            saved_key, data = self._checked(blob)
         except Exception:          # noqa: BLE001 - missing, damaged (the check failed) or a bad pickle
             return None
         return data if saved_key == key else None

@@ -126,7 +126,8 @@ def kernel(fn=None, **options):
 
 def before_compile() -> None:
     """What the first compile of a process needs first (:meth:`kernel_cache.KernelCache.load_overload` calls it
-    when a load misses): numba's NumPy support imported without scipy (:func:`_blas_without_scipy`)."""
+    when a load misses, and before loading a kernel that names ``numba.np.arraymath``): numba's NumPy
+    support imported without scipy (:func:`_blas_without_scipy`)."""
     _blas_without_scipy()
 
 

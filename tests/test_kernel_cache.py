@@ -410,6 +410,22 @@ def test_a_cached_kernel_loads_without_numbas_compiler_and_a_compile_after_it_st
     assert compiled.split() == ["14.0", "True", "0"], compiled
 
 
+def test_a_cached_kernel_that_calls_numbas_arraymath_loads_without_scipy_linalg(tmp_path):
+    # np.round's numba implementation lives in numba.np.arraymath (the Kepler kernels call it): a cached kernel
+    # names that module in its environment, and unpickling it imports the module, which imports scipy.linalg
+    # (0.3 s) unless driftframe imports it first without it
+    (tmp_path / "rounding.py").write_text(
+        "import numpy as np\nfrom driftframe.framework.kernels import kernel\n\n"
+        "@kernel\ndef turns(t, period):\n    return np.round(t / period)\n")
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc", PYTHONPATH=tmp_path)
+    code = ("import sys, rounding; print(rounding.turns(7.5, 3.0), sum(rounding.turns.stats.cache_misses.values()), "
+            "'numba.np.arraymath' in sys.modules, 'scipy.linalg' in sys.modules)")
+    first, second = _py(code, env=env), _py(code, env=env)
+    assert first.returncode == 0 and second.returncode == 0, (first.stderr, second.stderr)
+    assert first.stdout.split() == ["2.0", "1", "True", "False"], first.stdout        # compiled (2.5 -> even)
+    assert second.stdout.split() == ["2.0", "0", "True", "False"], second.stdout      # loaded, without scipy.linalg
+
+
 # warm's own work swapped for one kernel (a second): what is tested here is the lock and the order
 _CHEAP = ("import numpy as np; from driftframe import warmup; from driftframe.framework import kernels, yuv; "
           "warmup.PARTS = (lambda: yuv.rgba_to_nv12(np.zeros((4, 4, 4), np.uint8), 4, 4),); ")
