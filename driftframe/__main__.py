@@ -47,8 +47,8 @@ def _ending() -> None:
 def run() -> int:
     # One OpenBLAS thread for the command (and the processes it starts), set before numpy loads OpenBLAS: the
     # physics is numba's and numpy's BLAS calls here are small, while OpenBLAS's worker thread spins on the other
-    # core after numpy's import and after each call it shares (perf: blas_thread_server, ~0.05 s of CPU a
-    # `record`). A value the user set is kept.
+    # core after numpy's import and after each call it shares (perf: blas_thread_server). A value the user
+    # set is kept.
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     got: list[int] = []
 

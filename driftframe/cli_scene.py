@@ -18,12 +18,12 @@ class _SetUp:
     """A command's set-up without Python's cyclic collector, entered for the command and :meth:`done` before its
     long part (the frames, the window).
 
-    The set-up (numba, numpy, av, PIL, the scene, the GL objects) makes ~70,000 objects that live to the end;
-    the collector's generation 0, 1 and 2 passes walked them again and again (~150 passes, 0.04-0.05 s of
-    CPU a command). :meth:`done` then moves them to the permanent generation (:func:`gc.freeze`), so neither
-    the frame loop's collections nor the interpreter's last one at exit (another ~0.04 s) walks them, and
-    turns the collector back on. The set-up leaves ~1,500 unreachable objects (collecting them here frees no
-    measurable memory and costs 0.04-0.05 s): they stay, frozen.
+    The set-up (numba, numpy, av, PIL, the scene, the GL objects) makes tens of thousands of objects that live
+    to the end, which the collector's generation 0, 1 and 2 passes would walk again and again before the
+    first frame. :meth:`done` then moves them to the permanent generation (:func:`gc.freeze`), so neither
+    the frame loop's collections nor the interpreter's last one at exit walks them, and turns the collector
+    back on. The few unreachable objects the set-up leaves (collecting them here frees no measurable memory)
+    stay, frozen. What it saves: the commit that made it (20711e1) and docs/bench/startup.md.
     """
 
     def __enter__(self) -> _SetUp:
