@@ -84,7 +84,7 @@ class _Parser(argparse.ArgumentParser):
     """An ArgumentParser whose epilog can be the key bindings, made only when the help is printed.
 
     ``keys_epilog=True``: :func:`_keys_epilog` at ``format_help``. Building it in the parser imported
-    framework.input (and numpy with it) for every command, about 0.1 s of CPU that only ``--help`` uses.
+    framework.input (and numpy with it) for every command, which only ``--help`` uses.
     """
 
     def __init__(self, *args, keys_epilog: bool = False, **kwargs):

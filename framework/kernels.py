@@ -132,7 +132,7 @@ def before_compile() -> None:
 
 
 def _blas_without_scipy() -> None:
-    """Spare the first compile an import of scipy.linalg (0.17 s of CPU of 0.30 s here).
+    """Spare the first compile (or a load that imports numba.np.arraymath) an import of scipy.linalg.
 
     numba's CPU target, set up at the first compile, imports
     ``numba.np.arraymath``, which imports ``scipy.linalg.cython_blas`` only to

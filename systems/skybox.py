@@ -314,7 +314,7 @@ class StarfieldSystem(esper.Processor):
             raise ValueError(f"StarfieldSystem faces must be (6, N, N, 3) uint8, got {faces.dtype} {faces.shape}")
         self._tex = ctx.texture_cube((faces.shape[1], faces.shape[1]), 3, faces.tobytes())
         # the mipmaps are made at the first frame that samples them (process): llvmpipe compiles its mipmap
-        # pass on first use, ~0.08 s of CPU a process, which a frame that magnifies the sky never needs
+        # pass on first use (its cost: commit 9948656), which a frame that magnifies the sky never needs
         self.mipmapped = False
         self._texels = faces.shape[1]
         self._filter = None
