@@ -257,7 +257,8 @@ def _worker_main(conn, parent_pid: int, lp_threads) -> None:
 
     SIGTERM or SIGHUP (its parent died, or someone ended it) stops its run at the next step (the run
     deletes its temporary file) and ends the worker without an answer, so that a living parent gives the
-    run again. The handler raises nothing: an exception raised by a signal handler inside an import
+    run again; a run that had already finished (the signal came while it closed its file) is answered
+    first, so that its output, in place, is in the summary and the journal. The handler raises nothing: an exception raised by a signal handler inside an import
     lock's callback or numba's compiler (called back from C) is printed and dropped, and the run went on.
     """
     current: list = [None]                  # the spec being run: its part files go if the worker must die
@@ -310,10 +311,12 @@ def _worker_main(conn, parent_pid: int, lp_threads) -> None:
             stopping[0] = False
             current[0] = spec
             res = attempt(spec, should_stop)
-            if ended:
+            if ended and (res is None or isinstance(res, Failure)):
                 die(128 + ended[0])                             # not an answer: a living parent retries it
             current[0] = None
             conn.send((i, res))
+            if ended:       # the run had finished (its output in place) when the signal came: answered, then end
+                die(128 + ended[0])
     except (EOFError, OSError, KeyboardInterrupt):
         pass
     finally:

@@ -274,3 +274,37 @@ def test_a_full_disk_stops_the_batch_keeps_what_finished_and_names_the_file(tmp_
     else:
         assert 4 <= len(journal) <= 6 and not [p for p in out.iterdir() if p.name.startswith(".")]
     assert "Stopped: cannot write" in (out / "summary.md").read_text()
+
+
+_FINISHED_THEN_STOPPED = '''
+import os, signal, types
+from driftframe import batch_exec
+
+def fake_attempt(spec, should_stop):
+    os.kill(os.getpid(), signal.SIGTERM)       # the stop arrives as the run closes its finished file
+    return ("finished", spec.label)
+
+def worker(conn, parent_pid):
+    batch_exec.attempt = fake_attempt
+    batch_exec._worker_main(conn, parent_pid, None)
+'''
+
+
+def test_a_run_finished_when_a_stop_signal_reaches_its_worker_is_answered_before_the_worker_ends(tmp_path):
+    # a worker stopped by SIGTERM or SIGHUP ends without an answer, so that the run is given again; but a run
+    # that had finished (its output in place) is answered first, or its output would be on disk and missing
+    # from the summary and the journal (seen as a batch stopped by SIGHUP keeping box-0.mp4 without its row)
+    (tmp_path / "finished_then_stopped.py").write_text(_FINISHED_THEN_STOPPED)
+    code = ("import multiprocessing, os, types, finished_then_stopped as f\n"
+            "if __name__ == '__main__':\n"
+            "    ctx = multiprocessing.get_context('spawn')\n"
+            "    here, there = ctx.Pipe()\n"
+            "    p = ctx.Process(target=f.worker, args=(there, os.getpid()))\n"
+            "    p.start(); there.close()\n"
+            "    here.send((3, types.SimpleNamespace(output=None, label='box-3')))\n"
+            "    print(here.recv() if here.poll(60) else 'no answer')\n"
+            "    p.join(60); print(p.exitcode)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "PYTHONPATH": str(tmp_path)}, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split("\n")[:2] == ["(3, ('finished', 'box-3'))", str(128 + signal.SIGTERM)], res.stdout
