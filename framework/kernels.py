@@ -114,7 +114,8 @@ def kernel(fn=None, **options):
 
         if not _registry:
             typing_memo.install()           # a cold compile's typing, once per call signature (its docstring)
-            kernel_shortcuts.install(lambda d: any(d is k for k in _registry))   # a cheaper compile, same code
+            # a cheaper compile, same code; ours: a dispatcher with our cache (set below), not a registry scan
+            kernel_shortcuts.install(lambda d: isinstance(getattr(d, "_cache", None), kernel_cache.KernelCache))
 
         dispatcher = njit(**options)(f)
         dispatcher._cache = kernel_cache.KernelCache(f)   # what njit(cache=True) sets, ours
