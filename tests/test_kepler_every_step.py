@@ -150,16 +150,23 @@ def test_hyperbolic_angular_momentum_stays_within_the_rounding_of_the_state(e):
     floor = 2.2e-16 * np.linalg.norm(r, axis=1) * np.linalg.norm(v, axis=1) / float(h0)
     assert np.all(np.abs(h / h0 - 1).astype(float) <= 4 * floor + 1e-15)
     # the focal state in double-double, rounded once: over 64 times to 1e10 s, on the numpy path and the
-    # compiled loop, the error is mostly well under the state's own rounding (measured medians 0.05-0.13
-    # of it, the worst 3.2 at e = 1.5 early on; in doubles the focal scalars gave 2-5x at 1e8-1e10 s)
+    # compiled loop, the error stays under the rounding of the states it joins. The floor is the larger of
+    # the two: the epoch's own double state knows h only to ulp |r1| |v1| / h0 (12.9 ulp at e = 1.5, 54 at
+    # e = 5: r1 and v1 near parallel on the way in), which bounds what any propagation from it can keep
+    # near periapsis, where the state's own floor is ~1 ulp. Against the state's floor alone the worst
+    # early point was 3.2 on one CPU and 5.2 on another (libm's last bits move the epoch's state), and
+    # over 200 epochs a few ulps apart 5.2 (e = 1.5) and 17 (e = 5); against the larger floor: medians
+    # 0.08-0.18, the worst 0.82. In doubles the focal scalars gave 2-5x at 1e8-1e10 s, where the state's
+    # own floor is the larger one.
+    in_floor = np.linalg.norm(r1[0]) * np.linalg.norm(v1[0]) / float(h0)
     many = np.geomspace(3e4, 1e10, kepler.COMPILED_MIN)
     ep = kepler.Epoch(np.repeat(r1, many.size, 0), np.repeat(v1, many.size, 0), mu)
     r_np, v_np, chi = ep.at(many)
     for rr, vv in ((r_np, v_np), ep.at(many, chi)[:2]):
         hh = np.linalg.norm(np.cross(rr.astype(LD), vv.astype(LD)), axis=1)
-        fl = 2.2e-16 * np.linalg.norm(rr, axis=1) * np.linalg.norm(vv, axis=1) / float(h0)
+        fl = 2.2e-16 * np.maximum(np.linalg.norm(rr, axis=1) * np.linalg.norm(vv, axis=1) / float(h0), in_floor)
         ratio = np.abs(hh / h0 - 1).astype(float) / fl
-        assert np.median(ratio) < 0.5 and ratio.max() < 4.0
+        assert np.median(ratio) < 0.5 and ratio.max() < 2.0
     E0 = 0.5 * (v1[0] @ v1[0]) - mu / np.linalg.norm(r1[0])
     E = 0.5 * np.einsum("ij,ij->i", v.astype(LD), v.astype(LD)) - mu / np.linalg.norm(r.astype(LD), axis=1)
     assert float(np.max(np.abs(E / LD(E0) - 1))) < 1e-13
