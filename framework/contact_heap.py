@@ -35,7 +35,11 @@ def grow_i(a, n, fill):
 # every array a function call receives (an atomic operation, before and after the call), and with
 # four arrays those counts were two thirds of a dense gas's solve. Pair and version are whole
 # numbers held exactly in float64 (below 2^53). Order: by time, then by pair.
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+# _nrt=False (numba's runtime off): a kernel compiled with the runtime counts a reference to each array
+# argument on entry and drops it on every exit (an atomic operation and a call each, which numba's pruning
+# leaves wherever the body branches). These three allocate nothing, so they need no runtime and count
+# nothing; the solver calls them once or twice a wave (docs/bench/collision_stress.md, first steps).
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, _nrt=False)
 def sift_down(H, k, n):
     t, p, v, s = H[k, 0], H[k, 1], H[k, 2], H[k, 3]
     while True:
@@ -53,7 +57,7 @@ def sift_down(H, k, n):
     H[k, 0], H[k, 1], H[k, 2], H[k, 3] = t, p, v, s
 
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, _nrt=False)
 def heap_pop(H, n):
     """Remove the root of a heap of ``n + 1`` rows (already read): the last row to the root, sifted down."""
     if n > 0:
@@ -61,7 +65,7 @@ def heap_pop(H, n):
         sift_down(H, np.int64(0), n)     # np.int64: see contact_params._NOT_LITERAL
 
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, _nrt=False)
 def heap_push(H, n, t, p, v, s):
     """Add a row to a heap of ``n`` rows, which has room for it (the caller grows ``H`` before a loop
     of pushes: an array reassigned inside a loop is reference-counted on every pass)."""

@@ -8,7 +8,8 @@ from driftframe.framework.contact_params import APPROACH, F_CAP, F_JAM, F_TC, JA
 from driftframe.framework.kernels import kernel
 
 
-@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+# _nrt=False: it allocates nothing, so it counts no reference to its five arrays (see contact_heap.sift_down)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, _nrt=False)
 def kick(b, sg, lam, c, inv, bmark, wave, dv, moved, nm, wn):
     """Add body ``b``'s share ``sg * lam * inv[b]`` of contact ``c``'s impulse along its normal to ``dv``.
 

@@ -171,32 +171,11 @@ def listed_start(lst, pi, pj, x, u, r, live, dt):
 
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
-def listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
-    """The moved bodies whose new path leaves their territory (or their swept box) are swept: their new
-    pairs are added. Returns the pair structures, the count of swept bodies and the flags."""
+def listed_sweep(lst, ns, P, PI, PJ, head, nxt, ver, mark, n_swept, stats, flags):
+    """Sweep the ``ns`` bodies in ``tosweep`` (their new boxes in ``newlo``/``newhi``: the solver found that
+    their new paths leave their territory or box) and add their new pairs. Returns the pair structures,
+    the count of swept bodies and the flags."""
     swept, blo, bhi, centre, skin, reach, order, lo_x, width, budget, tosweep, newlo, newhi = lst
-    # first which (the loop that may replace the pair arrays runs only over those: see heap_push)
-    ns = 0
-    for a in range(nm):
-        b = moved[a]
-        if not swept[b]:
-            ox = x[b, 0] + u[b, 0] * dt - centre[0, b]
-            oy = x[b, 1] + u[b, 1] * dt - centre[1, b]
-            oz = x[b, 2] + u[b, 2] * dt - centre[2, b]
-            if ox * ox + oy * oy + oz * oz < skin[b] * skin[b]:
-                continue                                   # still inside its territory (a ball: convex)
-        inside = swept[b]
-        for d in range(3):
-            a0 = x[b, d] + u[b, d] * t
-            a1 = x[b, d] + u[b, d] * dt
-            newlo[ns, d] = min(a0, a1) - r[b]
-            newhi[ns, d] = max(a0, a1) + r[b]
-            if newlo[ns, d] < blo[b, d] or newhi[ns, d] > bhi[b, d]:
-                inside = False
-        if inside:
-            continue                                       # swept: still inside its box
-        tosweep[ns] = b
-        ns += 1
     for q in range(ns):
         b = tosweep[q]
         if not swept[b]:

@@ -17,7 +17,7 @@ from driftframe.framework.contact_again import (keep_listed, keep_nothing, keep_
 from driftframe.framework.contact_heap import grow_f, heap_pop, heap_push, sift_down
 from driftframe.framework.contact_islands import island_dense, island_sequential, islands, kick, restitution
 from driftframe.framework.contact_jam import stick_cluster
-from driftframe.framework.contact_pairs import initial_heap, listed_resweep, listed_start, pair_structures
+from driftframe.framework.contact_pairs import initial_heap, listed_start, listed_sweep, pair_structures
 from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F_LIMIT, F_STICK, N_STATS, S_BACK,
                                                  S_CONTACTS, S_OVERLAPS, S_PAIRS, S_POPPED, S_PUSHED, S_SEQUENTIAL,
                                                  S_SWEPT, S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
@@ -40,14 +40,15 @@ _OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True
 def wave_scratch(cap):
     """A wave's arrays for up to ``cap`` contacts: pair, i, j, island root, island members, normal,
     normal velocity, restitution, impulse, stuck; the entries put back (time, pair, version, slack);
-    right-hand side."""
+    right-hand side; the contacts in island order."""
     wstick = np.empty(cap, np.bool_)
     for k in range(cap):
         wstick[k] = False
     return (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.int64),
             np.empty(cap, np.int64), np.empty((cap, 3), np.float64), np.empty(cap, np.float64),
             np.empty(cap, np.float64), np.empty(cap, np.float64), wstick, np.empty(cap, np.float64),
-            np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.float64), np.empty(cap, np.float64))
+            np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty(cap, np.float64), np.empty(cap, np.float64),
+            np.empty(cap, np.int64))
 
 
 @kernel(**_OPTS)
@@ -55,8 +56,8 @@ def body_scratch(n):
     """A step's arrays per body: velocity changed; x and u as they came (for F_AGAIN); burst and count of
     contacts; the wave that last kicked it, joined it in an island, counted its contact, took it into a
     stuck cluster; union-find parents; the cluster's queue; the wave's moved bodies and their velocity
-    changes. Then a dense island's scratch (A, y, sub, act: :func:`island_dense`) and a lone contact's
-    order (``[0]``); the events' first rows (``E`` in :func:`_solve`)."""
+    changes. Then a dense island's scratch (A, y, sub, act: :func:`island_dense`); the events' first rows
+    (``E`` in :func:`_solve`)."""
     changed = np.empty(n, np.bool_)
     burst = np.empty(n, np.int64)
     count = np.empty(n, np.int64)
@@ -72,12 +73,10 @@ def body_scratch(n):
         bmark[k] = ustamp[k] = kstamp[k] = sseen[k] = -1
         parent[k] = k
         dv[k, 0] = dv[k, 1] = dv[k, 2] = 0.0
-    one = np.empty(1, np.int64)
-    one[0] = 0
     return (changed, np.empty((n, 3), np.float64), np.empty((n, 3), np.float64), burst, count, bmark, ustamp, kstamp,
             sseen, parent, np.empty(n, np.int64), np.empty(n, np.int64), dv,
             np.empty((DENSE_MAX, DENSE_MAX), np.float64), np.empty(DENSE_MAX, np.float64),
-            np.empty(DENSE_MAX, np.int64), np.empty(DENSE_MAX, np.bool_), one, np.empty((64, 13), np.float64))
+            np.empty(DENSE_MAX, np.int64), np.empty(DENSE_MAX, np.bool_), np.empty((64, 13), np.float64))
 
 
 @kernel(**_OPTS)
@@ -135,10 +134,11 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
     _shift(t_last, -now)
     n = x.shape[0]
     stats, spd = _step_arrays(u)
-    flags = 0
+    flags = np.int64(0)                  # see contact_params._NOT_LITERAL
     # the pair structures (adjacency, versions) are made only when needed: a quiet step makes none
     if _LISTED:
         n_swept, P0, PI0, PJ0, head0, nxt0, ver0, mark0 = listed_start(lst, pi, pj, x, u, r, live, dt)
+        swept, blo, bhi, centre, skin, _r, _o, _l, _w, _b, tosweep, newlo, newhi = lst
     else:
         n_swept, P0, PI0, PJ0 = np.int64(0), pi.shape[0], pi, pj
     stats[S_SWEPT] = n_swept
@@ -163,26 +163,75 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
         P, PI, PJ, head, nxt, ver, mark = pair_structures(pi, pj, n)
     # -- per body bookkeeping --
     (changed, x_in, u_in, burst, count, bmark, ustamp, kstamp, sseen, parent, squeue, moved, dv, A, y, sub, act,
-     one, E) = body_scratch(n)                             # E: the events, a row each (see _events)
+     E) = body_scratch(n)                             # E: the events, a row each (see _events)
     same = SLACK_MAX * dt
     ne = np.int64(0)                     # see contact_params._NOT_LITERAL
     waves = 0
     limit = 64 * (n + P) + 100_000
-    # The wave's scratch is made in an outer loop that the loop of waves leaves only to make it larger: one
-    # definition per array (an array a loop reassigns is copied at every join: compile time, see _REASSIGNED)
+    # The inner loop (one pass a wave) assigns no array: an array variable that a loop assigns is copied at
+    # each join of its control flow, with an atomic increment and decrement of its reference count (a
+    # call each: ~45 a wave, a fifth of a dense gas's solve, docs/bench/collision_stress.md; and compile
+    # time, see _REASSIGNED). What replaces an array (a larger heap, events or wave scratch, new pairs of a
+    # swept body) is done in the outer loop, which the inner one leaves for it; a wave's moved bodies are
+    # looked at again (pend, from time tw) at the top of the next pass, after the outer loop's work.
     wcap = np.int64(64)                  # see contact_params._NOT_LITERAL
+    pend = np.int64(0)
+    tw = 0.0
+    ns_sweep = np.int64(0)
     more = True
-    while more and hn > 0:
-        wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs = wave_scratch(wcap)
+    while more:
         more = False
-        while hn > 0:
+        if _LISTED:
+            if ns_sweep > 0:               # bodies whose new path leaves their cover: sweep them, add their pairs
+                P, PI, PJ, nxt, ver, mark, n_swept, flags = listed_sweep(lst, ns_sweep, P, PI, PJ, head, nxt, ver,
+                                                                         mark, n_swept, stats, flags)
+                ns_sweep = np.int64(0)
+        if hn + P > H.shape[0]:
+            H = grow_f(H, hn + P)
+        if ne + wcap > E.shape[0]:
+            E = grow_f(E, ne + wcap)
+        wp, wi, wj, wroot, cs, wn, wvn, we, wlam, wstick, back_t, back_p, back_v, back_s, rhs, ordk = wave_scratch(
+            wcap)
+        while True:
+            # -- look again at every pair of the last wave's moved bodies, from tw on (each pushed at most once) --
+            if pend > 0:
+                if hn + P > H.shape[0]:
+                    more = True
+                    break
+                for a in range(pend):
+                    b = moved[a]
+                    node = head[b]
+                    while node >= 0:
+                        p = node >> 1
+                        node = nxt[node]
+                        if mark[p] == waves:
+                            continue
+                        mark[p] = waves
+                        ver[p] += 1
+                        i, j = PI[p], PJ[p]
+                        if _STATIC and j >= ns:
+                            hn = shape_push(H, hn, p, ver[p], x, u, r, spd, live, lst, i, j - ns, tw, dt, stats)
+                            continue
+                        if not (live[i] and live[j]):
+                            continue
+                        tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
+                                      u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
+                                      r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], tw, dt)
+                        if tp >= 0.0:
+                            heap_push(H, hn, tp, p, ver[p], sl)
+                            hn += 1
+                            stats[S_PUSHED] += 1
+                pend = np.int64(0)
+            if hn == 0:
+                break
             need = (hn if hn < P else P) + 1               # at most one valid entry per pair and per heap entry
             if need > wcap:
                 wcap = need if need > 2 * wcap else 2 * wcap
                 more = True
                 break
-            if hn + P > H.shape[0]:
-                H = grow_f(H, hn + P)
+            if ne + wcap > E.shape[0]:                     # a wave has fewer than wcap contacts
+                more = True
+                break
             # -- pop the earliest valid entry --
             t0, p0, v0 = H[0, 0], np.int64(H[0, 1]), np.int64(H[0, 2])
             hn -= 1
@@ -254,9 +303,11 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 rhs[k] = -(1.0 + we[k]) * wvn[k]
                 wlam[k] = 0.0
             if K == 1:
-                ordk = one                                     # a lone contact (most waves): nothing to sort
+                ordk[0] = 0                                    # a lone contact (most waves): nothing to sort
             else:
-                ordk = sorting.argsort_stable(wroot, K)             # islands together, wave order inside
+                srt = sorting.argsort_stable(wroot, K)              # islands together, wave order inside
+                for k in range(K):
+                    ordk[k] = srt[k]
             nm = np.int64(0)                 # see contact_params._NOT_LITERAL
             s = 0
             while s < K:
@@ -304,8 +355,6 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                 flags |= F_AGAIN
                 break
             # -- bookkeeping of the bodies that took an impulse; events --
-            if ne + K > E.shape[0]:
-                E = grow_f(E, ne + K)
             for k in range(K):
                 if not (wlam[k] > 0.0):
                     continue
@@ -337,37 +386,32 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                     x[b, d] -= dv[b, d] * t
                 spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
                 changed[b] = True
-            # -- bodies whose new path leaves their cover: sweep them, add their new pairs --
+            pend, tw = nm, t
+            # -- bodies whose new path leaves their territory (or their swept box): swept in the outer loop --
             if _LISTED:                                    # (pruned from the all-pairs solvers: P is fixed there)
-                P, PI, PJ, nxt, ver, mark, n_swept, flags = listed_resweep(lst, moved, nm, x, u, r, t, dt, P, PI, PJ,
-                                                                           head, nxt, ver, mark, n_swept, stats,
-                                                                           flags)
-                if hn + P > H.shape[0]:
-                    H = grow_f(H, hn + P)
-            # -- re-examine every pair of the bodies that changed, from t on (each pushed at most once) --
-            for a in range(nm):
-                b = moved[a]
-                node = head[b]
-                while node >= 0:
-                    p = node >> 1
-                    node = nxt[node]
-                    if mark[p] == waves:
-                        continue
-                    mark[p] = waves
-                    ver[p] += 1
-                    i, j = PI[p], PJ[p]
-                    if _STATIC and j >= ns:
-                        hn = shape_push(H, hn, p, ver[p], x, u, r, spd, live, lst, i, j - ns, t, dt, stats)
-                        continue
-                    if not (live[i] and live[j]):
-                        continue
-                    tp, sl = toi(x[j, 0] - x[i, 0], x[j, 1] - x[i, 1], x[j, 2] - x[i, 2],
-                                  u[j, 0] - u[i, 0], u[j, 1] - u[i, 1], u[j, 2] - u[i, 2],
-                                  r[i] + r[j], inv[i] + inv[j], spd[i] + spd[j], t, dt)
-                    if tp >= 0.0:
-                        heap_push(H, hn, tp, p, ver[p], sl)
-                        hn += 1
-                        stats[S_PUSHED] += 1
+                for a in range(nm):
+                    b = moved[a]
+                    if not swept[b]:
+                        ox = x[b, 0] + u[b, 0] * dt - centre[0, b]
+                        oy = x[b, 1] + u[b, 1] * dt - centre[1, b]
+                        oz = x[b, 2] + u[b, 2] * dt - centre[2, b]
+                        if ox * ox + oy * oy + oz * oz < skin[b] * skin[b]:
+                            continue                       # still inside its territory (a ball: convex)
+                    inside = swept[b]
+                    for d in range(3):
+                        a0 = x[b, d] + u[b, d] * t
+                        a1 = x[b, d] + u[b, d] * dt
+                        newlo[ns_sweep, d] = min(a0, a1) - r[b]
+                        newhi[ns_sweep, d] = max(a0, a1) + r[b]
+                        if newlo[ns_sweep, d] < blo[b, d] or newhi[ns_sweep, d] > bhi[b, d]:
+                            inside = False
+                    if inside:
+                        continue                           # swept: still inside its box
+                    tosweep[ns_sweep] = b
+                    ns_sweep += 1
+                if ns_sweep > 0:
+                    more = True
+                    break
     stats[S_PAIRS] = P
     stats[S_CONTACTS] = ne
     stats[S_WAVES] = waves
