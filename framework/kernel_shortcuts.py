@@ -1,4 +1,4 @@
-"""A cold compile made cheaper in four ways that leave the code numba generates unchanged.
+"""A cold compile made cheaper in five ways that leave the code numba generates unchanged.
 
 A cold compile is mostly numba's own Python. A sampling profile of billiards' cold compile (numba 0.68.1;
 the shares are in docs/bench/compile.md, "Fourth pass") found:
@@ -31,6 +31,13 @@ here by a function that returns exactly what numba's returns:
   it highlights (``ColorShell``); the text it makes is the colour codes, the message, and a reset code,
   made here directly. The same text, including for the user's errors.
 
+In LLVM's part:
+
+- **One function pass manager a module** (``CPUCodeLibrary._optimize_functions``): numba built a new pass
+  builder and function pass manager (LLVM's analysis managers registered anew) for each function of each
+  module it adds; one pair serves the module's functions here. LLVM keeps analyses per function and drops
+  them as a pass changes the function, so each function is optimised as before.
+
 ``DRIFTFRAME_COMPILE_SHORTCUTS=0`` leaves numba as it is; so does a numba whose internals differ from those
 this was written for (each piece checks what it replaces first). tests/test_kernel_shortcuts.py compares
 the optimised LLVM IR of kernels compiled with and without.
@@ -48,7 +55,7 @@ def install(ours) -> list:
     if _installed or os.environ.get("DRIFTFRAME_COMPILE_SHORTCUTS", "1") == "0":
         return list(_installed)
     pieces = (("gc_paused", lambda: _gc_paused(ours)), ("liveness", _liveness), ("abi_size", _abi_size),
-              ("markup", _markup))
+              ("markup", _markup), ("one_function_pass_manager", _one_function_pass_manager))
     for name, piece in pieces:
         try:
             if piece():
@@ -177,4 +184,30 @@ def _markup() -> bool:
 
     _markup.__wrapped__ = original
     scheme._markup = _markup
+    return True
+
+
+def _one_function_pass_manager() -> bool:
+    import inspect
+
+    from numba.core import codegen, config
+    original = codegen.CPUCodeLibrary._optimize_functions
+    if (list(inspect.signature(original).parameters) != ["self", "ll_module"]
+            or not hasattr(codegen.CPUCodegen, "_function_pass_manager")):
+        return False
+
+    def _optimize_functions(self, ll_module):
+        """numba's, with one pass builder and function pass manager for the module's functions instead of a new
+        pair for each (LLVM's analyses are kept per function and dropped as each pass changes it)."""
+        if config.LLVM_PASS_TIMINGS:           # numba records each function's passes apart: its own way
+            return original(self, ll_module)
+        ll_module.data_layout = self._codegen._data_layout
+        fpm = pb = None
+        for func in ll_module.functions:
+            if fpm is None:
+                fpm, pb = self._codegen._function_pass_manager()
+            fpm.run(func, pb)
+
+    _optimize_functions.__wrapped__ = original
+    codegen.CPUCodeLibrary._optimize_functions = _optimize_functions
     return True
