@@ -24,7 +24,7 @@ import tempfile
 from numba.core.caching import (CompileResultCacheImpl, FunctionCache, IndexDataCacheFile, _CacheLocator)
 from numba.core.serialize import dumps
 
-from driftframe.framework import kernels
+from driftframe.framework import kernel_shortcuts, kernels
 
 _DIGEST = 32                      # bytes of SHA-256 in front of each file's payload
 # A kernel that calls one of numba's NumPy functions written in numba.np.arraymath (np.round: the Kepler
@@ -63,6 +63,13 @@ class _Impl(CompileResultCacheImpl):
         modname = os.path.splitext(os.path.basename(filename))[0]
         qualname = getattr(py_func, "__qualname__", py_func.__name__)
         self._filename_base = self.get_filename_base(f"{modname}.{qualname}", getattr(sys, "abiflags", ""))
+
+    def reduce(self, cres):
+        kernel_shortcuts.link_only_ok(cres.library)      # a callee's library may be saved without machine code
+        return super().reduce(cres)
+
+    def rebuild(self, target_context, payload):
+        return super().rebuild(target_context, (kernel_shortcuts.readable(payload[0]),) + tuple(payload[1:]))
 
 
 class _CheckedFile(IndexDataCacheFile):

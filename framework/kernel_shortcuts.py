@@ -1,4 +1,5 @@
-"""A cold compile made cheaper in five ways that leave the code numba generates unchanged.
+"""A cold compile made cheaper: five ways that leave the code numba generates unchanged, and one that makes a
+callee's machine code only when something asks for it.
 
 A cold compile is mostly numba's own Python. A sampling profile of billiards' cold compile (numba 0.68.1;
 the shares are in docs/bench/compile.md, "Fourth pass") found:
@@ -37,10 +38,28 @@ In LLVM's part:
   builder and function pass manager (LLVM's analysis managers registered anew) for each function of each
   module it adds; one pair serves the module's functions here. LLVM keeps analyses per function and drops
   them as a pass changes the function, so each function is optimised as before.
+- **Machine code on demand.** numba optimises each kernel's module, links into it the modules of the
+  kernels it calls, and then turns the whole into machine code at once, callees included: a kernel called
+  only by other kernels (no CPython or C wrapper: most of driftframe's) had machine code made that nothing
+  ever runs, since each caller carries its own copy of the callee (numba links a callee into every caller;
+  a caller loaded from the cache is one object, callees and all). Here, for the libraries of our compiles
+  (numba's ``numba:compile`` events, as for the collector), the engine gets at once only the functions'
+  environment globals (numba writes each environment's address there; a caller's copy reads the same
+  global), and the code is made when something asks for the address of a function the library defines, or
+  when it must be saved with its code (a cache other than driftframe's), or when a recursive call left a
+  reference numba's runtime linker must resolve. driftframe's cache (:mod:`.kernel_cache`) saves such a
+  library as the bitcode numba links into callers (:data:`LINK_ONLY`), which any later process reads, with or
+  without the shortcuts. The one change in generated code: numba's code generation runs LLVM's
+  code-generation passes (CodeGenPrepare, loop strength reduction, ...) on the module in place, so a callee
+  whose code was made reached its callers already so transformed, and one whose code was not made reaches
+  them as optimised, so the machine code of a caller of such callees (the solvers) differs, and the same
+  physics comes out of it bit for bit (the golden hashes); docs/bench/compile.md, "Fifth pass", has the
+  timings, the warm speed included.
 
 ``DRIFTFRAME_COMPILE_SHORTCUTS=0`` leaves numba as it is; so does a numba whose internals differ from those
 this was written for (each piece checks what it replaces first). tests/test_kernel_shortcuts.py compares
-the optimised LLVM IR of kernels compiled with and without.
+the optimised LLVM IR of kernels compiled with and without all but the last, and checks the last's code
+is made when asked for, runs as numba's, and loads from the cache either way.
 """
 from __future__ import annotations
 
@@ -55,7 +74,8 @@ def install(ours) -> list:
     if _installed or os.environ.get("DRIFTFRAME_COMPILE_SHORTCUTS", "1") == "0":
         return list(_installed)
     pieces = (("gc_paused", lambda: _gc_paused(ours)), ("liveness", _liveness), ("abi_size", _abi_size),
-              ("markup", _markup), ("one_function_pass_manager", _one_function_pass_manager))
+              ("markup", _markup), ("one_function_pass_manager", _one_function_pass_manager),
+              ("code_on_demand", lambda: _code_on_demand(ours)))
     for name, piece in pieces:
         try:
             if piece():
@@ -210,4 +230,172 @@ def _one_function_pass_manager() -> bool:
 
     _optimize_functions.__wrapped__ = original
     codegen.CPUCodeLibrary._optimize_functions = _optimize_functions
+    return True
+
+
+#: The kind (numba's ``serialize_using_object_code`` names ``'object'`` and ``'bitcode'``) a kernel's library is
+#: saved in when it has no machine code: the bitcode numba links into callers, as in ``'object'``, without the object.
+LINK_ONLY = "driftframe-link-only"
+
+
+def readable(libdata):
+    """``libdata`` (a cached library, ``(name, kind, data)``) as this process's numba can read it: a
+    :data:`LINK_ONLY` one as numba's ``'bitcode'`` (its code made at load) unless ``code_on_demand`` is installed."""
+    if libdata[1] == LINK_ONLY and "code_on_demand" not in _installed:
+        return (libdata[0], "bitcode", libdata[2])
+    return libdata
+
+
+def link_only_ok(library) -> None:
+    """Let ``library`` (a compile's, about to be cached by driftframe's cache, which reads :data:`LINK_ONLY`)
+    be saved without machine code when none was made."""
+    if getattr(library, "_code_pending", None) is not None:
+        library._link_only_ok = True
+
+
+def _code_on_demand(ours) -> bool:
+    import weakref
+
+    import llvmlite.binding as ll
+    from llvmlite import ir as llvmir
+    from numba.core import cgutils, codegen, config, event
+    from numba.core.compiler_lock import global_compiler_lock
+
+    base = codegen.JITCodeLibrary
+    linker = codegen.RuntimeLinker()
+    if (codegen.JITCPUCodegen._library_class is not base or not hasattr(linker, "_unresolved")
+            or not all(hasattr(base, name) for name in (
+                "_finalize_dynamic_globals", "_verify_declare_only_symbols", "_finalize_specific",
+                "_get_module_for_linking", "_unserialize", "_ensure_finalized"))
+            or not hasattr(codegen.CPUCodegen, "_scan_and_fix_unresolved_refs")):
+        return False
+    local = (ll.Linkage.private, ll.Linkage.internal)
+    pending = weakref.WeakSet()         # libraries whose code is not made yet
+    depth = [0]                         # compiles open inside an outermost one of ours
+
+    class Ours(event.Listener):
+        def on_start(self, ev):
+            if depth[0] or ours(ev.data["dispatcher"]):
+                depth[0] += 1
+
+        def on_end(self, ev):
+            if depth[0]:
+                depth[0] -= 1
+
+    def env_module(library, module):
+        """A module defining ``module``'s environment globals (common, null: numba's ``declare_env_global``),
+        parsed; None when ``module`` defines another global that is not local to it."""
+        names = []
+        for gv in module.global_variables:
+            if gv.is_declaration or gv.linkage in local:
+                continue
+            if gv.linkage != ll.Linkage.common or not gv.name.startswith("_ZN08NumbaEnv"):
+                return None
+            names.append(gv.name)
+        stub = library._codegen._create_empty_module(library.name + ".env")
+        for name in names:
+            gv = llvmir.GlobalVariable(stub, cgutils.voidptr_t, name=name)
+            gv.linkage = "common"
+            gv.initializer = cgutils.get_null_value(gv.type.pointee)
+        return ll.parse_assembly(str(stub))
+
+    class Library(base):
+        """numba's JIT library that makes its machine code when something asks for a symbol it defines."""
+
+        _code_pending = False           # optimised and linked; not in the execution engine yet
+        _bitcode = None                 # loaded LINK_ONLY: the module to make the code from, parsed when needed
+        _link_only_ok = False           # the kernel cache can save it without machine code
+
+        def _finalize_final_module(self):
+            eager = (not depth[0] or self._compiled_object_loaded() or self._codegen._rtlinker._unresolved
+                     or config.DUMP_OPTIMIZED or config.DUMP_ASSEMBLY)
+            env = None if eager else env_module(self, self._final_module)
+            if env is None:
+                return super()._finalize_final_module()
+            self._finalize_dynamic_globals()
+            self._verify_declare_only_symbols()
+            self._defer(env)
+
+        def _compiled_object_loaded(self):
+            return getattr(self, "_compiled_object", None) is not None     # numba's 'object' kind, from a cache
+
+        def _defer(self, env):
+            # the environment globals go into the engine now (get_executable writes the address of the
+            # function's environment into its own); the functions when asked for
+            self._codegen._add_module(env)
+            self._codegen._engine.finalize_object()
+            self._code_pending = True
+            pending.add(self)
+            self._finalized = True
+
+        def make_code(self):
+            """What numba's ``_finalize_final_module`` does after the checks: the module into the engine and its
+            machine code."""
+            with global_compiler_lock:
+                if not self._code_pending:
+                    return
+                self._code_pending = False
+                pending.discard(self)
+                if self._bitcode is not None:
+                    self._final_module, self._bitcode = ll.parse_bitcode(self._bitcode), None
+                self._final_module._CPUCodeLibrary__library = weakref.proxy(self)   # numba's object cache hooks
+                cleanup = self._codegen._add_module(self._final_module)
+                if cleanup:
+                    weakref.finalize(self, cleanup)
+                self._finalize_specific()
+
+        def _defines(self, name):
+            module = self._shared_module if self._bitcode is not None else self._final_module
+            try:
+                return not module.get_function(name).is_declaration
+            except NameError:
+                return False
+
+        def get_pointer_to_function(self, name):
+            self._ensure_finalized()
+            if self._code_pending and self._defines(name):
+                self.make_code()
+            return super().get_pointer_to_function(name)
+
+        def serialize_using_object_code(self):
+            self._ensure_finalized()
+            if self._code_pending:
+                if self._link_only_ok:
+                    return (self.name, LINK_ONLY, self._get_module_for_linking().as_bitcode())
+                self.make_code()
+            return super().serialize_using_object_code()
+
+        @classmethod
+        def _unserialize(cls, codegen_, state):
+            name, kind, data = state
+            if kind != LINK_ONLY:
+                return super()._unserialize(codegen_, state)
+            self = codegen_.create_library(name)
+            self._shared_module = ll.parse_bitcode(data)
+            self._disable_inspection = True
+            self._bitcode = data
+            env = env_module(self, self._shared_module)
+            if env is None:                                    # (not saved so)
+                self._final_module, self._bitcode = ll.parse_bitcode(data), None
+                self._finalize_final_module()
+            else:
+                self._defer(env)
+            return self
+
+    scan = codegen.CPUCodegen._scan_and_fix_unresolved_refs
+
+    def _scan_and_fix_unresolved_refs(self, module):
+        """numba's, but a recursive call's unresolved reference first has every library's code made (one of
+        them may define the function)."""
+        self._rtlinker.scan_unresolved_symbols(module, self._engine)
+        if self._rtlinker._unresolved:
+            for library in list(pending):
+                library.make_code()
+        self._rtlinker.scan_defined_symbols(module)
+        self._rtlinker.resolve(self._engine)
+
+    _scan_and_fix_unresolved_refs.__wrapped__ = scan
+    event.register("numba:compile", Ours())
+    codegen.CPUCodegen._scan_and_fix_unresolved_refs = _scan_and_fix_unresolved_refs
+    codegen.JITCPUCodegen._library_class = Library
     return True

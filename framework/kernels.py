@@ -41,6 +41,9 @@ KERNEL_MODULES = ("broadphase_list", "contact_again", "contact_bodies", "contact
 #: Modules that declare no kernel but whose names kernels read at compile time (numba freezes a global's
 #: value into the code): constants and the records kernels take.
 KERNEL_IMPORTS = ("contact_params",)
+#: What :mod:`.kernel_cache` writes, digested into the cache key with the sources: 2, a callee's library may be
+#: saved without machine code (``kernel_shortcuts.LINK_ONLY``), which a driftframe writing format 1 cannot read.
+CACHE_FORMAT = 2
 
 _HERE = Path(__file__).resolve().parent
 _registry: list = []                 # every kernel's dispatcher, in declaration order
@@ -61,11 +64,11 @@ def user_cache_root() -> Path:
 
 
 def source_digest() -> str:
-    """SHA-256 (hex, first 16 digits) of every kernel module's source, in :data:`KERNEL_MODULES` order, then
-    :data:`KERNEL_IMPORTS`."""
+    """SHA-256 (hex, first 16 digits) of :data:`CACHE_FORMAT` and every kernel module's source, in
+    :data:`KERNEL_MODULES` order, then :data:`KERNEL_IMPORTS`."""
     global _digest
     if _digest is None:
-        h = hashlib.sha256()
+        h = hashlib.sha256(f"cache format {CACHE_FORMAT}\n".encode())
         for name in KERNEL_MODULES + KERNEL_IMPORTS:
             data = (_HERE / f"{name}.py").read_bytes()
             h.update(f"{name}.py {len(data)}\n".encode())

@@ -9,11 +9,13 @@ import sys
 # instance's optimised LLVM IR (numba's serial numbers in names taken out), and whether the collector ran
 # during the compile and after it.
 _CHILD = r"""
-import gc, hashlib, re, sys
+import gc, hashlib, os, re, sys
 import numpy as np
 from numba.core import event
 from driftframe.framework.kernels import kernel
 from driftframe.framework import kernel_shortcuts
+if os.environ.get("EAGER_CODE") == "1":         # the pieces that leave numba's IR as it is (see below)
+    kernel_shortcuts._code_on_demand = lambda ours: False
 
 @kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def pick(a, k, flip):
@@ -62,7 +64,7 @@ print("gc during", any(gc_during), "after", gc.isenabled())
 
 def _child(on: str, tmp_path) -> list:
     # one hash seed for both: numba orders some reference-count increments by iterating sets of names
-    env = dict(os.environ, DRIFTFRAME_COMPILE_SHORTCUTS=on, PYTHONHASHSEED="0",
+    env = dict(os.environ, DRIFTFRAME_COMPILE_SHORTCUTS=on, PYTHONHASHSEED="0", EAGER_CODE="1",
                NUMBA_CACHE_DIR=str(tmp_path / f"cache{on}"))
     out = subprocess.run([sys.executable, "-c", _CHILD], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
@@ -70,14 +72,117 @@ def _child(on: str, tmp_path) -> list:
 
 
 def test_the_shortcuts_change_no_generated_code_and_can_be_turned_off(tmp_path):
+    # (machine code on demand is left out here: a callee's module then reaches its callers before LLVM's code
+    # generation passes have run on it, so their IR differs; its own test is below)
     on, off = _child("1", tmp_path), _child("0", tmp_path)
     assert "installed " in off and "gc during True after True" in off
     installed = next(ln for ln in on if ln.startswith("installed ")).split(" ", 1)[1].split(",")
-    assert {"gc_paused", "liveness", "abi_size"} <= set(installed)
+    assert {"gc_paused", "liveness", "abi_size"} <= set(installed) and "code_on_demand" not in installed
     assert "gc during False after True" in on                   # paused while compiling, resumed after
     kept = ("installed", "gc during")
     assert [ln for ln in on if not ln.startswith(kept)] == [ln for ln in off if not ln.startswith(kept)]
     assert sum(ln.startswith(("pick ", "outer ")) for ln in on) == 2     # both kernels compiled and compared
+
+
+# Callees with no wrapper (only other kernels call them), one that raises an exception numba builds at run time
+# from the function's environment, two that call each other (numba's runtime linker), their callers; phases
+# 2 and 3 load what phase 1 saved and compile one more caller of a saved callee.
+_DEMAND_CHILD = r"""
+import sys
+import numpy as np
+from driftframe.framework import kernel_shortcuts
+from driftframe.framework.kernels import kernel
+
+opts = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+@kernel(error_model="numpy", **opts)
+def pick(a, k):
+    return a[k] * 2.0
+
+@kernel(**opts)
+def checked(x):
+    if x < 0.0:
+        raise ValueError("negative", x)
+    return x
+
+@kernel(**opts)
+def even(n):
+    if n == 0:
+        return True
+    return odd(n - 1)
+
+@kernel(**opts)
+def odd(n):
+    if n == 0:
+        return False
+    return even(n - 1)
+
+@kernel
+def outer(a, n):
+    s = 0.0
+    for k in range(n):
+        s += pick(a, k)[1]
+    return s
+
+@kernel
+def guarded(x):
+    return checked(x) * 2.0
+
+@kernel
+def parity(n):
+    return even(n)
+
+def code(*kernels):         # each compiled or loaded instance: whether its machine code is made
+    return " ".join(f"{d.__name__}:{'pending' if getattr(c.library, '_code_pending', False) else 'made'}"
+                    for d in kernels for c in d.overloads.values())
+
+phase = sys.argv[1]
+a = np.arange(15.0).reshape(5, 3)
+print("outer", outer(a, 5), "guarded", guarded(1.5))
+try:
+    guarded(-1.5)
+except ValueError as e:
+    print("raised", e.args)
+print("code", code(pick, checked, outer, guarded))
+if phase == "1":                # (numba cannot load mutually recursive kernels from its cache, with or without)
+    print("parity", parity(7), parity(10))
+else:
+    if phase == "2":
+        @kernel
+        def late(a, n):
+            return pick(a, n)[2] + 0.5
+    else:
+        @kernel
+        def late(a, n):
+            return pick(a, n)[2] + 0.25
+    print("late", late(a, 3), code(pick))
+print("misses", sum(sum(d.stats.cache_misses.values()) for d in (outer, guarded)))
+print("installed", ",".join(kernel_shortcuts._installed))
+"""
+
+
+def test_machine_code_is_made_when_asked_for_and_a_cache_without_it_loads_with_and_without_the_shortcuts(tmp_path):
+    (tmp_path / "demand.py").write_text(_DEMAND_CHILD)
+
+    def run(phase, on, cache):
+        env = dict(os.environ, DRIFTFRAME_COMPILE_SHORTCUTS=on, NUMBA_CACHE_DIR=str(tmp_path / cache))
+        out = subprocess.run([sys.executable, "demand.py", phase], env=env, capture_output=True, text=True,
+                             timeout=300, cwd=tmp_path)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return out.stdout.split("\n")
+
+    ran = "outer 70.0 guarded 3.0", "raised ('negative', -1.5)"
+    first = run("1", "1", "c")
+    assert "code_on_demand" in first[-2]
+    # the callees' code is not made (their callers carry it), the callers' is; all run as numba's own
+    assert first[:5] == [*ran, "code pick:pending checked:pending outer:made guarded:made", "parity False True",
+                         "misses 2"]
+    assert run("1", "0", "off")[:5] == [*ran, "code pick:made checked:made outer:made guarded:made",
+                                        "parity False True", "misses 2"]
+    # loaded: a new caller of a callee saved without machine code links it (no code made for it either) ...
+    assert run("2", "1", "c")[:5] == [*ran, "code outer:made guarded:made", "late 22.5 pick:pending", "misses 0"]
+    # ... and without the shortcuts numba reads such a callee too (its code made as it loads)
+    assert run("3", "0", "c")[:5] == [*ran, "code outer:made guarded:made", "late 22.25 pick:made", "misses 0"]
 
 
 def _shortcuts(piece: str) -> bool:
