@@ -264,7 +264,7 @@ def _prepare(x, r, d, skin_steps, last_r, last_median):
 _KEY_SPAN = 2_000_000
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _grid_setup(c, reach, swept):
     """Cell side ``h``, the largest ordinary reach ``hh``, low corner and cells per axis.
 
@@ -521,7 +521,7 @@ def step_lengths(u, dt):
     return out
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _territories(r, d, skin_steps, r_median):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
@@ -556,7 +556,7 @@ def _territories(r, d, skin_steps, r_median):
     return skin, swept, reach
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _x_order(c, reach, swept):
     """The territories' low ends in x, sorted (a stable sort), their order, and twice the largest
     listed reach: what :meth:`NeighbourList.territories` and :func:`territory_query` search."""

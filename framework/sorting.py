@@ -3,7 +3,9 @@ spread evenly), the median.
 
 numba's own ``searchsorted``, ``argsort`` and ``median`` compile comparisons or partitions for every
 dtype, complex included; these compile a fraction of that (docs/bench/compile.md). Used by the
-neighbour list and the contact solver.
+neighbour list and the contact solver, which are kernels: none has a CPython wrapper, so none has
+machine code of its own made (each caller carries its copy; framework/kernel_shortcuts.py), and tests
+call them through a compiled caller.
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ def bisect(a, v, right):
     return lo
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def argsort_stable(a, m):
     """The order that sorts ``a[:m]`` ascending, ties in index order: what ``np.argsort(a[:m],
     kind="stable")`` gives (NaN last). Merge sort of insertion-sorted runs of 16; its compile costs a
@@ -81,7 +83,7 @@ def argsort_stable(a, m):
     return idx
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def argsort_spread(a, m):
     """The order :func:`argsort_stable` gives for ``a[:m]`` (floats), in O(m) when the values are spread
     about evenly (the neighbour list's territories along x, rebuilt every few steps): a counting sort
@@ -134,7 +136,7 @@ def argsort_spread(a, m):
     return idx
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def select_middle(w):
     """:func:`middle` in place: reorders ``w`` (a scratch copy the caller owns) instead of copying it."""
     n = w.shape[0]
@@ -166,7 +168,7 @@ def select_middle(w):
     return below, w[h]
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def middle(a):
     """The two middle order statistics of a non-empty 1-d float array without NaN: ``(lower, upper)``,
     the ``(n - 1) // 2``-th and the ``n // 2``-th smallest (the same value for an odd count), by Wirth's
@@ -176,7 +178,7 @@ def middle(a):
     return select_middle(a.copy())
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def median(a):
     """``np.median`` of a 1-d float array without NaN (the mean of the middle two for an even count; NaN
     when empty) by Wirth's selection (:func:`middle`), O(n): numba's median compiles a partition for every

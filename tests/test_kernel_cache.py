@@ -296,8 +296,8 @@ def first():
 
 
 def second():
-    from driftframe.framework import sorting
-    sorting.median(np.arange(5.0))
+    from driftframe.framework import broadphase_list
+    broadphase_list.step_lengths(np.ones((5, 3)), 0.1)
 
 
 def both():
@@ -314,9 +314,10 @@ def _parts_env(tmp_path, cache):
 def test_a_second_warm_up_part_compiles_in_a_helper_process_and_counts_in_the_progress(tmp_path):
     # on two cores the second part compiles in a helper process at the same time; this process then loads
     # its kernels, and the progress line counts them as one process would
-    code = ("import sys, parts_here; from driftframe import cli, warmup; from driftframe.framework import sorting; "
-            "warmup.PARTS = {parts}; rc = cli.main(['warm']); "
-            "print(rc, sum(sorting.median.stats.cache_misses.values()), sum(sorting.median.stats.cache_hits.values()))")
+    code = ("import sys, parts_here; from driftframe import cli, warmup; "
+            "from driftframe.framework import broadphase_list; "
+            "warmup.PARTS = {parts}; rc = cli.main(['warm']); k = broadphase_list.step_lengths; "
+            "print(rc, sum(k.stats.cache_misses.values()), sum(k.stats.cache_hits.values()))")
     two = _py(code.format(parts="(parts_here.first, parts_here.second)"), env=_parts_env(tmp_path, "two"))
     one = _py(code.format(parts="(parts_here.both,)"), env=_parts_env(tmp_path, "one"))
     assert two.returncode == 0 and one.returncode == 0, (two.stderr, one.stderr)
