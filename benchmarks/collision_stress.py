@@ -710,7 +710,7 @@ column "first / steps 2-5" tells set-up work from the scene's own: a gas at 45 %
 steps (648 contacts in the first, 1,200-1,300 in each of the next three, which cost more than the first: its
 excess over the median step is its contacts, at no more than the cost per contact of the steps after it, and
 no set-up work is left in it to remove; its bar, read as written, is not met; what a contact costs there:
-[dense_contacts.md](dense_contacts.md)).
+`docs/bench/dense_contacts.md`).
 
 {first_table}
 
