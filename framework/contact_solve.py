@@ -22,6 +22,7 @@ from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F
                                                  S_CONTACTS, S_OVERLAPS, S_PAIRS, S_POPPED, S_PUSHED, S_SEQUENTIAL,
                                                  S_SWEPT, S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
 from driftframe.framework.contact_toi import toi
+from driftframe.framework.contact_wave import apply_wave, leaving, record_wave
 from driftframe.framework.kernels import kernel
 from driftframe.framework.static_shapes import shape_contact, shape_push, shapes_start
 
@@ -354,61 +355,14 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
             if nm < 0:
                 flags |= F_AGAIN
                 break
-            # -- bookkeeping of the bodies that took an impulse; events --
-            for k in range(K):
-                if not (wlam[k] > 0.0):
-                    continue
-                i, j = wi[k], wj[k]
-                for b in (i, j):
-                    if kstamp[b] != waves and not (_STATIC and b >= ns):      # (a shape keeps no burst or count)
-                        kstamp[b] = waves                      # once per body per wave
-                        burst[b] = burst[b] + 1 if t - t_last[b] <= t_c else 1
-                        t_last[b] = t
-                        if (e[j] if e[j] < e[i] else e[i]) < 1.0:
-                            count[b] += 1                      # the cap is on inelastic contacts
-                E[ne, 0], E[ne, 1], E[ne, 2], E[ne, 3] = i, j, t, wlam[k]
-                for d in range(3):
-                    E[ne, 4 + d] = wn[k, d]
-                    E[ne, 7 + d] = x[i, d] + u[i, d] * t + r[i] * wn[k, d]
-                    E[ne, 10 + d] = x[j, d] + u[j, d] * t - r[j] * wn[k, d]
-                    if _STATIC and j >= ns:
-                        E[ne, 10 + d] = E[ne, 7 + d]           # a shape's point: where the sphere touches it
-                ne += 1
-            # -- apply: new velocity from t on; p(t) = x + u t stays where it was --
-            for a in range(nm):
-                b = moved[a]
-                if not changed[b]:                             # its x and u as they came (for F_AGAIN)
-                    for d in range(3):
-                        x_in[b, d] = x[b, d]
-                        u_in[b, d] = u[b, d]
-                for d in range(3):
-                    u[b, d] += dv[b, d]
-                    x[b, d] -= dv[b, d] * t
-                spd[b] = math.sqrt(u[b, 0] * u[b, 0] + u[b, 1] * u[b, 1] + u[b, 2] * u[b, 2])
-                changed[b] = True
+            # -- bookkeeping of the bodies that took an impulse; events; apply: new velocities from t on --
+            ne = record_wave(K, wi, wj, wlam, wn, x, u, r, e, t, t_c, waves, ns, kstamp, burst, t_last, count, E, ne)
+            apply_wave(nm, moved, dv, t, x, u, spd, changed, x_in, u_in)
             pend, tw = nm, t
             # -- bodies whose new path leaves their territory (or their swept box): swept in the outer loop --
             if _LISTED:                                    # (pruned from the all-pairs solvers: P is fixed there)
-                for a in range(nm):
-                    b = moved[a]
-                    if not swept[b]:
-                        ox = x[b, 0] + u[b, 0] * dt - centre[0, b]
-                        oy = x[b, 1] + u[b, 1] * dt - centre[1, b]
-                        oz = x[b, 2] + u[b, 2] * dt - centre[2, b]
-                        if ox * ox + oy * oy + oz * oz < skin[b] * skin[b]:
-                            continue                       # still inside its territory (a ball: convex)
-                    inside = swept[b]
-                    for d in range(3):
-                        a0 = x[b, d] + u[b, d] * t
-                        a1 = x[b, d] + u[b, d] * dt
-                        newlo[ns_sweep, d] = min(a0, a1) - r[b]
-                        newhi[ns_sweep, d] = max(a0, a1) + r[b]
-                        if newlo[ns_sweep, d] < blo[b, d] or newhi[ns_sweep, d] > bhi[b, d]:
-                            inside = False
-                    if inside:
-                        continue                           # swept: still inside its box
-                    tosweep[ns_sweep] = b
-                    ns_sweep += 1
+                ns_sweep = leaving(nm, moved, t, dt, x, u, r, swept, centre, skin, blo, bhi, newlo, newhi, tosweep,
+                                   ns_sweep)
                 if ns_sweep > 0:
                     more = True
                     break

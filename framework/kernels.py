@@ -35,9 +35,9 @@ from driftframe.framework import __version__
 #: The modules (in ``driftframe.framework``) that declare kernels. The cache key digests them and
 #: :data:`KERNEL_IMPORTS`: a test checks both lists are complete.
 KERNEL_MODULES = ("broadphase_list", "contact_again", "contact_bodies", "contact_heap", "contact_islands",
-                  "contact_jam", "contact_pairs", "contact_solve", "contact_toi", "encounters", "free_flight",
-                  "kepler_kernels", "kepler_small", "mercurius", "quiet_step", "sorting", "static_shapes",
-                  "wisdom_holman", "yuv")
+                  "contact_jam", "contact_pairs", "contact_solve", "contact_toi", "contact_wave", "encounters",
+                  "free_flight", "kepler_kernels", "kepler_small", "mercurius", "quiet_step", "sorting",
+                  "static_shapes", "wisdom_holman", "yuv")
 #: Modules that declare no kernel but whose names kernels read at compile time (numba freezes a global's
 #: value into the code): constants and the records kernels take.
 KERNEL_IMPORTS = ("contact_params",)
