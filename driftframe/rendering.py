@@ -14,7 +14,7 @@ from driftframe.framework.scene import seed_of
 from driftframe.systems import camera_rig
 from driftframe.systems.camera import CameraSystem
 from driftframe.systems.render import RenderSystem
-from driftframe.systems.skybox import SkyboxSystem, StarfieldSystem
+from driftframe.systems.skybox import FACE_TEXELS, SkyboxSystem, StarfieldSystem, fitted_face_texels
 
 
 SKIES = ("lines", "starfield")
@@ -35,6 +35,15 @@ def drawn_before(world) -> tuple[type, ...]:
     with ``after=drawn_before(world)``: the order is said, not left to the adding order, and the schedule
     warns about two drawers nothing orders (their pixels overlap)."""
     return tuple(dict.fromkeys(type(s) for s in world.systems["render"] if RenderTarget in access(s, "writes")))
+
+
+def _face_texels(target: RenderTarget) -> int:
+    """The starfield's face size: fitted to a fixed frame and the scene's widest lens (a window may grow:
+    the largest)."""
+    tans = [cam.tan_half_fov for _, cam in esper.get_component(Camera)]
+    if target.is_screen or not tans:
+        return FACE_TEXELS
+    return fitted_face_texels(target.size[1], max(tans))
 
 
 def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = None, skybox=True,
@@ -87,9 +96,9 @@ def attach(world, ctx=None, size=(1280, 720), *, target: RenderTarget | None = N
         render = world.add_system(RenderSystem(ctx, cache, target, **options))
         if sky == "lines":
             world.add_system(SkyboxSystem(ctx, cache, render))
-        elif sky == "starfield":
-            world.add_system(StarfieldSystem(ctx, render, seed=seed_of(world)))
         world.activate()
+        if sky == "starfield":
+            world.add_system(StarfieldSystem(ctx, render, seed=seed_of(world), size=_face_texels(target)))
         if any(True for _ in esper.get_component(Camera)):
             camera_rig.update_cameras(world, snap=True)
     return render

@@ -16,6 +16,7 @@ off, after the models: the sky appears only where nothing else was drawn.
 """
 from __future__ import annotations
 
+import math
 import zlib
 
 import esper
@@ -285,11 +286,34 @@ void main() {
 """
 
 
+#: The starfield's texels a face at most: a 1280x720 frame at 60 degrees magnifies it (about 1.2 pixels a
+#: texel), and a window, which may grow, always gets it.
+FACE_TEXELS = 512
+
+
+def fitted_face_texels(height: int, tan_half_fov: float) -> int:
+    """Texels a face for a frame ``height`` pixels high seen through a lens of ``tan(fov / 2)`` (the widest
+    the scene has): the largest power of two from 64 to :data:`FACE_TEXELS` that the lens still magnifies.
+
+    Mid-screen a face of ``size`` texels spans ``size / 2`` texels per unit of ``tan``, the frame
+    ``height / (2 tan(fov / 2))`` pixels: texels per pixel ``size tan(fov / 2) / height``, at most 1 here.
+    A magnified sky needs no mipmaps (:meth:`StarfieldSystem.process`), and each halving makes the cube map
+    a quarter of the work: a 320x180 preview at 60 degrees takes 256 texels, each star's 0.6-texel splat
+    then about 0.6 of a pixel, as at 1280x720 with 512."""
+    if not (height >= 1 and math.isfinite(tan_half_fov) and tan_half_fov > 0.0):
+        raise ValueError(f"fitted_face_texels: height {height!r} and tan(fov / 2) {tan_half_fov!r} must be positive")
+    size = FACE_TEXELS
+    while size > 64 and size * tan_half_fov > height:
+        size //= 2
+    return size
+
+
 class StarfieldSystem(esper.Processor):
     """Reads the render system's view rotation and projection; writes the starfield into its target.
 
     The cube map (:func:`starfield_faces` with :func:`texture_rng` of
-    ``seed``, ``size`` texels a face; or ``faces``, any (6, N, N, 3) uint8
+    ``seed``, ``size`` texels a face, :data:`FACE_TEXELS` by default (:func:`fitted_face_texels` gives a
+    fixed-size recording's); or ``faces``, any (6, N, N, 3) uint8
     array in OpenGL face order) is made and uploaded once, here. Each
     frame one full-screen triangle at depth 1 looks up the sky along
     ``(P V_rot)^-1 (x, y, 1, 1)``, the pixel's view direction, behind every
@@ -301,7 +325,7 @@ class StarfieldSystem(esper.Processor):
     reads = ()          # the render system's view (no components)
     writes = (RenderTarget,)
 
-    def __init__(self, ctx, render, *, seed: int = 0, size: int = 512, stars: int = 9000, faces=None):
+    def __init__(self, ctx, render, *, seed: int = 0, size: int = FACE_TEXELS, stars: int = 9000, faces=None):
         self.ctx = ctx
         self.render = render
         self.after = (type(render),)    # the scheduler runs it after the models it draws behind

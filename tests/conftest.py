@@ -78,7 +78,12 @@ def gl_context():
 
 @pytest.fixture
 def ctx(gl_context):
-    """The session's GL context, checked for GL errors before and after the test (as moderngl's own tests do)."""
+    """The session's GL context, made current (a test before may have made and released one of its own,
+    leaving that one or none current: GL_INVALID_OPERATION here, seen in test_gl after test_cli's in-process
+    recordings), checked for GL errors before and after the test (as moderngl's own tests do)."""
+    from driftframe.framework.gl import current
+
+    current(gl_context)
     error = gl_context.error
     assert error == "GL_NO_ERROR", f"GL error pending before the test: {error}"
     yield gl_context

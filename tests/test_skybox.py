@@ -340,6 +340,42 @@ def test_starfield_uses_mipmaps_only_where_the_view_shrinks_the_texture(ctx):
     assert filters[(160, 90)] == ((moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR), True)
 
 
+def test_a_recordings_starfield_is_as_fine_as_its_frame_and_widest_lens_need_and_a_window_gets_the_finest(ctx):
+    import math
+
+    import moderngl
+
+    from driftframe.framework.gl import RenderTarget
+
+    # the largest power of two (64..512) with size tan(fov / 2) <= height: magnified, no mipmaps
+    assert sb.fitted_face_texels(720, math.tan(math.radians(30))) == 512
+    assert sb.fitted_face_texels(180, math.tan(math.radians(30))) == 256      # 512 x 0.577 = 296 > 180
+    assert sb.fitted_face_texels(90, math.tan(math.radians(30))) == 128
+    assert sb.fitted_face_texels(10, 1.0) == 64
+    with pytest.raises(ValueError, match="height 0 and tan"):
+        sb.fitted_face_texels(0, 1.0)
+
+    def starfield(size, fovs, screen=False):
+        w = World()
+        try:
+            eye = w.create_entity(Transform())
+            for fov in fovs:
+                w.create_entity(Camera(target=eye, mode="cockpit", fov=fov))
+            target = RenderTarget.screen(ctx, size) if screen else None
+            render = attach(w, ctx, size, target=target, skybox="starfield")
+            stars = w.get_system(sb.StarfieldSystem)
+            if not screen:
+                shot(w, render)
+            return stars._texels, stars._tex.filter, stars.mipmapped
+        finally:
+            w.close()
+
+    assert starfield((320, 180), [60.0]) == (256, (moderngl.LINEAR, moderngl.LINEAR), False)
+    assert starfield((320, 180), [30.0, 90.0])[0] == 128          # the widest lens decides (tan 45 = 1)
+    assert starfield((1280, 720), [60.0])[0] == 512
+    assert starfield((320, 180), [60.0], screen=True)[0] == 512   # a window may grow
+
+
 @pytest.mark.parametrize("kind", ["lines", "starfield"])
 def test_a_sky_added_before_its_render_system_still_draws_behind_the_models(ctx, kind):
     from driftframe.framework.gl import RenderTarget
