@@ -84,13 +84,37 @@ def argsort_stable(a, m):
 
 
 @kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def order_keys(a, m):
+    """int64 keys that sort as the floats ``a[:m]`` do, ties included: ``-0.0`` is ``0.0``'s key, every NaN
+    the largest key (NaN last, in index order, as :func:`argsort_stable` puts them). IEEE 754 bits read as
+    an int64 order the non-negative floats; a negative one's bits with all but the sign flipped
+    (``b ^ 0x7fff_ffff_ffff_ffff``) order the negative ones below them. So :func:`argsort_spread` falls back
+    on the int64 instance of the merge sort, the one the contact solver compiles anyway, rather than
+    compiling a float64 one as well (~0.3 s of a cold compile, docs/bench/compile.md)."""
+    c = np.empty(m, np.float64)
+    for k in range(m):
+        c[k] = a[k] + 0.0                                   # -0.0 + 0.0 = +0.0: equal floats, one key
+    bits = c.view(np.int64)
+    keys = np.empty(m, np.int64)
+    for k in range(m):
+        if c[k] != c[k]:
+            keys[k] = 0x7FFF_FFFF_FFFF_FFFF
+        elif bits[k] < 0:
+            keys[k] = bits[k] ^ 0x7FFF_FFFF_FFFF_FFFF
+        else:
+            keys[k] = bits[k]
+    return keys
+
+
+@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def argsort_spread(a, m):
     """The order :func:`argsort_stable` gives for ``a[:m]`` (floats), in O(m) when the values are spread
     about evenly (the neighbour list's territories along x, rebuilt every few steps): a counting sort
     into ``m`` buckets of equal width from the least value to the largest, then an insertion sort, which
     moves each value only within its bucket (a strict comparison: ties stay in index order). Values
     bunched into a few buckets would make that O(m^2): past ``8 m + 64`` moves, or with a value that
-    is not finite, it returns :func:`argsort_stable`'s merge sort instead. The same order either way."""
+    is not finite, it returns :func:`argsort_stable`'s merge sort of :func:`order_keys` instead. The same
+    order either way."""
     idx = np.empty(m, np.int64)
     if m < 2:
         for k in range(m):
@@ -101,12 +125,12 @@ def argsort_spread(a, m):
     for k in range(m):
         v = a[k]
         if not abs(v) < np.inf:
-            return argsort_stable(a, m)
+            return argsort_stable(order_keys(a, m), m)
         lo = min(lo, v)
         hi = max(hi, v)
     scale = m / (hi - lo) if hi > lo else 0.0          # buckets per unit of value (0: all equal)
     if not scale < 1e18:
-        return argsort_stable(a, m)                   # a spread too small to divide (no int overflows)
+        return argsort_stable(order_keys(a, m), m)    # a spread too small to divide (no int overflows)
     # bucket b = floor((v - lo) m / (hi - lo)), monotone in v; the largest value into the last bucket
     end = np.zeros(m, np.int64)
     bucket = np.empty(m, np.int64)
@@ -132,7 +156,7 @@ def argsort_spread(a, m):
         moves += k - 1 - q
         idx[q + 1] = v
         if moves > budget:
-            return argsort_stable(a, m)
+            return argsort_stable(order_keys(a, m), m)
     return idx
 
 

@@ -221,3 +221,11 @@ def test_argsort_stable_argsort_spread_and_median_match_numpy():
               np.array([1.0, np.inf, 0.0, -np.inf]), np.array([3.0, np.nan, 1.0]), np.full(5, 2.0), np.ones(1)):
         for m in sorted({0, 1, len(a) // 2, len(a)}):
             assert np.array_equal(argsort_spread(a, m), np.argsort(a[:m], kind="stable"))
+    # the fallback's int64 keys order floats as the float comparisons do: signs, zeros, subnormals, NaNs
+    order_keys = through(sorting.order_keys)
+    tiny = np.nextafter(0.0, 1.0)
+    odd = np.array([-0.0, 0.0, tiny, -tiny, -1.0, -2.0, 1.0, 2.0, -np.inf, np.inf, np.nan, -np.nan, 0.0, -0.0,
+                    -1e308, 1e308, -1.5, 1.5, -2.0, np.nan])
+    for a in (odd, rng.permutation(odd), rng.normal(size=500) * 10.0 ** rng.integers(-300, 300, 500),
+              np.round(rng.normal(size=500), 1)):
+        assert np.array_equal(argsort_stable(order_keys(a, len(a)), len(a)), np.argsort(a, kind="stable"))
