@@ -6,8 +6,10 @@ so nothing one measurement loads is already loaded for the next:
 * *cold*: each demo with an empty kernel cache of its own (``NUMBA_CACHE_DIR``
   set to a new folder): import, build the world (:func:`driftframe.app.make_world`),
   ``world.prepare()``, then two steps. numba compiles a kernel at its first
-  call, so the first step carries the compile. One run each (a compile costs
-  the same CPU each time; it is the slow figure). Then ``driftframe warm``
+  call, so the first step carries the compile. Three runs each (``--cold-runs``),
+  in rounds (each round every demo once), each into a new empty folder; the
+  median and the range (one compile's CPU varies ~5 % from run to run on a
+  shared host). Then ``driftframe warm``
   into another empty folder: every kernel of every demo, as a user's first
   run after installing pays it once.
 * *warm*: the same timeline with that demo's cache filled by its cold run,
@@ -36,7 +38,7 @@ turn (a busy spell on the machine hits them all), and the tables show the
 medians; CPU is user + system time of the process (all its threads), which
 other work on the machine disturbs much less than the wall time.
 
-    python -m benchmarks.startup [--quick]
+    python -m benchmarks.startup [--quick] [--cold-runs N]
 """
 from __future__ import annotations
 
@@ -44,6 +46,7 @@ import json
 import os
 import resource
 import statistics
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -203,7 +206,13 @@ def ms(pair: tuple[float, float]) -> list[str]:
 
 
 def main(argv=None) -> None:
-    args = parser(__doc__.splitlines()[0]).parse_args(argv)
+    p = parser(__doc__.splitlines()[0])
+    p.add_argument("--cold-runs", type=int, default=3, metavar="N",
+                   help="cold runs of each demo, each with an empty cache (default 3; --quick: 1)")
+    args = p.parse_args(argv)
+    if args.cold_runs < 1:
+        p.error(f"--cold-runs must be at least 1, got {args.cold_runs}")
+    cold_runs = 1 if args.quick else args.cold_runs
     started = time.perf_counter()
     demos = QUICK_DEMOS if args.quick else DEMOS
     rounds = 1 if args.quick else 5
@@ -212,11 +221,16 @@ def main(argv=None) -> None:
         print(f"[{NAME}] pybullet is not installed (pip install -e '.[compare]'): its rows are skipped")
     load = [os.getloadavg()[0]]
     with tempfile.TemporaryDirectory(prefix="driftframe-startup-") as tmp:
-        cold, warm = {}, {d: [] for d in demos}
-        for d in demos:                       # one run each: an empty cache per demo, then it is that demo's warm one
-            cold[d] = child(DEMO_CHILD, d, cache=os.path.join(tmp, f"cache-{d}"))
-            c = span(cold[d], "start", "step1")
-            print(f"[{NAME}] {d:>9} cold: {c[0]:6.1f} s CPU to the first step ({c[1]:.1f} s wall)", flush=True)
+        cold, warm = {d: [] for d in demos}, {d: [] for d in demos}
+        for k in range(cold_runs):            # rounds of every demo, each run into an empty folder; the first
+            for d in demos:                   # round's folder is then that demo's warm one
+                folder = os.path.join(tmp, f"cache-{d}" if k == 0 else f"cold-{d}-{k}")
+                cold[d].append(child(DEMO_CHILD, d, cache=folder))
+                if k:
+                    shutil.rmtree(folder, ignore_errors=True)
+                c = span(cold[d][-1], "start", "step1")
+                print(f"[{NAME}] {d:>9} cold {k + 1} of {cold_runs}: {c[0]:6.1f} s CPU to the first step "
+                      f"({c[1]:.1f} s wall)", flush=True)
         warm_all = None
         if not args.quick:
             # every kernel at once, as `driftframe warm` after installing; then again, with them all cached
@@ -256,7 +270,8 @@ def main(argv=None) -> None:
     # -- tables ---------------------------------------------------------------------------------------------
     demo_rows, chart_cold, chart_warm = [], {}, {}
     for d in demos:
-        c_first = span(cold[d], "start", "step1")
+        c_first = med(cold[d], lambda m: span(m, "start", "step1"))
+        c_cpu = sorted(span(m, "start", "step1")[0] for m in cold[d])
         w = warm[d]
         imp = med(w, lambda m: span(m, "start", "import"))
         build = med(w, lambda m: span(m, "import", "build"))
@@ -269,7 +284,8 @@ def main(argv=None) -> None:
         compile_cpu = c_first[0] - to_first[0]
         chart_cold[d] = c_first
         chart_warm[d] = (to_first, kl)
-        demo_rows.append([d, f"{c_first[0]:.1f}", f"{c_first[1]:.1f}", f"{compile_cpu:.1f}",
+        demo_rows.append([d, f"{c_first[0]:.1f}", f"{c_cpu[0]:.1f}-{c_cpu[-1]:.1f}", f"{c_first[1]:.1f}",
+                          f"{compile_cpu:.1f}",
                           f"{(imp[0] + build[0]) * 1e3:.0f}", f"{prep[0] * 1e3:.1f}", f"{s1[0] * 1e3:.1f}",
                           f"{s2[0] * 1e3:.2f}", f"{s12[0] * 1e3:.1f}", f"{kl[0] * 1e3:.0f}", *ms(to_first)])
 
@@ -350,15 +366,17 @@ def main(argv=None) -> None:
     warm_first = [chart_warm[d][0][0] for d in demos]
     lines = [
         "Each figure is from a fresh Python process (see the script's docstring for what each row times). "
-        "*Cold*: one run per demo with an empty kernel cache of its own, so every demo pays the compile of "
+        f"*Cold*: {cold_runs} run{'s' if cold_runs > 1 else ''} per demo (in rounds), each with an empty kernel "
+        "cache of its own, so every demo pays the compile of "
         "all the kernels it calls, including those another demo compiled first; *warm*: the same demo's "
         f"cache filled, the median of {rounds} rounds, each round every measurement once. CPU is user + system "
         "time of the process, all its threads; wall counts from the parent starting the child. The 2 cores "
         f"were shared with other work (load average {load[0]:.1f} at the start, {load[1]:.1f} at the end), "
         "which stretches the wall times more than the CPU.",
         "",
-        "**Per demo.** *Cold, to the first step*: CPU and wall from the process's start to its first step "
-        "done, the compile included; *compile*: that CPU minus the warm one (the last columns). Warm: "
+        "**Per demo.** *Cold, to the first step*: CPU (the median of the cold runs, and their range) and wall "
+        "from the process's start to its first step "
+        "done, the compile included; *compile*: that median CPU minus the warm one (the last columns). Warm: "
         "*import + build* (`from driftframe.app import make_world`, `make_world(demo)`), `prepare()`, the "
         "first and second step after it and their difference, *kernel load*: `prepare()` + first step of "
         "this world minus the same of a second world of the demo built next in the same process (numba "
@@ -366,7 +384,7 @@ def main(argv=None) -> None:
         "system's gather and pair list), and the CPU and wall from the process's start to the first step "
         "done. All warm columns are CPU.",
         "",
-        table(["demo", "cold: to 1st step, CPU s", "wall s", "compile, CPU s", "warm: import + build, CPU ms",
+        table(["demo", "cold: to 1st step, CPU s", "range, s", "wall s", "compile, CPU s", "warm: import + build, CPU ms",
                "prepare, ms", "1st step, ms", "2nd step, ms", "1st - 2nd step, ms", "kernel load, ms",
                "to 1st step, CPU ms", "wall ms"], demo_rows),
         "",
