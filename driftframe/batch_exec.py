@@ -492,8 +492,12 @@ def connect(scheduler: str | None = None, *, scheduler_file=None, timeout: float
 
     def make():
         try:
-            made.append(Client(scheduler_file=scheduler_file, timeout=timeout) if scheduler_file is not None
-                        else Client(scheduler, timeout=timeout))
+            # not this process's default client: a task of an in-process worker (a LocalCluster of threads)
+            # that asks for a client gets the worker's own, not ours, which the batch closes at its end
+            # (the worker kept it, closed: "'NoneType' object has no attribute 'event_is_set'" in a later
+            # batch's runs, tests/test_batch.py)
+            made.append(Client(scheduler_file=scheduler_file, timeout=timeout, set_as_default=False)
+                        if scheduler_file is not None else Client(scheduler, timeout=timeout, set_as_default=False))
         except BaseException as e:  # noqa: BLE001 - handed to the caller's thread
             made.append(e)
     try:

@@ -150,6 +150,28 @@ def test_a_dask_cluster_gives_the_same_results_as_local_runs(tmp_path, cluster):
     assert _bytes(tmp_path / "dask") == _bytes(tmp_path / "local")
 
 
+def _flag_client_id():
+    """On a worker: which client a distributed Event made there talks through (the batch's stop flag's)."""
+    from distributed import Event
+    return id(Event("driftframe-test-flag").client)
+
+
+def test_the_batchs_own_client_is_not_the_processs_default(cluster):
+    # A task of an in-process worker that asks for a client (the batch's stop flag, a distributed Event) gets
+    # the process's default one when it talks to the same scheduler; a batch's client, closed at its end, must
+    # not be it: a worker kept such a client half-closed and a later batch's runs failed with
+    # "'NoneType' object has no attribute 'event_is_set'" (seen in the full suite)
+    from distributed import default_client
+
+    ours = batch_exec.connect(cluster.scheduler.address)
+    try:
+        assert default_client() is cluster and ours is not cluster
+        assert cluster.submit(_flag_client_id, pure=False).result() == id(cluster)    # (workers: threads here)
+    finally:
+        ours.close()
+    assert default_client() is cluster
+
+
 def test_the_cli_runs_a_batch_on_a_scheduler_address(tmp_path, cluster):
     spec = tmp_path / "s.toml"
     spec.write_text('scene = "batch_scenes:box"\nseeds = "0..2"\nseconds = 0.2\n')
