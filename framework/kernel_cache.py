@@ -13,6 +13,7 @@ not its whole compiler (:meth:`KernelCache.load_overload`).
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import inspect
 import itertools
@@ -128,6 +129,80 @@ class _CheckedFile(IndexDataCacheFile):
         except Exception:          # noqa: BLE001 - missing, damaged (the check failed) or a bad pickle
             return None
         return data if saved_key == key else None
+
+
+# -- numba's runtime helpers ---------------------------------------------------------------------------------
+# numba compiles its runtime's helpers (NRT: incref, decref, the meminfo accessors; nrtdynmod) with LLVM in
+# every process, before its first kernel runs: ~45 ms of CPU, a third of loading a scene's cached kernels
+# (docs/bench/startup.md). They are the same code on every run of one numba, llvmlite and CPU, so they are
+# cached here too, as numba caches a kernel: object code (which the JIT loads) and bitcode (which a kernel
+# compiled in the process links), in the kernel folder, checked as every other file.
+_NRT_NAME = "nrt-{key}.bin"
+
+
+def _nrt_path(ctx):
+    import llvmlite
+    import numba
+    magic = repr((numba.__version__, llvmlite.__version__, ctx.codegen().magic_tuple()))
+    return kernels.cache_dir() / _NRT_NAME.format(key=hashlib.sha256(magic.encode()).hexdigest()[:16])
+
+
+def nrt_functions(ctx, compile_fresh):
+    """numba's runtime library (``nrtdynmod.compile_nrt_functions(ctx)``): from the cache folder when a checked
+    copy for this numba, llvmlite and CPU is there, else compiled (``compile_fresh``: numba's steps, with
+    its object code kept) and saved for the next process. Anything wrong with the file: compiled anew."""
+    path = _nrt_path(ctx)
+    try:
+        state = _CheckedFile._checked(path.read_bytes())
+        if state is not None:
+            return ctx.codegen().unserialize_library(state)
+    except Exception:          # noqa: BLE001 - missing, damaged, another layout: compile it as numba does
+        pass
+    library = compile_fresh(ctx)
+    try:
+        payload = pickle.dumps(library.serialize_using_object_code(), protocol=pickle.HIGHEST_PROTOCOL)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{path.name}.tmp.")    # (warm clears "*.tmp.*")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(hashlib.sha256(payload).digest() + payload)
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
+    except OSError:            # a read-only folder: the kernels' own save says so once; this process goes on
+        pass
+    return library
+
+
+def install_nrt_cache() -> bool:
+    """Have numba take its runtime library from :func:`nrt_functions` (once per process; False where this
+    numba's runtime module is laid out otherwise, or ``DRIFTFRAME_COMPILE_SHORTCUTS=0``)."""
+    if os.environ.get("DRIFTFRAME_COMPILE_SHORTCUTS", "1") == "0":
+        return False
+    from numba.core.runtime import nrtdynmod
+    real = nrtdynmod.compile_nrt_functions
+    if getattr(real, "_driftframe", False):
+        return True
+    if not hasattr(nrtdynmod, "create_nrt_module"):
+        return False
+
+    def compile_fresh(ctx):
+        ir_mod, library = nrtdynmod.create_nrt_module(ctx)      # compile_nrt_functions' steps, and the object
+        library.enable_object_caching()                         # code kept to be saved
+        library.add_ir_module(ir_mod)
+        library.finalize()
+        library.get_pointer_to_function("nrt_unresolved_abort")   # the JIT makes the code now (kept above)
+        return library
+
+    def compile_nrt_functions(ctx):
+        return nrt_functions(ctx, compile_fresh)
+
+    compile_nrt_functions._driftframe = True
+    compile_nrt_functions.__doc__ = real.__doc__
+    nrtdynmod.compile_nrt_functions = compile_nrt_functions
+    return True
 
 
 class KernelCache(FunctionCache):

@@ -119,6 +119,7 @@ def kernel(fn=None, **options):
             typing_memo.install()           # a cold compile's typing, once per call signature (its docstring)
             # a cheaper compile, same code; ours: a dispatcher with our cache (set below), not a registry scan
             kernel_shortcuts.install(lambda d: isinstance(getattr(d, "_cache", None), kernel_cache.KernelCache))
+            kernel_cache.install_nrt_cache()    # numba's runtime helpers from the cache folder, not compiled anew
 
         dispatcher = njit(**options)(f)
         dispatcher._cache = kernel_cache.KernelCache(f)   # what njit(cache=True) sets, ours

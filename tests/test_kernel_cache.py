@@ -166,6 +166,40 @@ def test_a_damaged_cache_file_is_compiled_again_never_loaded(tmp_path, damage, n
     assert _nv12(env)[1] == 0                                        # and the repaired entry is used
 
 
+def test_numbas_runtime_helpers_load_from_the_cache_and_a_damaged_copy_is_made_again(tmp_path, nv12_cache):
+    # numba builds its runtime's helpers (NRT) with LLVM in each process; they are cached beside the kernels
+    # (kernel_cache.nrt_functions). Counted here: how often this process built them (create_nrt_module)
+    cached, total = nv12_cache
+    shutil.copytree(cached, tmp_path / "nc")
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "nc")
+    (nrt,) = _cache_files(tmp_path / "nc", "nrt-*.bin")
+    count = ("from numba.core.runtime import nrtdynmod; made = []; real = nrtdynmod.create_nrt_module; "
+             "nrtdynmod.create_nrt_module = lambda ctx: made.append(1) or real(ctx); ")
+    compile_one = ("; from driftframe.framework.kepler import _stumpff1 as f; "
+                   "print(repr(f(np.float64(0.5))[0]), sum(f.stats.cache_misses.values()))")
+
+    def run(extra=""):
+        res = _py(count + NV12 + extra + "; print(len(made))", env=env)
+        assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr
+        return res.stdout.split()
+
+    assert run() == [str(total), "0", "0"]                   # the kernel and the runtime, both from the cache
+    # a kernel compiled in a process whose runtime came from the cache links it as a built one
+    loaded = run(compile_one)
+    assert loaded[:2] == [str(total), "0"] and loaded[3:] == ["1", "0"]
+    shutil.rmtree(tmp_path / "nc")
+    built = subprocess.run([PY, "-c", count + "import numpy as np" + compile_one + "; print(len(made))"],
+                           capture_output=True, text=True, env=_env(NUMBA_CACHE_DIR=tmp_path / "fresh"),
+                           cwd=tempfile.gettempdir(), timeout=300).stdout.split()
+    assert built == [loaded[2], "1", "1"]                     # the same result with a runtime built here
+    shutil.copytree(cached, tmp_path / "nc")
+    blob = nrt.read_bytes()
+    i = len(blob) // 2
+    nrt.write_bytes(blob[:i] + bytes([blob[i] ^ 0x40]) + blob[i + 1:])
+    assert run() == [str(total), "0", "1"]                   # a damaged copy: built as numba does, saved
+    assert run() == [str(total), "0", "0"]                   # and the new copy is the one used
+
+
 def test_an_entry_saved_under_another_key_is_not_loaded(tmp_path):
     # two processes numbering their entries alike (numba issue 4807): the index names a data file that
     # holds another signature's code. The entry keeps its own key, which must match.
