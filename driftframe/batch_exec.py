@@ -20,6 +20,7 @@ Part of :mod:`driftframe.batch` (see its docstring; :func:`driftframe.batch.run_
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 import signal
 import sys
@@ -499,13 +500,27 @@ def connect(scheduler: str | None = None, *, scheduler_file=None, timeout: float
             made.append(Client(scheduler_file=scheduler_file, timeout=timeout, set_as_default=False)
                         if scheduler_file is not None else Client(scheduler, timeout=timeout, set_as_default=False))
         except BaseException as e:  # noqa: BLE001 - handed to the caller's thread
+            e.__traceback__ = None              # (its frames held the half-made client: collected below)
             made.append(e)
     try:
         # Client's timeout does not bound its handshake: a server that accepts and then says nothing Dask
-        # understands (an HTTP server) held it for ever; here it is a thread, waited for a bounded time
-        helper = threading.Thread(target=make, name="driftframe-dask-connect", daemon=True)
-        helper.start()
-        helper.join(timeout + min(timeout, 5.0))
+        # understands (an HTTP server) held it for ever; here it is a thread, waited for a bounded time.
+        # The collector is paused while the client starts (at most the wait below): a Client left half-made
+        # by an earlier failed connection closes itself when collected (Client.__del__), which waits for
+        # distributed's loop lock; collected inside the loop thread whose start holds that lock, it never
+        # got it: a deadlock that hung every later client of the process (a test module's Dask cluster at
+        # its teardown). A failed client is collected below instead, at once, with no lock held.
+        paused = gc.isenabled()
+        gc.disable()
+        try:
+            helper = threading.Thread(target=make, name="driftframe-dask-connect", daemon=True)
+            helper.start()
+            helper.join(timeout + min(timeout, 5.0))
+        finally:
+            if paused:
+                gc.enable()
+        if made and isinstance(made[0], BaseException):
+            gc.collect()
         if not made:
             raise SpecError(f"{what} accepted a connection but did not answer as a Dask scheduler within "
                             f"{timeout + min(timeout, 5.0):.0f} s; is it one?")

@@ -431,6 +431,27 @@ def test_an_unreachable_scheduler_is_refused_before_any_run(tmp_path, monkeypatc
     assert "-j and --scheduler exclude each other" in capsys.readouterr().err
 
 
+def test_a_failed_connection_leaves_no_half_made_client_for_the_collector():
+    # A Client whose start failed closes itself when the collector finds it (Client.__del__), waiting for
+    # distributed's loop lock: collected inside another client's loop-thread start, which holds that lock,
+    # it hung the process (a test module's cluster at its teardown). connect() collects it at once.
+    import gc
+    import socket
+
+    distributed = need_distributed()
+    with socket.socket() as s:                       # a loopback port that nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+
+    def clients():
+        return {id(o) for o in gc.get_objects() if isinstance(o, distributed.Client)}
+
+    before = clients()
+    with pytest.raises(SpecError, match="cannot be reached"):
+        batch_exec.connect(f"tcp://127.0.0.1:{port}", timeout=1.0)
+    assert clients() <= before and gc.isenabled()
+
+
 def test_bad_specs_in_the_api_name_the_value():
     with pytest.raises(SpecError, match="give exactly one of demo or scene"):
         Spec().check()
