@@ -161,6 +161,9 @@ def nrt_functions(ctx, compile_fresh):
     library = compile_fresh(ctx)
     try:
         payload = pickle.dumps(library.serialize_using_object_code(), protocol=pickle.HIGHEST_PROTOCOL)
+    except Exception:          # noqa: BLE001 - no object code kept (another numba's JIT): used, not saved
+        return library
+    try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{path.name}.tmp.")    # (warm clears "*.tmp.*")
         try:
