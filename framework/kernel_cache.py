@@ -13,7 +13,6 @@ not its whole compiler (:meth:`KernelCache.load_overload`).
 """
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import inspect
 import itertools
@@ -26,6 +25,7 @@ from numba.core.caching import (CompileResultCacheImpl, FunctionCache, IndexData
 from numba.core.serialize import dumps
 
 from driftframe.framework import kernel_shortcuts, kernels
+from driftframe.framework.output import write_file
 
 _DIGEST = 32                      # bytes of SHA-256 in front of each file's payload
 # A kernel that calls one of numba's NumPy functions written in numba.np.arraymath (np.round: the Kepler
@@ -163,17 +163,9 @@ def nrt_functions(ctx, compile_fresh):
         payload = pickle.dumps(library.serialize_using_object_code(), protocol=pickle.HIGHEST_PROTOCOL)
     except Exception:          # noqa: BLE001 - no object code kept (another numba's JIT): used, not saved
         return library
-    try:
+    try:                       # a whole file or none (framework.output), as every output
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{path.name}.tmp.")    # (warm clears "*.tmp.*")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                f.write(hashlib.sha256(payload).digest() + payload)
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise
+        write_file(path, hashlib.sha256(payload).digest() + payload, overwrite=True, what="kernel cache file")
     except OSError:            # a read-only folder: the kernels' own save says so once; this process goes on
         pass
     return library
