@@ -222,13 +222,16 @@ def broadphase_times(sizes, repeats: int) -> dict:
 
 
 def list_build_times(sizes, repeats: int) -> dict:
-    """Seconds for one NeighbourList build per method (territories: radius + 8 steps of travel)."""
-    out = {m: {} for m in ("grid", "sweep", "kdtree")}
+    """Seconds for one NeighbourList build per method (territories: radius + 8 steps of travel); every pair
+    tested ("all") up to 2,000 spheres."""
+    out = {m: {} for m in ("all", "grid", "sweep", "kdtree")}
     for n in sizes:
         f = field(n, seed=1)
         c = np.ascontiguousarray(f["position"].T)
         disp = np.linalg.norm(f["velocity"], axis=1) * DT
         for m in out:
+            if m == "all" and n > 2_000:
+                continue
             nl = bp.NeighbourList(8.0, m)
             out[m][n] = common.median_time(lambda: nl.build(c, f["radius"], disp), repeats=repeats, number=3)
     return out
@@ -290,7 +293,7 @@ def main(argv=None) -> int:
 
     bp_sizes = [16, 48, 128, 500, 2_000] if quick else [16, 48, 128, 500, 2_000, 10_000]
     bpt = broadphase_times(bp_sizes, 3 if quick else 7)
-    lbt = list_build_times(bp_sizes[2:], 3 if quick else 7)
+    lbt = list_build_times([48, 64, 96] + bp_sizes[2:], 3 if quick else 7)
     xs = [8, 24, 48, 96] if quick else [8, 16, 24, 32, 40, 48, 64, 96]
     cross = crossover(xs, 40 if quick else 600)
 
@@ -406,14 +409,16 @@ def main(argv=None) -> int:
              + ") and above that keeps a neighbour list, reused for several steps (each body's skin is 8 "
                "steps of its own travel, up to 4 times that where a cost model of builds against pairs says "
                "so: small sparse scenes), so the broad phase is paid for only every few steps (the list "
-               "builds column). The list is built with the grid: its territories are wider than one step's "
-               "sweep, which favours the grid earlier (table below). scipy's k-d tree is measured, not used: "
+               "builds column). The list is built by testing every pair up to "
+             + f"`LIST_ALL_MAX` = {bp.LIST_ALL_MAX} spheres and with the grid above (table below: its "
+               "territories are wider than one step's sweep, which favours the grid earlier). scipy's k-d tree is measured, not used: "
                "scipy stays a benchmark-only dependency.")
     L.append("")
     L.append("Neighbour-list build, median ms:")
     L.append("")
     L.append(common.table(["spheres"] + list(lbt),
-                          [[f"{n:,}"] + [f"{lbt[m][n] * 1e3:.3g}" for m in lbt] for n in sorted(lbt["grid"])]))
+                          [[f"{n:,}"] + [f"{lbt[m][n] * 1e3:.3g}" if n in lbt[m] else "" for m in lbt]
+                           for n in sorted(lbt["grid"])]))
     L.append("")
     L.append("Collision stage alone in small scenes, median us per step:")
     L.append("")

@@ -34,10 +34,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from driftframe.framework.broadphase_list import NeighbourList, mark_strays, step_lengths, territory_query
+from driftframe.framework.broadphase_list import LIST_ALL_MAX, NeighbourList, mark_strays, step_lengths, territory_query
 
-__all__ = ["ALL_PAIRS_MAX", "METHODS", "box_pairs", "sphere_pairs", "boxes_against_all", "NeighbourList",
-           "mark_strays", "step_lengths", "territory_query"]
+__all__ = ["ALL_PAIRS_MAX", "LIST_ALL_MAX", "METHODS", "box_pairs", "sphere_pairs", "boxes_against_all",
+           "NeighbourList", "mark_strays", "step_lengths", "territory_query"]
 
 #: Up to this many boxes "auto" tests every pair (measured crossover; see benchmarks/collision_scaling.py).
 ALL_PAIRS_MAX = 32

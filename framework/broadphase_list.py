@@ -11,13 +11,16 @@ import math
 import numpy as np
 
 from driftframe.framework import sorting
-from driftframe.framework.kernels import kernel
+from driftframe.framework.kernels import kernel, variant
 
 #: The cost model that sets a neighbour list's skin (see :class:`NeighbourList`), in seconds: a
 #: build (fixed, per body) and one listed pair for one step (how they were measured: docs/design/broadphase.md).
 BUILD_COST = (25e-6, 0.1e-6)
 PAIR_COST = 0.015e-6
 MAX_SKIN_SCALE = 4.0
+#: Up to this many bodies an ``"auto"`` build tests every pair (:func:`_all_pairs`) instead of using the grid: the
+#: crossover of the two builds (``benchmarks/collision_scaling.py``, its list build table).
+LIST_ALL_MAX = 80
 
 
 class NeighbourList:
@@ -47,6 +50,15 @@ class NeighbourList:
     cost more than twice as much, it goes back to ``skin_steps``. The model
     reads counts only, never timings: the same scene builds the same lists
     on any machine (its constants and what it gained: docs/design/broadphase.md).
+
+    ``method``, how a build finds the pairs: ``"all"`` tests every pair of
+    territories (compiled: :func:`_all_pairs`); ``"grid"`` files them in a
+    grid of cells (compiled: :func:`_grid_pairs`; with up to
+    ``ALL_PAIRS_MAX`` bodies not swept, numpy's every pair); ``"auto"`` is
+    ``"all"`` up to :data:`LIST_ALL_MAX` bodies and ``"grid"`` above;
+    ``"sweep"`` and ``"kdtree"``: :func:`~.broadphase.sphere_pairs`. The
+    pairs are the same whichever finds them; a scene of up to
+    ``LIST_ALL_MAX`` bodies compiles neither the grid nor the spread sort.
     """
 
     def __init__(self, skin_steps: float = 8.0, method: str = "auto"):
@@ -78,13 +90,19 @@ class NeighbourList:
         r = np.ascontiguousarray(radii, np.float64)
         d = np.ascontiguousarray(step_disp, np.float64)
         n = len(r)
+        # up to LIST_ALL_MAX bodies every pair is tested (faster than the grid there, and a scene that small
+        # compiles neither the grid nor the spread sort: docs/bench/compile.md)
+        small = self.method == "all" or (self.method == "auto" and n <= LIST_ALL_MAX)
         # one compiled pass: the centres' (3, n) copy, the radii's, the territories (medians and all), the
         # grid's cells and the x order of the territories (one call: each kernel called in a rebuild found
         # its data cold, between steps)
         (c, r, self._r_median, skin, swept, reach, n_slow, grid, self._order, self._lo_x,
-         self._width) = _prepare(x, r, d, self.skin_steps * self.scale, self.radius, self._r_median)
+         self._width) = (_prepare_small if small else _prepare)(x, r, d, self.skin_steps * self.scale, self.radius,
+                                                                self._r_median)
         got = None
-        if self.method in ("auto", "grid") and n_slow > ALL_PAIRS_MAX:
+        if small:
+            got = _collect(lambda oi, oj: _all_pairs(c, reach, swept, oi, oj), n_slow) + (self._scratch,)
+        elif self.method in ("auto", "grid") and n_slow > ALL_PAIRS_MAX:
             # one compiled pass: counting sort into a dense grid, then the exact sphere test over the
             # half stencil (the same pairs as sphere_pairs; their order does not matter to the solver)
             got = _grid_build(c, reach, swept, n_slow, grid, self._scratch)
@@ -219,23 +237,30 @@ def _grid_build(c, reach, swept, n_slow, grid, scratch):
         wi = np.empty(need + n // 4, np.int64)
     if wf.shape[0] < 4 * n_slow:
         wf = np.empty(4 * n_slow + n, np.float64)
+    return _collect(lambda oi, oj: _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, 64 - bits,
+                                               oi, oj, wi, wf), n_slow) + ((wi, wf),)
+
+
+def _collect(pairs, n_slow):
+    """The pairs ``pairs(oi, oj)`` finds (a compiled pass that writes the first ``len(oi)`` into ``oi``, ``oj`` and
+    returns how many there are): ``(i, j)``, with room for ``8 n_slow + 64``, then for all of them if more."""
     cap = 8 * n_slow + 64
     while True:
         oi = np.empty(cap, np.int64)
         oj = np.empty(cap, np.int64)
-        p = _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, 64 - bits, oi, oj, wi, wf)
+        p = pairs(oi, oj)
         if p <= cap:
-            return oi[:p], oj[:p], (wi, wf)
+            return oi[:p], oj[:p]
         cap = p
 
 
-@kernel(no_cfunc_wrapper=True)
-def _prepare(x, r, d, skin_steps, last_r, last_median):
+def _build_start(x, r, d, skin_steps, last_r, last_median):
     """What :meth:`NeighbourList.build` needs before the pairs, in one call: the centres ``x`` (n, 3) as a
     (3, n) copy, a copy of the radii ``r`` and their median, the territories (:func:`_territories`: skin,
-    swept, reach), the bodies not swept, the grid's cells (:func:`_grid_setup`) and the x order
-    (:func:`_x_order`). The radii's median is ``last_median`` when they are ``last_r``'s bit for bit (the
-    last build's: radii seldom change, and the selection cost a tenth of a rebuild)."""
+    swept, reach), the bodies not swept, the grid's cells (:func:`_grid_setup`; zeros in ``_prepare_small``,
+    whose pairs are found by testing every pair) and the x order. The radii's median is
+    ``last_median`` when they are ``last_r``'s bit for bit (the last build's: radii seldom change, and the
+    selection cost a tenth of a rebuild). Compiled twice: ``_prepare`` and ``_prepare_small`` (``_GRID``)."""
     n = x.shape[0]
     c = np.empty((3, n))
     for k in range(n):
@@ -255,9 +280,28 @@ def _prepare(x, r, d, skin_steps, last_r, last_median):
     for k in range(n):
         if not swept[k]:
             m += 1
-    grid = _grid_setup(c, reach, swept)
-    order, lo_x, width = _x_order(c, reach, swept)
-    return c, rc, r_median, skin, swept, reach, m, grid, order, lo_x, width
+    if _GRID:
+        grid = _grid_setup(c, reach, swept)
+    else:
+        grid = (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0)
+    # the x order: the territories' low ends in x, sorted (a stable sort), their order, and twice the largest
+    # listed reach (what NeighbourList.territories and territory_query search); in O(n) by the spread sort
+    # when the bodies fill a region, by the merge sort the solver compiles anyway in a small scene
+    lo_x = np.empty(n)
+    for k in range(n):
+        lo_x[k] = c[0, k] - reach[k]
+    if _GRID:
+        order = sorting.argsort_spread(lo_x, n)
+    else:
+        order = sorting.argsort_stable(sorting.order_keys(lo_x, n), n)
+    width = 0.0
+    for k in range(n):
+        if not swept[k]:
+            width = max(width, 2.0 * reach[k])
+    lo_sorted = np.empty(n)
+    for k in range(n):
+        lo_sorted[k] = lo_x[order[k]]
+    return c, rc, r_median, skin, swept, reach, m, grid, order, lo_sorted, width
 
 
 #: Cells per axis at most (with the ghost layers), so that a cell key (x * ny + y) * nz + z fits in int64.
@@ -556,20 +600,36 @@ def _territories(r, d, skin_steps, r_median):
     return skin, swept, reach
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
-def _x_order(c, reach, swept):
-    """The territories' low ends in x, sorted (a stable sort), their order, and twice the largest
-    listed reach: what :meth:`NeighbourList.territories` and :func:`territory_query` search."""
+@kernel(no_cfunc_wrapper=True)
+def _all_pairs(c, reach, swept, oi, oj):
+    """Pairs ``i < j`` of not-swept territories that overlap, ``|c_i - c_j| <= reach_i + reach_j`` (the test of
+    :func:`_grid_pairs` and ``sphere_pairs``), every pair tested, in ``(i, j)`` order: the first ``len(oi)``
+    written to ``oi``, ``oj``; returns how many there are. ``c``: (3, n)."""
     n = reach.shape[0]
-    lo_x = np.empty(n)
-    for k in range(n):
-        lo_x[k] = c[0, k] - reach[k]
-    order = sorting.argsort_spread(lo_x, lo_x.shape[0])    # (in O(n): the bodies fill a region)
-    width = 0.0
-    for k in range(reach.shape[0]):
-        if not swept[k]:
-            width = max(width, 2.0 * reach[k])
-    lo_sorted = np.empty(n)
-    for k in range(n):
-        lo_sorted[k] = lo_x[order[k]]
-    return order, lo_sorted, width
+    cap = oi.shape[0]
+    p = 0
+    for a in range(n):
+        if swept[a]:
+            continue
+        ax = c[0, a]
+        ay = c[1, a]
+        az = c[2, a]
+        ar = reach[a]
+        for b in range(a + 1, n):
+            if swept[b]:
+                continue
+            dx = c[0, b] - ax
+            dy = c[1, b] - ay
+            dz = c[2, b] - az
+            R = ar + reach[b]
+            if dx * dx + dy * dy + dz * dz <= R * R:
+                if p < cap:
+                    oi[p] = a
+                    oj[p] = b
+                p += 1
+    return p
+
+
+# NeighbourList.build's first pass, with the grid's cells and the spread sort, and without (every pair tested)
+_prepare = kernel(no_cfunc_wrapper=True)(variant(_build_start, "_prepare", _GRID=True))
+_prepare_small = kernel(no_cfunc_wrapper=True)(variant(_build_start, "_prepare_small", _GRID=False))

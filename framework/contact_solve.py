@@ -23,7 +23,7 @@ from driftframe.framework.contact_params import (APPROACH, DENSE_MAX, F_AGAIN, F
                                                  S_SWEPT, S_WAVES, S_WORST, S_WORST_I, S_WORST_J, SLACK_MAX)
 from driftframe.framework.contact_toi import toi
 from driftframe.framework.contact_wave import apply_wave, leaving, record_wave
-from driftframe.framework.kernels import kernel
+from driftframe.framework.kernels import kernel, variant
 from driftframe.framework.static_shapes import shape_contact, shape_push, shapes_start
 
 _OPTS = dict(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
@@ -383,14 +383,9 @@ def _solver(name, doc, listed, stick, shapes):
     branches they rule out before it types the code, so each solver compiles only what its scenes run
     (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
     copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""
-    import types
-    scope = dict(globals(), _LISTED=listed, _STICK=stick, _STATIC=shapes)
-    scope["_keep"], scope["_put_back"] = ((keep_nothing, put_back_nothing) if stick else
-                                          (keep_listed, put_back_listed) if listed else (keep_pairs, put_back_pairs))
-    f = types.FunctionType(_solve.__code__, scope, name)
-    f.__qualname__ = name
-    f.__doc__ = doc
-    f.__module__ = __name__
+    keep = ((keep_nothing, put_back_nothing) if stick else
+            (keep_listed, put_back_listed) if listed else (keep_pairs, put_back_pairs))
+    f = variant(_solve, name, doc, _LISTED=listed, _STICK=stick, _STATIC=shapes, _keep=keep[0], _put_back=keep[1])
     return kernel(error_model="numpy")(f)
 
 

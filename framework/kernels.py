@@ -129,6 +129,22 @@ def kernel(fn=None, **options):
     return declare(fn) if fn is not None else declare
 
 
+def variant(fn, name: str, doc: str | None = None, **constants):
+    """``fn``'s code as a new function ``name`` whose globals are ``fn``'s (as they are now: call this once the
+    module has defined every name ``fn`` reads) with ``constants`` added; to be declared with :func:`kernel`.
+
+    numba reads a global as a constant and prunes the branches that constant rules out before it types the
+    code, and it compiles whatever a kernel can call: so ``if _GRID: ...`` in ``fn`` costs the variant made
+    with ``_GRID=False`` neither the branch nor the kernels only that branch calls. Each variant is cached
+    under its own name."""
+    import types
+    f = types.FunctionType(fn.__code__, dict(fn.__globals__, **constants), name, fn.__defaults__, fn.__closure__)
+    f.__qualname__ = name
+    f.__doc__ = fn.__doc__ if doc is None else doc
+    f.__module__ = fn.__module__
+    return f
+
+
 def before_compile() -> None:
     """What the first compile of a process needs first (:meth:`kernel_cache.KernelCache.load_overload` calls it
     when a load misses, and before loading a kernel that names ``numba.np.arraymath``): numba's NumPy

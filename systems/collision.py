@@ -138,7 +138,7 @@ class CollisionSystem(esper.Processor):
         self._world = None
         self._layout: Layout | None = None
         self._layout_epoch = -1
-        self._list = bp.NeighbourList(skin_steps, "grid" if broadphase in ("auto", "all") else broadphase)
+        self._list = bp.NeighbourList(skin_steps, "auto" if broadphase == "all" else broadphase)
         self._list_layout = None
         self._list_dirty = True
         self._lst = None

@@ -1,6 +1,10 @@
 """Broad phase: every method finds exactly the overlapping pairs; the neighbour list misses none."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -223,6 +227,45 @@ def test_compiled_grid_build_with_one_sphere_a_thousand_times_larger_tests_every
     got = set(zip(nl.i.tolist(), nl.j.tolist()))
     assert sum(1 for a, b in got if a == 0) == n - 1                   # the large one meets every body
     assert got == _brute(nl.centre, nl.reach, nl.swept)
+
+
+@pytest.mark.parametrize("n", [2, 40, 80, 300])
+def test_a_list_that_tests_every_pair_builds_the_grids_list(n):
+    # "auto" tests every pair up to LIST_ALL_MAX bodies ("all" at any size): the same pairs as the grid's and
+    # numpy's, and the same territories and x order bit for bit (the merge sort of the int64 keys against
+    # the spread sort), with a few bodies swept among them
+    rng = np.random.default_rng(n)
+    c = rng.uniform(0, 1.2 * n ** (1 / 3), (n, 3))
+    r = rng.uniform(0.25, 0.75, n)
+    d = rng.uniform(0.0, 0.05, n)
+    d[: n // 20] = 5.0                                                 # swept: they dwarf the others' skins
+    small, grid = bp.NeighbourList(method="auto" if n <= bp.LIST_ALL_MAX else "all"), bp.NeighbourList(method="grid")
+    small.build(c.T, r, d)
+    grid.build(c.T, r, d)
+    assert small.swept.sum() == n // 20
+    pairs = list(zip(small.i.tolist(), small.j.tolist()))
+    assert pairs == sorted(set(pairs)) and all(a < b for a, b in pairs)          # each pair once, in order
+    assert set(pairs) == set(zip(grid.i.tolist(), grid.j.tolist())) == _brute(small.centre, small.reach,
+                                                                              small.swept)
+    assert len(pairs) > (0 if n < 40 else n // 2)
+    for a, b in [(small.centre, grid.centre), (small.reach, grid.reach), (small.skin, grid.skin),
+                 (small._order, grid._order), (small._lo_x, grid._lo_x)]:
+        assert a.tobytes() == b.tobytes()
+    assert small._width == grid._width
+
+
+def test_a_small_scenes_list_compiles_neither_the_grid_nor_the_spread_sort(tmp_path):
+    # numba compiles whatever a kernel can call: a 52-body list build (the asteroids demo's) on an empty
+    # cache must reach only the every-pair test and the merge sort the contact solver shares
+    code = ("import numpy as np\n"
+            "from driftframe.framework import broadphase_list as bl, sorting\n"
+            "rng = np.random.default_rng(0)\n"
+            "nl = bl.NeighbourList(); nl.build(rng.uniform(0, 30, (3, 52)), rng.uniform(0.6, 3.5, 52), np.full(52, 0.02))\n"
+            "print([len(k.signatures) for k in (bl._prepare_small, bl._all_pairs, sorting.argsort_stable, bl._prepare,"
+            " bl._grid_setup, bl._grid_pairs, sorting.argsort_spread)], len(nl.i))\n")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert out.split("]")[0] == "[1, 1, 1, 0, 0, 0, 0" and int(out.split("]")[1]) > 0
 
 
 def test_step_lengths_and_territories_are_numpys_formulas_bit_for_bit():

@@ -33,12 +33,15 @@ def _name(node) -> str:
 
 
 def _compiled_by_call(tree) -> set[str]:
-    """Functions compiled by a call rather than a decorator: ``kernel(...)(f)``, ``kernel(f)``, and
-    ``f.__code__`` rebuilt into a function inside a function that calls ``kernel`` (contact_solve's solvers)."""
+    """Functions compiled by a call rather than a decorator: ``kernel(...)(f)``, ``kernel(f)``, ``f`` made
+    into variants (``variant(f, ...)``: contact_solve's solvers, broadphase_list's build start), and
+    ``f.__code__`` rebuilt into a function inside a function that calls ``kernel``."""
     out = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Call) and _name(node) in COMPILERS:
             out.update(a.id for a in node.args if isinstance(a, ast.Name))
+        if isinstance(node, ast.Call) and _name(node) == "variant" and node.args and isinstance(node.args[0], ast.Name):
+            out.add(node.args[0].id)
         if isinstance(node, ast.FunctionDef) and any(isinstance(c, ast.Call) and _name(c) in COMPILERS
                                                      for c in ast.walk(node)):
             out.update(a.value.id for a in ast.walk(node) if isinstance(a, ast.Attribute)
