@@ -39,7 +39,8 @@ F_STICK = 8
 F_LIMIT = 16
 #: more bodies were swept than the list's budget: rebuild it
 F_REBUILD = 32
-#: the step needs the jam path: run it again with the _stick variant (the inputs are as they came)
+#: the step needs the jam path, or an island of more than DENSE_MAX contacts (island_sequential): run it again
+#: with the _stick variant, which has both (the inputs are as they came)
 F_AGAIN = 64
 
 #: the solvers' stats array, index by index: candidate pairs, contacts, waves, bodies swept, overlapping

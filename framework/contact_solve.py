@@ -348,9 +348,12 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
                             continue
                         nm = kick(wi[c], -1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
                         nm = kick(wj[c], 1.0, lam, c, inv, bmark, waves, dv, moved, nm, wn)
-                else:
+                elif _STICK:
                     stats[S_SEQUENTIAL] += 1
                     nm = island_sequential(cs, m, wi, wj, wn, we, u, dv, bmark, waves, spd, inv, wlam, moved, nm)
+                else:
+                    nm = np.int64(-1)                          # an island past DENSE_MAX: F_AGAIN, as for a jam
+                    break
                 s = f
             if nm < 0:
                 flags |= F_AGAIN
@@ -378,8 +381,8 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
 
 def _solver(name, doc, listed, stick, shapes):
     """A solver compiled from :func:`_solve`: with the neighbour list's code (``listed``) or every pair a
-    candidate, with the jam path (:func:`stick_cluster`, ``stick``) or F_AGAIN in its place, with the
-    static shapes (``shapes``) or without. The three flags are constants in its globals: numba prunes the
+    candidate, with the jam path (:func:`stick_cluster`) and the big islands' solve (:func:`island_sequential`,
+    past DENSE_MAX contacts) (``stick``) or F_AGAIN in their place, with the static shapes (``shapes``) or without. The three flags are constants in its globals: numba prunes the
     branches they rule out before it types the code, so each solver compiles only what its scenes run
     (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
     copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""
@@ -409,13 +412,15 @@ _LISTED_DOC = """One step of contacts for bodies on paths ``x + u t`` (``x``, ``
     velocity changed; per contact ``(i, j, time, impulse)``, the normal (i to j)
     and the contact points on i's and on j's surface (6 numbers); ``stats``
     (indexed by the S_* constants); ``flags`` (F_* bits). With F_AGAIN the
-    step needs the jam path: every input is as it came; run
-    :func:`solve_listed_stick` with them.
+    step needs the jam path or an island past DENSE_MAX contacts: every
+    input is as it came; run :func:`solve_listed_stick` with them.
     """
 
 # The solvers. A scene of few bodies compiles no neighbour-list code, and no scene compiles the jam path
-# (stick_cluster) until one jams: a step that needs it ends with F_AGAIN and its inputs as they came, and the
-# caller runs it again with the _stick variant (the same result, bit for bit, as that variant alone).
+# (stick_cluster) until one jams, nor the big islands' solve (island_sequential) until an island of more than
+# DENSE_MAX contacts comes (no demo has one): a step that needs either ends with F_AGAIN and its inputs as they
+# came, and the caller runs it again with the _stick variant (the same result, bit for bit, as that variant
+# alone). Each rare path cost every solver's cold compile ~0.25 s or more (docs/bench/compile.md).
 solve_listed = _solver("solve_listed", _LISTED_DOC, listed=True, stick=False, shapes=False)
 solve_listed_stick = _solver("solve_listed_stick", ":func:`solve_listed` with the jam path (:func:`stick_cluster`).",
                              listed=True, stick=True, shapes=False)
