@@ -209,8 +209,9 @@ class CollisionSystem(esper.Processor):
         listed = self._uses_list(n)
         quiet = False
         if not listed:
-            quiet = st.gather_quiet(lay, dt, self._all_pairs(n))     # its first call
-            self._quick_path(dt)        # (its entry point: typing its 13 arguments once here, not in a step)
+            if self._shapes is None:    # (with shapes no step takes the shortest path: its test sees spheres only)
+                quiet = st.gather_quiet(lay, dt, self._all_pairs(n))     # its first call
+                self._quick_path(dt)    # (its entry point: typing its 13 arguments once here, not in a step)
         elif n >= 2 and st.bad(lay) is None:
             self._build_list(lay, st, dt)
         t_last = self._t_last_of(lay)

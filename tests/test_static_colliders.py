@@ -187,6 +187,17 @@ def test_a_scene_without_shapes_never_compiles_the_static_solver():
     assert out == ["1", "0"]
 
 
+def test_a_scene_with_shapes_never_calls_the_quiet_step_kernel():
+    # no step of a scene with shapes takes the shortest path (its quiet test sees spheres only), so neither
+    # prepare() nor a step calls it: billiards' cold compile has no quiet-step kernel in it
+    code = ("from driftframe.app import make_world\n"
+            "from driftframe.framework import contact_solve as cs, quiet_step as q\n"
+            "w, _ = make_world('billiards', seed=0); w.prepare(); w.step(120)\n"
+            "print(*(len(k.signatures) for k in (cs.solve_static, q.gather_quiet, q.quiet_all_pairs)))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["1", "0", "0"]
+
+
 def test_billiards_cushions_keep_every_ball_on_the_table_for_30_s():
     from driftframe.app import make_world
     from driftframe.demos import billiards as table
