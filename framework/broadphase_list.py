@@ -18,6 +18,9 @@ from driftframe.framework.kernels import kernel, variant
 BUILD_COST = (25e-6, 0.1e-6)
 PAIR_COST = 0.015e-6
 MAX_SKIN_SCALE = 4.0
+# error_model="numpy" (a zero divisor gives inf, not a raise), as in the contact kernels: numba compiles its own
+# functions (np.empty, min, ...) once for each error model of the kernels calling them
+_OPTS = dict(error_model="numpy", no_cfunc_wrapper=True)
 #: Up to this many bodies an ``"auto"`` build tests every pair (:func:`_all_pairs`) instead of using the grid: the
 #: crossover of the two builds (``benchmarks/collision_scaling.py``, its list build table).
 LIST_ALL_MAX = 80
@@ -156,7 +159,7 @@ class NeighbourList:
 
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
     """Compiled :meth:`NeighbourList.territories`: listed bodies whose territory box meets ``[lo, hi]``.
 
@@ -183,7 +186,7 @@ def territory_query(lo, hi, order, lo_x, width, centre, reach, swept):
     return out[:m]
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(**_OPTS)
 def mark_strays(x, u, dt, centre, skin, swept, r, built_r):
     """Mark as swept every listed body whose path ``x + u t``, 0 <= t <= dt, leaves its territory
     (either end at its skin's distance or more from its build centre; a ball is convex).
@@ -308,7 +311,7 @@ def _build_start(x, r, d, skin_steps, last_r, last_median):
 _KEY_SPAN = 2_000_000
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _grid_setup(c, reach, swept):
     """Cell side ``h``, the largest ordinary reach ``hh``, low corner and cells per axis.
 
@@ -350,13 +353,13 @@ def _grid_setup(c, reach, swept):
     return h, hh, lo[0], lo[1], lo[2], dims[0], dims[1], dims[2]
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _cell_index(v, base, h):
     """The cell of coordinate ``v`` along one axis: cells of side ``h`` from ``base``, after one ghost layer."""
     return int((v - base) / h) + 1
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _cell_key(ix, iy, iz, ny, nz):
     """One integer per cell (or per offset between cells), in (x, y, z) order: ``(ix ny + iy) nz + iz``."""
     return (ix * ny + iy) * nz + iz
@@ -367,7 +370,7 @@ def _cell_key(ix, iy, iz, ny, nz):
 _HASH = -7046029254386353131
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
 def _cell_slot(q, dense, shift, nt):
     """The cell lookup of :func:`_grid_pairs`: where cell key ``q``'s bodies are filed, ``(slot, word,
     bit)``. Dense: the slot is the key itself (word and bit unused). Sparse: the bucket is the top bits
@@ -381,7 +384,7 @@ def _cell_slot(q, dense, shift, nt):
     return (hv >> shift) & (nt - 1), bt >> 6, bt & 63
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(**_OPTS)
 def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift, oi, oj, wi, wf):
     """Pairs ``i < j`` of not-swept bodies with ``|c_i - c_j| <= reach_i + reach_j`` (``c``: (3, n)).
 
@@ -553,7 +556,7 @@ def _grid_pairs(c, reach, swept, h, hh, bx, by, bz, nx, ny, nz, dense, nt, shift
     return p
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(**_OPTS)
 def step_lengths(u, dt):
     """Each body's displacement in one step, ``|u_k| dt`` (m; ``u``: (n, 3) m/s), for
     :meth:`NeighbourList.build`: ``np.sqrt((u * u).sum(axis=1)) * dt`` bit for bit (numpy sums the three
@@ -565,7 +568,7 @@ def step_lengths(u, dt):
     return out
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _territories(r, d, skin_steps, r_median):
     """Each body's skin, whether it is swept, and its reach ``r + skin`` (see :class:`NeighbourList`).
 
@@ -600,7 +603,7 @@ def _territories(r, d, skin_steps, r_median):
     return skin, swept, reach
 
 
-@kernel(no_cfunc_wrapper=True)
+@kernel(**_OPTS)
 def _all_pairs(c, reach, swept, oi, oj):
     """Pairs ``i < j`` of not-swept territories that overlap, ``|c_i - c_j| <= reach_i + reach_j`` (the test of
     :func:`_grid_pairs` and ``sphere_pairs``), every pair tested, in ``(i, j)`` order: the first ``len(oi)``
@@ -631,5 +634,5 @@ def _all_pairs(c, reach, swept, oi, oj):
 
 
 # NeighbourList.build's first pass, with the grid's cells and the spread sort, and without (every pair tested)
-_prepare = kernel(no_cfunc_wrapper=True)(variant(_build_start, "_prepare", _GRID=True))
-_prepare_small = kernel(no_cfunc_wrapper=True)(variant(_build_start, "_prepare_small", _GRID=False))
+_prepare = kernel(**_OPTS)(variant(_build_start, "_prepare", _GRID=True))
+_prepare_small = kernel(**_OPTS)(variant(_build_start, "_prepare_small", _GRID=False))

@@ -5,7 +5,8 @@ numba's own ``searchsorted``, ``argsort`` and ``median`` compile comparisons or 
 dtype, complex included; these compile a fraction of that (docs/bench/compile.md). Used by the
 neighbour list and the contact solver, which are kernels: none has a CPython wrapper, so none has
 machine code of its own made (each caller carries its copy; framework/kernel_shortcuts.py), and tests
-call them through a compiled caller.
+call them through a compiled caller. error_model="numpy" as their callers: numba compiles its own functions
+(np.empty, min, ...) once for each error model of the kernels that call them.
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import numpy as np
 from driftframe.framework.kernels import kernel
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def bisect(a, v, right):
     """``np.searchsorted(a, v, side="right" if right else "left")`` for a sorted 1-d array (NaN last):
     the first index whose element is above ``v`` (right) or not below it (left). numba's searchsorted
@@ -30,7 +31,7 @@ def bisect(a, v, right):
     return lo
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def argsort_stable(a, m):
     """The order that sorts ``a[:m]`` ascending, ties in index order: what ``np.argsort(a[:m],
     kind="stable")`` gives (NaN last). Merge sort of insertion-sorted runs of 16; its compile costs a
@@ -83,7 +84,7 @@ def argsort_stable(a, m):
     return idx
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def order_keys(a, m):
     """int64 keys that sort as the floats ``a[:m]`` do, ties included: ``-0.0`` is ``0.0``'s key, every NaN
     the largest key (NaN last, in index order, as :func:`argsort_stable` puts them). IEEE 754 bits read as
@@ -106,7 +107,7 @@ def order_keys(a, m):
     return keys
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def argsort_spread(a, m):
     """The order :func:`argsort_stable` gives for ``a[:m]`` (floats), in O(m) when the values are spread
     about evenly (the neighbour list's territories along x, rebuilt every few steps): a counting sort
@@ -160,7 +161,7 @@ def argsort_spread(a, m):
     return idx
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def select_middle(w):
     """:func:`middle` in place: reorders ``w`` (a scratch copy the caller owns) instead of copying it."""
     n = w.shape[0]
@@ -192,7 +193,7 @@ def select_middle(w):
     return below, w[h]
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def middle(a):
     """The two middle order statistics of a non-empty 1-d float array without NaN: ``(lower, upper)``,
     the ``(n - 1) // 2``-th and the ``n // 2``-th smallest (the same value for an odd count), by Wirth's
@@ -202,7 +203,7 @@ def middle(a):
     return select_middle(a.copy())
 
 
-@kernel(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def median(a):
     """``np.median`` of a 1-d float array without NaN (the mean of the middle two for an even count; NaN
     when empty) by Wirth's selection (:func:`middle`), O(n): numba's median compiles a partition for every

@@ -24,9 +24,14 @@ def pick(a, k, flip):
         b = a[k + 1]
     return b
 
+@kernel(error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def blank(n):
+    return np.empty(n, np.float64)
+
 @kernel(error_model="numpy")
 def outer(a, n, flip):
     out = np.empty(n, np.float64)
+    out[0] = blank(n)[:1].size
     scratch = np.zeros(3, np.int64)
     total = 0.0
     for k in range(n - 1):
@@ -48,17 +53,26 @@ class Watch(event.Listener):
     def on_end(self, ev):
         pass
 event.register("numba:run_pass", Watch())
+empties = []
+class Empties(event.Listener):
+    def on_start(self, ev):
+        if ev.data["dispatcher"].py_func.__qualname__.startswith("ol_np_empty"):
+            empties.append(str(ev.data["args"]))
+    def on_end(self, ev):
+        pass
+event.register("numba:compile", Empties())
 
 a = np.arange(15.0).reshape(5, 3)
 got = [outer(a, 5, flip).tolist() for flip in (False, True)]
 print("result", got)
 def norm(t):
     return re.sub(r"_v\d+_", "_v_", re.sub(r"B\d+v\d+B", "BvB", t))
-for d in (pick, outer):
+for d in (pick, blank, outer):
     for sig, cres in d.overloads.items():
         print(d.py_func.__name__, hashlib.sha256(norm(cres.library.get_llvm_str()).encode()).hexdigest())
 print("installed", ",".join(kernel_shortcuts._installed))
 print("gc during", any(gc_during), "after", gc.isenabled())
+print("np.empty compiled", sorted(empties))
 """
 
 
@@ -79,9 +93,15 @@ def test_the_shortcuts_change_no_generated_code_and_can_be_turned_off(tmp_path):
     installed = next(ln for ln in on if ln.startswith("installed ")).split(" ", 1)[1].split(",")
     assert {"gc_paused", "liveness", "abi_size"} <= set(installed) and "code_on_demand" not in installed
     assert "gc during False after True" in on                   # paused while compiling, resumed after
-    kept = ("installed", "gc during")
+    kept = ("installed", "gc during", "np.empty compiled")
     assert [ln for ln in on if not ln.startswith(kept)] == [ln for ln in off if not ln.startswith(kept)]
-    assert sum(ln.startswith(("pick ", "outer ")) for ln in on) == 2     # both kernels compiled and compared
+    assert sum(ln.startswith(("pick ", "blank ", "outer ")) for ln in on) == 3     # each compiled and compared
+    # np.empty(n, np.float64) under a kernel with a CPython wrapper and one without: numba compiled it for each,
+    # the shortcut once (the flags its compile inherits are the same)
+    empties = {ln for ln in on + off if ln.startswith("np.empty compiled")}
+    assert "overload_once" in installed and len(empties) == 2
+    assert next(ln for ln in off if ln.startswith("np.empty")).count("float64") == 2
+    assert next(ln for ln in on if ln.startswith("np.empty")).count("float64") == 1
 
 
 # Callees with no wrapper (only other kernels call them), one that raises an exception numba builds at run time
