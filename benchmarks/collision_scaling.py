@@ -411,8 +411,8 @@ def main(argv=None) -> int:
                "so: small sparse scenes), so the broad phase is paid for only every few steps (the list "
                "builds column). The list is built by testing every pair up to "
              + f"`LIST_ALL_MAX` = {bp.LIST_ALL_MAX} spheres and with the grid above (table below: its "
-               "territories are wider than one step's sweep, which favours the grid earlier). scipy's k-d tree is measured, not used: "
-               "scipy stays a benchmark-only dependency.")
+               "territories are wider than one step's sweep, which favours the grid earlier). scipy's k-d tree "
+               "is measured, not used: scipy stays a benchmark-only dependency.")
     L.append("")
     L.append("Neighbour-list build, median ms:")
     L.append("")

@@ -283,10 +283,6 @@ def _build_start(x, r, d, skin_steps, last_r, last_median):
     for k in range(n):
         if not swept[k]:
             m += 1
-    if _GRID:
-        grid = _grid_setup(c, reach, swept)
-    else:
-        grid = (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0)
     # the x order: the territories' low ends in x, sorted (a stable sort), their order, and twice the largest
     # listed reach (what NeighbourList.territories and territory_query search); in O(n) by the spread sort
     # when the bodies fill a region, by the merge sort the solver compiles anyway in a small scene
@@ -294,8 +290,10 @@ def _build_start(x, r, d, skin_steps, last_r, last_median):
     for k in range(n):
         lo_x[k] = c[0, k] - reach[k]
     if _GRID:
+        grid = _grid_setup(c, reach, swept)
         order = sorting.argsort_spread(lo_x, n)
     else:
+        grid = (0.0, 0.0, 0.0, 0.0, 0.0, 0, 0, 0)
         order = sorting.argsort_stable(sorting.order_keys(lo_x, n), n)
     width = 0.0
     for k in range(n):

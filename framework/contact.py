@@ -190,8 +190,8 @@ def solve_step(inputs: StepInputs, stick: bool = False) -> StepResult:
     """One step of contacts (``inputs.x``, ``u``, ``t_last`` and the list's arrays change in place).
 
     ``stick``: take the variant with the jam path (and the big islands' solve) from the start. A step that
-    needs it and ran without it ends with F_AGAIN and its inputs as they came, and is run again with it (the same result, bit for
-    bit, as that variant alone): ``result.stick`` is then True.
+    needs it and ran without it ends with F_AGAIN and its inputs as they came, and is run again with it (the
+    same result, bit for bit, as that variant alone): ``result.stick`` is then True.
     """
     plain, jam = _SOLVERS[inputs.lst is not None]
     out = jam(*inputs) if stick else plain(*inputs)

@@ -382,7 +382,8 @@ def _solve(x, u, r, inv, e, live, t_last, now, pi, pj, dt, t_c, cap, lst):
 def _solver(name, doc, listed, stick, shapes):
     """A solver compiled from :func:`_solve`: with the neighbour list's code (``listed``) or every pair a
     candidate, with the jam path (:func:`stick_cluster`) and the big islands' solve (:func:`island_sequential`,
-    past DENSE_MAX contacts) (``stick``) or F_AGAIN in their place, with the static shapes (``shapes``) or without. The three flags are constants in its globals: numba prunes the
+    past DENSE_MAX contacts) (``stick``) or F_AGAIN in their place, with the static shapes (``shapes``) or
+    without. The three flags are constants in its globals: numba prunes the
     branches they rule out before it types the code, so each solver compiles only what its scenes run
     (numba compiles whatever a kernel can call, and pasting the body into drivers with inline="always"
     copies its IR block by block, which cost more than it saved: docs/bench/compile.md)."""

@@ -239,7 +239,8 @@ def test_a_list_that_tests_every_pair_builds_the_grids_list(n):
     r = rng.uniform(0.25, 0.75, n)
     d = rng.uniform(0.0, 0.05, n)
     d[: n // 20] = 5.0                                                 # swept: they dwarf the others' skins
-    small, grid = bp.NeighbourList(method="auto" if n <= bp.LIST_ALL_MAX else "all"), bp.NeighbourList(method="grid")
+    small = bp.NeighbourList(method="auto" if n <= bp.LIST_ALL_MAX else "all")
+    grid = bp.NeighbourList(method="grid")
     small.build(c.T, r, d)
     grid.build(c.T, r, d)
     assert small.swept.sum() == n // 20
@@ -260,7 +261,8 @@ def test_a_small_scenes_list_compiles_neither_the_grid_nor_the_spread_sort(tmp_p
     code = ("import numpy as np\n"
             "from driftframe.framework import broadphase_list as bl, sorting\n"
             "rng = np.random.default_rng(0)\n"
-            "nl = bl.NeighbourList(); nl.build(rng.uniform(0, 30, (3, 52)), rng.uniform(0.6, 3.5, 52), np.full(52, 0.02))\n"
+            "nl = bl.NeighbourList()\n"
+            "nl.build(rng.uniform(0, 30, (3, 52)), rng.uniform(0.6, 3.5, 52), np.full(52, 0.02))\n"
             "print([len(k.signatures) for k in (bl._prepare_small, bl._all_pairs, sorting.argsort_stable, bl._prepare,"
             " bl._grid_setup, bl._grid_pairs, sorting.argsort_spread)], len(nl.i))\n")
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
